@@ -1,0 +1,5 @@
+import sys
+
+from oricf.cli import main
+
+sys.exit(main())

@@ -1,0 +1,125 @@
+"""The `oricf` command.
+
+    oricf serve detector|asr|llm [--config FILE] [--listen HOST:PORT]
+    oricf models list | pull [NAME ...] [--all]
+    oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
+    oricf up DEPLOYMENT.yaml
+    oricf demo [...]
+    oricf bench detector|asr|llm|gateway [...]
+
+Verbs with options of their own hand the rest of the command line to their module's main().
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from oricf.config import config_dir, load_config
+from oricf.errors import ConfigError, ModelMissing
+from oricf.logs import setup_logging
+
+log = logging.getLogger("oricf")
+
+# verb -> module whose main(argv) -> int handles it
+DELEGATED = {
+    "gateway": "oricf.gateway.main",
+    "up": "oricf.launch.up",
+    "demo": "oricf.launch.demo",
+}
+BENCHMARKS = ("detector", "asr", "llm", "gateway", "energy")
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from oricf.services import load_spec
+    from oricf.services.runtime import serve
+    from oricf.store import ModelStore
+
+    spec = load_spec(args.service)
+    path = args.config or config_dir() / "services" / f"{args.service}.yaml"
+    config = load_config(path, spec.config_schema)
+    model = spec.create_model(config, ModelStore())
+    return serve(spec, config, model, args.listen)
+
+
+def cmd_models(args: argparse.Namespace) -> int:
+    from oricf.store import ModelStore
+
+    store = ModelStore()
+    if args.action == "list":
+        print(f"model store: {store.root}")
+        print(f"{'NAME':24} {'KIND':6} {'SIZE':>9}  {'PRESENT':8} LICENCE")
+        for name in store.catalog.models:
+            status = store.status(name)
+            present = "yes" if status.present else ("CORRUPT" if status.problem else "no")
+            size = f"{status.entry.size / 1e6:.1f} MB"
+            print(f"{name:24} {status.entry.kind:6} {size:>9}  {present:8} {status.entry.license}")
+        return 0
+    names = list(store.catalog.models) if args.all else args.names
+    if not names:
+        print("name the models to pull (see `oricf models list`) or pass --all", file=sys.stderr)
+        return 2
+    for name in names:
+        folder = store.pull(name, force=args.force)
+        print(f"{name}: {folder}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="oricf", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--log-level", default=None, help="DEBUG, INFO (default), WARNING...")
+    verbs = parser.add_subparsers(dest="verb", required=True)
+
+    serve = verbs.add_parser("serve", help="run a model service")
+    serve.add_argument("service", choices=["detector", "asr", "llm"])
+    serve.add_argument("--config", type=Path, help="service YAML (default configs/services/NAME.yaml)")
+    serve.add_argument("--listen", help="override the listen address, e.g. 0.0.0.0:50051")
+    serve.set_defaults(run=cmd_serve)
+
+    models = verbs.add_parser("models", help="list or fetch models into the local model store")
+    models.add_argument("action", choices=["list", "pull"])
+    models.add_argument("names", nargs="*")
+    models.add_argument("--all", action="store_true", help="pull every catalog entry")
+    models.add_argument("--force", action="store_true", help="fetch again even if present")
+    models.set_defaults(run=cmd_models)
+
+    bench = verbs.add_parser("bench", help="measure a service or the gateway (see --help of each)")
+    bench.add_argument("target", choices=BENCHMARKS)
+    bench.add_argument("rest", nargs=argparse.REMAINDER)
+    bench.set_defaults(run=lambda a: _delegate(f"oricf.bench.{a.target}", a.rest))
+
+    for verb, module in DELEGATED.items():
+        sub = verbs.add_parser(verb, help=f"see `oricf {verb} --help`", add_help=False)
+        sub.add_argument("rest", nargs=argparse.REMAINDER)
+        sub.set_defaults(run=_delegator(module))
+    return parser
+
+
+def _delegator(module: str) -> Callable[[argparse.Namespace], int]:
+    return lambda args: _delegate(module, args.rest)
+
+
+def _delegate(module: str, argv: list[str]) -> int:
+    main: Callable[[list[str]], int] = importlib.import_module(module).main
+    return main(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        return int(args.run(args) or 0)
+    except (ConfigError, ModelMissing) as exc:
+        log.error("%s", exc)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

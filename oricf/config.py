@@ -1,0 +1,111 @@
+"""One loader for every YAML file ORICF reads.
+
+Each file has a pydantic schema that refuses unknown keys. Errors name the file and the
+path of the bad key (``configs/x.yaml: routes[2].timeout_ms: must be > 0``). Relative paths
+in a file resolve against the folder of that file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import yaml
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, ValidationInfo
+
+from oricf.errors import ConfigError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+class Schema(BaseModel):
+    """Base of every config schema: unknown keys are errors, values are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _resolve_against_file(value: Path, info: ValidationInfo) -> Path:
+    base = (info.context or {}).get("base_dir")
+    value = Path(os.path.expanduser(str(value)))
+    if base is not None and not value.is_absolute():
+        value = Path(base) / value
+    return value
+
+
+# A path in a YAML file: relative paths resolve against the folder of the file.
+FilePath = Annotated[Path, AfterValidator(_resolve_against_file)]
+
+T = TypeVar("T", bound=BaseModel)
+
+
+def config_dir() -> Path:
+    """Where the default configs live: $ORICF_CONFIG_DIR, else the repository's configs/."""
+    return Path(os.environ.get("ORICF_CONFIG_DIR") or REPO_ROOT / "configs")
+
+
+def format_location(loc: Iterable[Any]) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += f".{part}" if text else str(part)
+    return text or "(top level)"
+
+
+def read_yaml(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: file not found") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"{path}: invalid YAML{where}: {problem}") from None
+
+
+def deep_merge(base: Any, overlay: Any) -> Any:
+    """Overlay wins; mappings merge key by key, everything else is replaced."""
+    if isinstance(base, Mapping) and isinstance(overlay, Mapping):
+        merged = dict(base)
+        for key, value in overlay.items():
+            merged[key] = deep_merge(base.get(key), value) if key in base else value
+        return merged
+    return overlay
+
+
+def validate(data: Any, schema: type[T], source: str, base_dir: Path | None = None) -> T:
+    """Validates already-parsed data; errors are ConfigError naming source and key."""
+    if data is None:
+        data = {}
+    try:
+        return schema.model_validate(data, context={"base_dir": base_dir})
+    except ValidationError as exc:
+        lines = [f"{source}: {format_location(e['loc'])}: {_message(e)}" for e in exc.errors()]
+        raise ConfigError("\n".join(lines)) from None
+
+
+def _message(error: Mapping[str, Any]) -> str:
+    if error["type"] == "extra_forbidden":
+        return "unknown key"
+    message = str(error["msg"])
+    return message.removeprefix("Value error, ")
+
+
+def load_config(path: Path | str, schema: type[T], overlays: Iterable[Path | str] = ()) -> T:
+    """Reads a YAML file (plus overlay files merged on top) and validates it against schema."""
+    path = Path(path)
+    data = read_yaml(path)
+    sources = [str(path)]
+    for overlay in overlays:
+        overlay = Path(overlay)
+        data = deep_merge(data, read_yaml(overlay))
+        sources.append(str(overlay))
+    return validate(data, schema, " + ".join(sources), base_dir=path.parent)

@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Sets up ORICF on a fresh Debian/Ubuntu x86-64 machine: system packages, a virtual
+# environment in .venv, the Python packages (llama-cpp-python built once and cached), and
+# the models and sample data from the model store. Safe to run again: finished steps are skipped.
+#
+#   scripts/setup.sh          everything needed to run the demo
+#   scripts/setup.sh --dev    plus the test and lint tools
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+DEV=0
+[[ "${1:-}" == "--dev" ]] && DEV=1
+VENV="${ORICF_VENV:-.venv}"
+CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
+LLAMA_VERSION="0.3.36"
+MODELS=(yolox-nano whisper-tiny-en gemma3-270m smollm2-135m-instruct vtest-video darknet-images grpcurl)
+
+step() { printf '\n==> %s\n' "$*"; }
+die() { printf 'setup: %s\n' "$*" >&2; exit 1; }
+
+step "system packages (espeak-ng and sox synthesize the spoken questions)"
+APT_PACKAGES=(espeak-ng sox)
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
+done
+if ((${#missing[@]})); then
+    SUDO=""; [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+    $SUDO apt-get update -qq || die "apt-get update failed"
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+        "${missing[@]}" >/dev/null || die "could not install ${missing[*]}"
+fi
+
+step "python virtual environment ($VENV)"
+PYTHON="${PYTHON:-$(command -v python3.11 || command -v python3)}"
+"$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 10))' || die "Python 3.10+ needed"
+[[ -x "$VENV/bin/python" ]] || "$PYTHON" -m venv "$VENV"
+PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
+"${PIP[@]}" install --upgrade pip
+
+step "llama-cpp-python $LLAMA_VERSION (compiled once per CPU type, then reused from $CACHE/wheels)"
+# The wheel is built for this CPU (llama.cpp uses its native instructions), so the cache
+# folder is keyed by the CPU's feature flags.
+CPU_KEY=$(grep -m1 '^flags' /proc/cpuinfo | sha256sum | cut -c1-12)
+WHEELS="$CACHE/wheels/$CPU_KEY"
+mkdir -p "$WHEELS"
+if ! ls "$WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
+    echo "building llama-cpp-python (about 5-10 minutes on 2 cores)..."
+    "${PIP[@]}" wheel --no-deps -w "$WHEELS" "llama-cpp-python==$LLAMA_VERSION" \
+        || die "llama-cpp-python did not build (needs gcc, g++ and cmake)"
+fi
+
+step "python packages"
+EXTRAS="asr,llm,ros"
+((DEV)) && EXTRAS="$EXTRAS,dev"
+"${PIP[@]}" install --find-links "$WHEELS" -e ".[$EXTRAS]"
+
+step "models and sample data (checked by sha256)"
+"$VENV/bin/oricf" models pull "${MODELS[@]}"
+"$VENV/bin/oricf" models list

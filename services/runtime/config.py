@@ -1,0 +1,28 @@
+"""The part of every service's YAML that the shared runtime reads."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from oricf.config import Schema
+
+# A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
+DEFAULT_MAX_MESSAGE_MB = 16
+
+
+class ServerSettings(Schema):
+    listen: str = Field("0.0.0.0:50051", description="host:port; port 0 picks a free port")
+    max_message_mb: float = Field(DEFAULT_MAX_MESSAGE_MB, gt=0, le=512)
+    max_concurrent_rpcs: int = Field(
+        8, ge=1, le=1024, description="calls beyond this get RESOURCE_EXHAUSTED at once")
+    grace_s: float = Field(5.0, ge=0, le=600, description="drain time for in-flight calls")
+
+    @property
+    def max_message_bytes(self) -> int:
+        return int(self.max_message_mb * 1024 * 1024)
+
+
+class ServiceConfig(Schema):
+    """Base of each service's config schema: the server part plus the service's own keys."""
+
+    server: ServerSettings = ServerSettings()

@@ -1,0 +1,78 @@
+"""What the runtime needs of a model, and the slot that holds it while it loads.
+
+Model classes never import grpc: they load, infer and close; the servicer translates.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Generic, Protocol, TypeVar
+
+from oricf.errors import NotReady
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """What a model is, for GetModelInfo and logs."""
+
+    model: str
+    runtime: str
+    providers: list[str] = field(default_factory=list)
+    license: str = ""
+    sha256: str = ""
+    labels: list[str] = field(default_factory=list)
+    parameters: dict[str, str] = field(default_factory=dict)
+
+
+class Model(Protocol):
+    def load(self) -> None:
+        """Loads weights and warms up; heavy imports belong here, not at module level."""
+
+    def close(self) -> None:
+        """Releases the weights."""
+
+    def info(self) -> ModelInfo: ...
+
+
+M = TypeVar("M", bound=Model)
+
+
+class ModelSlot(Generic[M]):
+    """Holds a model and says whether it may be used yet (NotReady until loaded)."""
+
+    def __init__(self, model: M) -> None:
+        self._model = model
+        self._ready = threading.Event()
+        self._closing = False
+        self.load_seconds = 0.0
+
+    @property
+    def ready(self) -> bool:
+        return self._ready.is_set()
+
+    def get(self) -> M:
+        if not self._ready.is_set():
+            state = "shutting down" if self._closing else "still loading its model"
+            raise NotReady(f"the service is {state}; retry shortly")
+        return self._model
+
+    def peek(self) -> M:
+        """The model whether loaded or not (for its description)."""
+        return self._model
+
+    def load(self) -> float:
+        started = time.perf_counter()
+        self._model.load()
+        self.load_seconds = time.perf_counter() - started
+        self._ready.set()
+        return self.load_seconds
+
+    def close(self) -> None:
+        self._closing = True
+        self._ready.clear()
+        self._model.close()

@@ -1,0 +1,117 @@
+"""The one lifecycle every ORICF model service shares.
+
+Open the port with health NOT_SERVING, load the model, flip health to SERVING, serve with
+a concurrency limit and a message size limit, and on SIGTERM/SIGINT: health NOT_SERVING,
+drain in-flight calls within the grace period, close the model, exit 0.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+from concurrent import futures
+from typing import Any
+
+import grpc
+from grpc_health.v1 import health, health_pb2, health_pb2_grpc
+from grpc_reflection.v1alpha import reflection
+
+from oricf.errors import ConfigError
+from oricf.services.runtime.config import ServiceConfig
+from oricf.services.runtime.errors import ErrorMappingInterceptor
+from oricf.services.runtime.model import Model, ModelSlot
+from oricf.services.runtime.spec import ServiceSpec
+
+log = logging.getLogger(__name__)
+
+# Health and reflection calls need threads of their own even when the model is saturated.
+SPARE_WORKERS = 2
+
+
+class ServiceHost:
+    """A gRPC server around one model: build, start, load, stop."""
+
+    def __init__(self, spec: ServiceSpec, config: ServiceConfig, model: Model,
+                 listen: str | None = None) -> None:
+        self.spec = spec
+        self.config = config
+        self.slot: ModelSlot[Any] = ModelSlot(model)
+        settings = config.server
+        limit = settings.max_concurrent_rpcs
+        self.server = grpc.server(
+            futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
+                                       thread_name_prefix=f"{spec.name}-rpc"),
+            interceptors=[ErrorMappingInterceptor()],
+            options=[
+                ("grpc.max_receive_message_length", settings.max_message_bytes),
+                ("grpc.max_send_message_length", settings.max_message_bytes),
+                ("grpc.so_reuseport", 0),
+            ],
+            maximum_concurrent_rpcs=limit + SPARE_WORKERS,
+        )
+        spec.add_servicer(self.server, self.slot, config)
+        self.health = health.HealthServicer(experimental_non_blocking=True)
+        health_pb2_grpc.add_HealthServicer_to_server(self.health, self.server)
+        reflection.enable_server_reflection(
+            [spec.service_name, health.SERVICE_NAME, reflection.SERVICE_NAME], self.server)
+        self.address = listen or settings.listen
+        try:
+            self.port = self.server.add_insecure_port(self.address)
+        except RuntimeError as exc:
+            raise ConfigError(f"cannot listen on {self.address}: {exc}") from None
+        if self.port == 0:
+            raise ConfigError(f"cannot listen on {self.address} (port in use?)")
+        self._set_health(health_pb2.HealthCheckResponse.NOT_SERVING)
+
+    def _set_health(self, status: int) -> None:
+        self.health.set("", status)
+        self.health.set(self.spec.service_name, status)
+
+    def start(self) -> None:
+        self.server.start()
+        log.info("%s listening on port %d (health NOT_SERVING until the model loads)",
+                 self.spec.name, self.port)
+
+    def load_model(self) -> None:
+        seconds = self.slot.load()
+        self._set_health(health_pb2.HealthCheckResponse.SERVING)
+        log.info("%s model loaded in %.1f s; SERVING", self.spec.name, seconds)
+
+    def stop(self, grace: float | None = None) -> None:
+        """NOT_SERVING first (load balancers stop sending), then drain, then close the model."""
+        grace = self.config.server.grace_s if grace is None else grace
+        self.health.enter_graceful_shutdown()
+        log.info("%s draining (grace %.1f s)", self.spec.name, grace)
+        self.server.stop(grace).wait()
+        self.slot.close()
+        log.info("%s stopped", self.spec.name)
+
+
+def install_stop_handlers() -> threading.Event:
+    """An event set by SIGTERM or SIGINT (call from the main thread)."""
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: object) -> None:
+        log.info("received %s", signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    return stop
+
+
+def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | None) -> int:
+    """Runs a service until SIGTERM/SIGINT; returns the process exit code."""
+    stop = install_stop_handlers()
+    host = ServiceHost(spec, config, model, listen)
+    host.start()
+    try:
+        host.load_model()
+    except Exception:
+        host.server.stop(0)
+        raise
+    while not stop.wait(0.5):
+        pass
+    host.stop()
+    return 0

@@ -1,0 +1,1 @@
+"""Shared test helpers: real services on port 0, real data from the model store."""
