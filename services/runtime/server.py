@@ -16,16 +16,17 @@ from typing import Any
 import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
-
-from oricf.errors import ConfigError
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.spec import ServiceSpec
 
+from oricf.errors import ConfigError
+
 log = logging.getLogger(__name__)
 
-# Health and reflection calls need threads of their own even when the model is saturated.
+# Threads beyond the call limit, so that a refused call is refused at once rather than
+# waiting for a thread.
 SPARE_WORKERS = 2
 
 
@@ -48,7 +49,7 @@ class ServiceHost:
                 ("grpc.max_send_message_length", settings.max_message_bytes),
                 ("grpc.so_reuseport", 0),
             ],
-            maximum_concurrent_rpcs=limit + SPARE_WORKERS,
+            maximum_concurrent_rpcs=limit,
         )
         spec.add_servicer(self.server, self.slot, config)
         self.health = health.HealthServicer(experimental_non_blocking=True)

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import grpc
-
-from oricf.store import ModelStore
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.model import Model, ModelSlot
+
+from oricf.store import ModelStore
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,61 @@
+"""Label mapping, label filters and per-label counts for the detector."""
+
+from __future__ import annotations
+
+import difflib
+from collections import Counter
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from oricf.services.detector.yolox import RawDetections
+
+from oricf.errors import InvalidInput
+from oricf.imaging import Box, Detection
+
+
+class LabelSpace:
+    """The detector's output labels: model labels renamed by a label map.
+
+    Several model labels may map to one output label (car, truck -> vehicle); a filter on
+    that label then keeps all of them.
+    """
+
+    def __init__(self, model_labels: Sequence[str], label_map: Mapping[str, str],
+                 default_labels: Sequence[str]) -> None:
+        self.names = [label_map.get(label, label) for label in model_labels]
+        self._ids: dict[str, list[int]] = {}
+        for class_id, name in enumerate(self.names):
+            self._ids.setdefault(name, []).append(class_id)
+        self.default_labels = list(default_labels)
+
+    @property
+    def labels(self) -> list[str]:
+        return list(self._ids)
+
+    def resolve(self, requested: Sequence[str]) -> tuple[list[str], np.ndarray | None]:
+        """The labels a request keeps and their class ids (None: every class)."""
+        labels = list(dict.fromkeys(requested)) or self.default_labels
+        unknown = [label for label in labels if label not in self._ids]
+        if unknown:
+            hints = {u: difflib.get_close_matches(u, self._ids, n=1) for u in unknown}
+            described = ", ".join(
+                f"'{u}'" + (f" (did you mean '{h[0]}'?)" if h else "") for u, h in hints.items())
+            raise InvalidInput(f"unknown label {described}; the detector knows "
+                               f"{len(self._ids)} labels (see GetModelInfo)")
+        if not labels:
+            return [], None
+        ids = sorted(i for label in labels for i in self._ids[label])
+        return labels, np.array(ids, dtype=np.int64)
+
+    def detections(self, raw: RawDetections) -> list[Detection]:
+        return [
+            Detection(self.names[int(c)], int(c), float(s), Box(*map(float, b)))
+            for b, s, c in zip(raw.boxes, raw.scores, raw.class_ids, strict=True)
+        ]
+
+    @staticmethod
+    def counts(detections: Sequence[Detection], labels: Sequence[str]) -> dict[str, int]:
+        """Count per label; every requested label is present, at 0 when nothing was found."""
+        counts = dict.fromkeys(labels, 0)
+        counts.update(Counter(d.label for d in detections))
+        return counts

@@ -1,0 +1,110 @@
+"""oricf.v1.Detector: turns requests into domain values, calls the model, and back."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Iterator
+
+import grpc
+from oricf.services.detector.config import DetectorConfig
+from oricf.services.detector.labels import LabelSpace
+from oricf.services.detector.yolox import YoloxDetector
+from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.errors import status_for
+from oricf.services.runtime.info import model_info_response
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
+
+from oricf.errors import InvalidInput
+from oricf.imaging import Detection, decode_image, draw_detections, encode_image
+
+log = logging.getLogger(__name__)
+ANNOTATE_ENCODINGS = ("jpeg", "png", "rgb8", "bgr8")
+
+
+class DetectorServicer(detector_pb2_grpc.DetectorServicer):
+    def __init__(self, slot: ModelSlot[YoloxDetector], config: DetectorConfig,
+                 labels: LabelSpace) -> None:
+        self.slot = slot
+        self.config = config
+        self.labels = labels
+
+    def Detect(self, request: detector_pb2.DetectRequest,
+               context: grpc.ServicerContext) -> detector_pb2.DetectResponse:
+        return self.detect(request)
+
+    def DetectStream(self, request_iterator: Iterator[detector_pb2.DetectRequest],
+                     context: grpc.ServicerContext) -> Iterator[detector_pb2.DetectResponse]:
+        for request in request_iterator:
+            try:
+                yield self.detect(request)
+            except InvalidInput as exc:  # one bad frame must not end the stream
+                code, message = status_for(exc)
+                log.debug("frame %d refused: %s", request.frame_id, message)
+                yield detector_pb2.DetectResponse(
+                    frame_id=request.frame_id,
+                    error=common_pb2.Error(code=code.value[0], message=message))
+
+    def GetModelInfo(self, request: common_pb2.GetModelInfoRequest,
+                     context: grpc.ServicerContext) -> common_pb2.GetModelInfoResponse:
+        response = model_info_response("detector", self.slot)
+        response.labels[:] = self.labels.labels
+        return response
+
+    def detect(self, request: detector_pb2.DetectRequest) -> detector_pb2.DetectResponse:
+        started = time.perf_counter()
+        model = self.slot.get()
+        min_score = self._min_score(request.min_score)
+        labels, class_ids = self.labels.resolve(request.labels)
+        annotate_encoding = self._annotate_encoding(request)
+        image = decode_image(request.image.data, request.image.encoding, request.image.width,
+                             request.image.height, self.config.images.max_pixels)
+        decoded = time.perf_counter()
+        raw = model.infer(image, min_score, class_ids)
+        detections = self.labels.detections(raw)
+        response = detector_pb2.DetectResponse(
+            detections=[_detection_pb(d) for d in detections],
+            counts=LabelSpace.counts(detections, labels),
+            frame_id=request.frame_id,
+            image_width=image.shape[1],
+            image_height=image.shape[0],
+        )
+        if annotate_encoding:
+            canvas = draw_detections(image, detections)
+            quality = self.config.images.annotate_jpeg_quality
+            response.annotated.CopyFrom(common_pb2.Image(
+                data=encode_image(canvas, annotate_encoding, quality),
+                encoding=annotate_encoding, width=canvas.shape[1], height=canvas.shape[0]))
+        timings = response.timings
+        timings.decode_ms = (decoded - started) * 1e3
+        timings.preprocess_ms = raw.timings_ms["preprocess_ms"]
+        timings.inference_ms = raw.timings_ms["inference_ms"]
+        timings.postprocess_ms = raw.timings_ms["postprocess_ms"]
+        timings.total_ms = (time.perf_counter() - started) * 1e3
+        return response
+
+    def _min_score(self, requested: float) -> float:
+        if requested == 0:
+            return self.config.detection.min_score
+        if math.isnan(requested) or not 0 < requested <= 1:
+            raise InvalidInput(f"min_score {requested} is out of range: use (0, 1], or 0 for the "
+                               f"service default ({self.config.detection.min_score})")
+        return requested
+
+    def _annotate_encoding(self, request: detector_pb2.DetectRequest) -> str:
+        if not request.annotate:
+            return ""
+        encoding = request.annotate_encoding or self.config.images.default_annotate_encoding
+        if encoding not in ANNOTATE_ENCODINGS:
+            raise InvalidInput(f"annotate_encoding '{encoding}' is not one of "
+                               f"{', '.join(ANNOTATE_ENCODINGS)}")
+        return encoding
+
+
+def _detection_pb(detection: Detection) -> detector_pb2.Detection:
+    box = detection.box
+    return detector_pb2.Detection(
+        label=detection.label, class_id=detection.class_id, score=detection.score,
+        box=detector_pb2.BoundingBox(x_min=box.x_min, y_min=box.y_min, x_max=box.x_max,
+                                     y_max=box.y_max))

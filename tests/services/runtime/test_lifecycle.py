@@ -1,0 +1,121 @@
+"""The shared runtime: health around loading, limits, reflection, SIGTERM drain, bad config."""
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import grpc
+import pytest
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
+
+from tests.support.data import image
+from tests.support.processes import free_port, oricf_process, wait_serving
+from tests.support.services import running_service
+
+SERVING = health_pb2.HealthCheckResponse.SERVING
+NOT_SERVING = health_pb2.HealthCheckResponse.NOT_SERVING
+
+
+def person_request(frame_id: int = 0) -> detector_pb2.DetectRequest:
+    data = image("person.jpg").read_bytes()
+    return detector_pb2.DetectRequest(image=common_pb2.Image(data=data, encoding="jpeg"),
+                                      labels=["person"], frame_id=frame_id)
+
+
+def health(channel: grpc.Channel, service: str = "") -> int:
+    request = health_pb2.HealthCheckRequest(service=service)
+    return int(health_pb2_grpc.HealthStub(channel).Check(request, timeout=5).status)
+
+
+def test_health_is_serving_only_once_the_model_has_loaded() -> None:
+    with running_service("detector", load=False) as service:
+        assert health(service.channel) == NOT_SERVING
+        assert health(service.channel, "oricf.v1.Detector") == NOT_SERVING
+        stub = detector_pb2_grpc.DetectorStub(service.channel)
+        with pytest.raises(grpc.RpcError) as err:
+            stub.Detect(person_request(), timeout=5)
+        assert err.value.code() == grpc.StatusCode.UNAVAILABLE
+        assert "still loading" in err.value.details()
+
+        service.host.load_model()
+        assert health(service.channel) == SERVING
+        assert health(service.channel, "oricf.v1.Detector") == SERVING
+        assert stub.Detect(person_request(), timeout=5).counts["person"] == 1
+
+
+def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
+    with running_service("detector", {"server": {"max_concurrent_rpcs": 1}}) as service:
+        stub = detector_pb2_grpc.DetectorStub(service.channel)
+        release = threading.Event()
+
+        def held_open() -> Iterator[detector_pb2.DetectRequest]:
+            yield person_request()
+            release.wait(10)
+
+        stream = stub.DetectStream(held_open(), timeout=20)
+        assert next(stream).counts["person"] == 1  # the one allowed call is now in flight
+        started = time.monotonic()
+        with pytest.raises(grpc.RpcError) as err:
+            stub.Detect(person_request(), timeout=10)
+        assert err.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+        assert time.monotonic() - started < 2  # refused, not queued
+        release.set()
+        assert list(stream) == []
+        assert stub.Detect(person_request(), timeout=10).counts["person"] == 1
+
+
+def test_sigterm_drains_in_flight_calls_and_exits_zero() -> None:
+    port = free_port()
+    address = f"127.0.0.1:{port}"
+    with oricf_process("serve", "detector", "--listen", address) as process:
+        wait_serving(address, process=process)
+        channel = grpc.insecure_channel(address)
+        watch = health_pb2_grpc.HealthStub(channel).Watch(
+            health_pb2.HealthCheckRequest(service=""), timeout=30)
+        assert next(watch).status == SERVING
+        terminated = threading.Event()
+
+        def frames() -> Iterator[detector_pb2.DetectRequest]:
+            yield person_request(1)
+            process.send_signal(signal.SIGTERM)
+            terminated.set()
+            time.sleep(1.0)  # the call is still in flight while the service drains
+            yield person_request(2)
+            yield person_request(3)
+
+        responses = list(detector_pb2_grpc.DetectorStub(channel).DetectStream(frames(), timeout=30))
+        assert terminated.is_set()
+        assert [r.frame_id for r in responses] == [1, 2, 3]
+        assert all(r.counts["person"] == 1 for r in responses)
+        assert next(watch).status == NOT_SERVING
+        assert process.wait(timeout=20) == 0
+        channel.close()
+        output = process.stdout.read() if process.stdout else ""
+        assert "draining" in output and "stopped" in output
+
+
+def test_invalid_config_exits_non_zero_naming_file_and_key(tmp_path: Path) -> None:
+    config = tmp_path / "detector.yaml"
+    config.write_text("detection:\n  min_score: 1.5\n  labelz: [person]\n")
+    result = subprocess.run(
+        [sys.executable, "-m", "oricf", "serve", "detector", "--config", str(config)],
+        capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 2
+    assert f"{config}: detection.min_score: Input should be less than or equal to 1" \
+        in result.stderr
+    assert f"{config}: detection.labelz: unknown key" in result.stderr
+
+
+def test_unavailable_execution_provider_is_refused(tmp_path: Path) -> None:
+    config = tmp_path / "detector.yaml"
+    config.write_text("model:\n  providers: [CUDAExecutionProvider]\n")
+    result = subprocess.run(
+        [sys.executable, "-m", "oricf", "serve", "detector", "--config", str(config),
+         "--listen", "127.0.0.1:0"], capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 2
+    assert "model.providers: CUDAExecutionProvider not available" in result.stderr

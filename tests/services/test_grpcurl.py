@@ -1,0 +1,54 @@
+"""grpcurl talks to the services with no .proto files, through server reflection."""
+
+import base64
+import json
+import subprocess
+from collections.abc import Iterator
+
+import pytest
+
+from oricf.store import ModelStore
+from tests.support.data import image
+from tests.support.services import RunningService, running_service
+
+
+@pytest.fixture(scope="module")
+def detector() -> Iterator[RunningService]:
+    with running_service("detector") as service:
+        yield service
+
+
+def grpcurl(*args: str, data: str | None = None) -> str:
+    binary = str(ModelStore().path("grpcurl"))
+    command = [binary, "-plaintext", *(["-d", "@"] if data is not None else []), *args]
+    result = subprocess.run(command, input=data, capture_output=True, text=True, timeout=60,
+                            check=False)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_list_shows_the_services(detector: RunningService) -> None:
+    services = grpcurl(detector.address, "list").split()
+    assert {"oricf.v1.Detector", "grpc.health.v1.Health"} <= set(services)
+
+
+def test_describe_shows_the_contract(detector: RunningService) -> None:
+    description = grpcurl(detector.address, "describe", "oricf.v1.DetectRequest")
+    assert ".oricf.v1.Image image = 1;" in description
+    assert "repeated string labels = 2;" in description
+
+
+def test_detect_with_a_json_body(detector: RunningService) -> None:
+    body = json.dumps({
+        "image": {"data": base64.b64encode(image("person.jpg").read_bytes()).decode(),
+                  "encoding": "jpeg"},
+        "labels": ["person"],
+    })
+    answer = json.loads(grpcurl(detector.address, "oricf.v1.Detector/Detect", data=body))
+    assert answer["counts"] == {"person": 1}
+    assert answer["detections"][0]["label"] == "person"
+
+
+def test_health_check(detector: RunningService) -> None:
+    answer = json.loads(grpcurl(detector.address, "grpc.health.v1.Health/Check"))
+    assert answer["status"] == "SERVING"

@@ -1,0 +1,66 @@
+"""The shared YAML loader: errors name the file and the key path."""
+
+from pathlib import Path
+
+import pytest
+from pydantic import Field
+
+from oricf.config import FilePath, Schema, load_config
+from oricf.errors import ConfigError
+
+
+class Route(Schema):
+    topic: str
+    timeout_ms: int = Field(gt=0)
+
+
+class Pipeline(Schema):
+    name: str = "p"
+    routes: list[Route] = []
+    model_file: FilePath | None = None
+
+
+def write(tmp_path: Path, text: str, name: str = "x.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_bad_value_names_file_and_key_path(tmp_path: Path) -> None:
+    text = "routes:\n  - {topic: a, timeout_ms: 5}\n  - {topic: b, timeout_ms: 0}\n"
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path, Pipeline)
+    assert f"{path}: routes[1].timeout_ms: Input should be greater than 0" in str(err.value)
+
+
+def test_unknown_key_is_refused(tmp_path: Path) -> None:
+    path = write(tmp_path, "routes:\n  - {topic: a, timeout_ms: 5, tiemout: 3}\n")
+    with pytest.raises(ConfigError, match=r"x.yaml: routes\[0\].tiemout: unknown key"):
+        load_config(path, Pipeline)
+
+
+def test_invalid_yaml_names_file_and_line(tmp_path: Path) -> None:
+    path = write(tmp_path, "name: a\nroutes: [\n")
+    with pytest.raises(ConfigError, match=r"x.yaml: invalid YAML \(line 3"):
+        load_config(path, Pipeline)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"nope\.yaml: file not found"):
+        load_config(tmp_path / "nope.yaml", Pipeline)
+
+
+def test_relative_paths_resolve_against_the_yaml_file(tmp_path: Path) -> None:
+    (tmp_path / "sub").mkdir()
+    path = write(tmp_path / "sub", "model_file: ../weights/m.onnx\n")
+    config = load_config(path, Pipeline)
+    assert config.model_file == tmp_path / "sub" / ".." / "weights" / "m.onnx"
+
+
+def test_overlay_merges_on_top(tmp_path: Path) -> None:
+    base = write(tmp_path, "name: base\nroutes: [{topic: a, timeout_ms: 5}]\n")
+    overlay = write(tmp_path, "name: edge\n", "edge.yaml")
+    config = load_config(base, Pipeline, overlays=[overlay])
+    assert config.name == "edge"
+    assert config.routes[0].topic == "a"
