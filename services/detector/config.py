@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Literal
 
-from oricf.services.detector.coco import COCO_LABELS
-from oricf.services.runtime import ServiceConfig
 from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema
 from oricf.imaging import MAX_PIXELS
+from oricf.services.detector.coco import COCO_LABELS
+from oricf.services.runtime import ServiceConfig
 
 
 class DetectorModelSettings(Schema):

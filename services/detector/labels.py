@@ -7,10 +7,10 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from oricf.services.detector.yolox import RawDetections
 
 from oricf.errors import InvalidInput
 from oricf.imaging import Box, Detection
+from oricf.services.detector.yolox import RawDetections
 
 
 class LabelSpace:

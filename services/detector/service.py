@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import grpc
+
 from oricf.services.detector.coco import COCO_LABELS
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.servicer import DetectorServicer
 from oricf.services.detector.yolox import YoloxDetector, YoloxSettings
 from oricf.services.runtime import ModelSlot, ServiceSpec
-from oricf.v1 import detector_pb2, detector_pb2_grpc
-
 from oricf.store import ModelStore
+from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 
 def create_model(config: DetectorConfig, store: ModelStore) -> YoloxDetector:

@@ -8,6 +8,9 @@ import time
 from collections.abc import Iterator
 
 import grpc
+
+from oricf.errors import InvalidInput
+from oricf.imaging import Detection, decode_image, draw_detections, encode_image
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.yolox import YoloxDetector
@@ -15,9 +18,6 @@ from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import status_for
 from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
-
-from oricf.errors import InvalidInput
-from oricf.imaging import Detection, decode_image, draw_detections, encode_image
 
 log = logging.getLogger(__name__)
 ANNOTATE_ENCODINGS = ("jpeg", "png", "rgb8", "bgr8")

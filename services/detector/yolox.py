@@ -15,10 +15,10 @@ from typing import Any
 
 import cv2
 import numpy as np
-from oricf.services.detector.coco import COCO_LABELS
-from oricf.services.runtime import ModelInfo
 
 from oricf.errors import ConfigError, NotReady
+from oricf.services.detector.coco import COCO_LABELS
+from oricf.services.runtime import ModelInfo
 
 log = logging.getLogger(__name__)
 

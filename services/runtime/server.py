@@ -16,12 +16,12 @@ from typing import Any
 import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
+
+from oricf.errors import ConfigError
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.spec import ServiceSpec
-
-from oricf.errors import ConfigError
 
 log = logging.getLogger(__name__)
 

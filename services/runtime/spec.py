@@ -7,9 +7,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import grpc
+
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.model import Model, ModelSlot
-
 from oricf.store import ModelStore
 
 

@@ -5,9 +5,9 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 import pytest
-from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 from oricf.imaging import decode_image
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image, video_frames
 from tests.support.services import RunningService, running_service
 

@@ -4,8 +4,8 @@ from collections.abc import Iterator
 
 import grpc
 import pytest
-from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
 from tests.support.services import RunningService, running_service
 

@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 import grpc
-from oricf.services import load_spec
-from oricf.services.runtime import ServiceHost
 
 from oricf.config import config_dir, deep_merge, read_yaml, validate
+from oricf.services import load_spec
+from oricf.services.runtime import ServiceHost
 from oricf.store import ModelStore
 
 CHANNEL_OPTIONS = [

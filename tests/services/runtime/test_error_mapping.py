@@ -9,9 +9,9 @@ from concurrent import futures
 
 import grpc
 import pytest
-from oricf.services.runtime.errors import INTERNAL_MESSAGE, ErrorMappingInterceptor
 
 from oricf.errors import InvalidInput, NotReady, Overloaded
+from oricf.services.runtime.errors import INTERNAL_MESSAGE, ErrorMappingInterceptor
 
 ERRORS = {
     "invalid": (InvalidInput("bad image"), grpc.StatusCode.INVALID_ARGUMENT, "bad image"),

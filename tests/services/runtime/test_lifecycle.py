@@ -11,8 +11,8 @@ from pathlib import Path
 import grpc
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
-from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
 from tests.support.processes import free_port, oricf_process, wait_serving
 from tests.support.services import running_service
