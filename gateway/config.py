@@ -1,0 +1,287 @@
+"""The pipeline YAML (configs/pipelines/*.yaml): endpoints, routes, data products.
+
+    endpoints:            # one per model service the routes call
+      detector:
+        address: 127.0.0.1:50051
+        fallback: 10.0.0.2:50051     # optional: used while the primary is down
+        deadline_ms: 500
+        image: {transport: raw}      # raw | jpeg (+ jpeg_quality) for remote endpoints
+    routes:               # input -> call -> post-processors -> outputs
+      people:
+        input: {topic: camera/image_raw, type: sensor_msgs/Image}
+        call: {service: detector, method: Detect, labels: [person], min_score: 0.35}
+        post: [{count: {label: person, into: count}}]
+        outputs:
+          - {topic: /human_counter, type: std_msgs/Int32, from: count}
+          - {product: people_count, from: count, max_age_s: 5}
+
+Placement (onboard or edge) is an overlay file merged on top (`--overlay`), or a named entry of
+`profiles:` in the pipeline file (`--profile`); no code changes. Every cross-reference (an
+endpoint, a data product, a record field) is checked at load time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from oricf.config import Schema, deep_merge, read_yaml, validate
+from oricf.errors import ConfigError
+
+ImageInput = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage"]
+InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
+                    "std_msgs/Int16MultiArray", "std_msgs/Int32"]
+OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
+Method = Literal["Detect", "Transcribe", "Generate"]
+
+# method -> the gRPC service it belongs to (also the name its health check uses)
+SERVICE_OF: dict[str, str] = {
+    "Detect": "oricf.v1.Detector",
+    "Transcribe": "oricf.v1.SpeechRecognizer",
+    "Generate": "oricf.v1.LanguageModel",
+}
+# The record fields each input type and each method adds (checked against `from`, templates).
+INPUT_FIELDS: dict[str, str] = {
+    "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
+    "std_msgs/String": "text", "std_msgs/Int16MultiArray": "audio", "std_msgs/Int32": "value",
+}
+METHOD_FIELDS: dict[str, tuple[str, ...]] = {
+    "Detect": ("detections", "counts", "annotated"),
+    "Transcribe": ("transcript", "duration_s"),
+    "Generate": ("answer",),
+}
+# Call keys that belong to one method only.
+METHOD_KEYS: dict[str, tuple[str, ...]] = {
+    "Detect": ("labels", "min_score", "annotate"),
+    "Transcribe": ("language",),
+    "Generate": ("prompt", "max_tokens", "temperature", "stop", "context"),
+}
+
+
+def _check_address(value: str) -> str:
+    host, sep, port = value.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"'{value}' is not host:port")
+    return value
+
+
+class ImageTransport(Schema):
+    transport: Literal["raw", "jpeg"] = Field(
+        "raw", description="raw pixels (onboard: no encode cost) or jpeg (remote: less bandwidth)")
+    jpeg_quality: int = Field(80, ge=1, le=100)
+
+
+class EndpointConfig(Schema):
+    address: str
+    fallback: str | None = Field(None, description="used while the primary is unavailable")
+    deadline_ms: int = Field(1000, gt=0, le=600_000, description="per call")
+    probe_interval_s: float = Field(
+        1.0, gt=0, le=60, description="health probe of the primary while on the fallback")
+    image: ImageTransport = ImageTransport()
+
+    @field_validator("address", "fallback")
+    @classmethod
+    def _host_port(cls, value: str | None) -> str | None:
+        return None if value is None else _check_address(value)
+
+
+class InputConfig(Schema):
+    topic: str | None = None
+    type: InputType | None = None
+    product: str | None = Field(None, description="run on every new value of a data product")
+    sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
+    channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
+    keep: Literal["latest", "queue"] | None = Field(
+        None, description="latest: newest only, older ones dropped (default for images); "
+                          "queue: keep up to queue_size in order (default otherwise)")
+    queue_size: int = Field(8, ge=1, le=1000)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> InputConfig:
+        if (self.topic is None) == (self.product is None):
+            raise ValueError("give exactly one of topic or product")
+        if self.topic is not None and self.type is None:
+            raise ValueError("type: required with topic")
+        if self.product is not None and self.type is not None:
+            raise ValueError("type: only with topic (a product carries its own value)")
+        return self
+
+    @property
+    def field(self) -> str:
+        return "value" if self.type is None else INPUT_FIELDS[self.type]
+
+    @property
+    def mode(self) -> Literal["latest", "queue"]:
+        if self.keep is not None:
+            return self.keep
+        return "latest" if self.type in ("sensor_msgs/Image", "sensor_msgs/CompressedImage") \
+            else "queue"
+
+
+class ContextConfig(Schema):
+    products: list[str] = Field(min_length=1)
+    stale: Literal["omit", "mark"] = Field(
+        "omit", description="a product older than its max_age_s: left out, or sent marked stale")
+
+
+class CallConfig(Schema):
+    service: str = Field(description="an endpoint name")
+    method: Method
+    labels: list[str] = Field(default_factory=list)
+    min_score: float = Field(0.0, ge=0, le=1)
+    annotate: bool = False
+    language: str = ""
+    prompt: str = Field("{text}", description="template over the record's fields")
+    max_tokens: int = Field(0, ge=0, le=4096)
+    temperature: float | None = Field(None, ge=0, le=5)
+    stop: list[str] = Field(default_factory=list)
+    context: ContextConfig | None = None
+
+    @model_validator(mode="after")
+    def _keys_fit_method(self) -> CallConfig:
+        for method, keys in METHOD_KEYS.items():
+            wrong = sorted(set(keys) & self.model_fields_set) if method != self.method else []
+            if wrong:
+                raise ValueError(f"{', '.join(wrong)}: only for method {method}, "
+                                 f"not {self.method}")
+        return self
+
+
+class CountStep(Schema):
+    label: str | None = Field(None, description="count only this label (default: all)")
+    into: str = "count"
+
+
+class FilterStep(Schema):
+    labels: list[str] = Field(default_factory=list)
+    min_score: float = Field(0.0, ge=0, le=1)
+
+
+class AnnotateStep(Schema):
+    into: str = "annotated"
+
+
+class TemplateStep(Schema):
+    text: str
+    into: str = "text"
+
+
+class PostStep(Schema):
+    """One post-processor: exactly one of the keys."""
+
+    map_labels: dict[str, str] | None = None
+    filter: FilterStep | None = None
+    count: CountStep | None = None
+    annotate: AnnotateStep | None = None
+    template: TemplateStep | None = None
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> PostStep:
+        if len(self.model_fields_set) != 1:
+            raise ValueError("give exactly one of map_labels, filter, count, annotate, template")
+        return self
+
+    @property
+    def kind(self) -> str:
+        return next(iter(self.model_fields_set))
+
+    @property
+    def writes(self) -> str | None:
+        step = getattr(self, self.kind)
+        return getattr(step, "into", None)
+
+
+class OutputConfig(Schema):
+    topic: str | None = None
+    type: OutputType | None = None
+    product: str | None = None
+    max_age_s: float = Field(5.0, gt=0, description="product: older values count as stale")
+    source: str = Field(alias="from", description="the record field to send")
+
+    @model_validator(mode="after")
+    def _one_sink(self) -> OutputConfig:
+        if (self.topic is None) == (self.product is None):
+            raise ValueError("give exactly one of topic or product")
+        if self.topic is not None and self.type is None:
+            raise ValueError("type: required with topic")
+        return self
+
+
+class RouteConfig(Schema):
+    input: InputConfig
+    call: CallConfig
+    post: list[PostStep] = Field(default_factory=list)
+    outputs: list[OutputConfig] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _fields_exist(self) -> RouteConfig:
+        fields = {self.input.field, *METHOD_FIELDS[self.call.method]}
+        for i, step in enumerate(self.post):
+            if step.writes:
+                fields.add(step.writes)
+            if step.kind in ("map_labels", "filter", "count", "annotate") \
+                    and self.call.method != "Detect":
+                raise ValueError(f"post[{i}].{step.kind}: works on detections (method Detect)")
+        for i, output in enumerate(self.outputs):
+            if output.source not in fields:
+                raise ValueError(f"outputs[{i}].from: no field '{output.source}' in this route "
+                                 f"(fields: {', '.join(sorted(fields))})")
+        return self
+
+
+class PipelineConfig(Schema):
+    node_name: str = Field("oricf_gateway", pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    endpoints: dict[str, EndpointConfig] = Field(default_factory=dict)
+    routes: dict[str, RouteConfig] = Field(min_length=1)
+    profiles: dict[str, dict[str, Any]] = Field(
+        default_factory=dict, description="named overlays chosen with --profile")
+
+    @model_validator(mode="after")
+    def _references(self) -> PipelineConfig:
+        produced = {o.product: name for name, r in self.routes.items()
+                    for o in r.outputs if o.product}
+        service_of: dict[str, str] = {}
+        for name, route in self.routes.items():
+            call = route.call
+            if call.service not in self.endpoints:
+                raise ValueError(f"routes.{name}.call.service: no endpoint '{call.service}' "
+                                 f"(endpoints: {', '.join(sorted(self.endpoints)) or 'none'})")
+            kind = SERVICE_OF[call.method]
+            if service_of.setdefault(call.service, kind) != kind:
+                raise ValueError(f"routes.{name}.call: endpoint '{call.service}' is used for "
+                                 f"both {service_of[call.service]} and {kind}")
+            wanted = [route.input.product] + (call.context.products if call.context else [])
+            for product in filter(None, wanted):
+                if product not in produced:
+                    raise ValueError(f"routes.{name}: no route outputs the data product "
+                                     f"'{product}'")
+        return self
+
+    def service_of(self, endpoint: str) -> str:
+        """The gRPC service an endpoint serves (from the routes that call it)."""
+        for route in self.routes.values():
+            if route.call.service == endpoint:
+                return SERVICE_OF[route.call.method]
+        return ""
+
+
+def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
+                  profile: str | None = None) -> PipelineConfig:
+    """The pipeline file, overlays merged on top in order, then the named profile."""
+    path = Path(path)
+    data = read_yaml(path)
+    sources = [str(path)]
+    for overlay in overlays:
+        data = deep_merge(data, read_yaml(Path(overlay)))
+        sources.append(str(overlay))
+    if profile is not None:
+        profiles = (data or {}).get("profiles") or {}
+        if profile not in profiles:
+            raise ConfigError(f"{' + '.join(sources)}: profiles: no profile '{profile}' "
+                              f"(profiles: {', '.join(sorted(profiles)) or 'none'})")
+        data = deep_merge(data, profiles[profile])
+        sources.append(f"profile {profile}")
+    return validate(data, PipelineConfig, " + ".join(sources), base_dir=path.parent)

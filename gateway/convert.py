@@ -1,0 +1,82 @@
+"""ROS messages <-> route values. The only module besides node.py that imports ROS types.
+
+Incoming messages become loaders (conversion runs in the route's worker, so a frame that is
+dropped as stale is never converted). Audio convention: std_msgs/Int16MultiArray, one
+complete utterance per message, int16 PCM samples interleaved by channel; the sample rate
+and channel count come from the route's YAML (16000 Hz mono by default), `layout` is ignored.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from sensor_msgs.msg import CompressedImage, Image
+from std_msgs.msg import Header, Int16MultiArray, Int32, String
+
+from oricf.errors import InvalidInput
+from oricf.gateway.config import InputConfig
+from oricf.gateway.route import Loader
+from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
+from oricf.imaging import RAW_CHANNELS
+
+MESSAGE_TYPES: dict[str, Any] = {
+    "sensor_msgs/Image": Image,
+    "sensor_msgs/CompressedImage": CompressedImage,
+    "std_msgs/String": String,
+    "std_msgs/Int16MultiArray": Int16MultiArray,
+    "std_msgs/Int32": Int32,
+}
+
+
+def to_record(config: InputConfig, msg: Any) -> Record:
+    """One incoming message -> the route's input record (raises InvalidInput)."""
+    if isinstance(msg, Image):
+        frame = raw_frame(memoryview(msg.data), msg.encoding, msg.width, msg.height, msg.step)
+        return {"image": frame, "header": msg.header}
+    if isinstance(msg, CompressedImage):
+        return {"image": compressed_frame(memoryview(msg.data), msg.format), "header": msg.header}
+    if isinstance(msg, Int16MultiArray):
+        return {"audio": audio_clip(np.asarray(msg.data, dtype=np.int16), config.sample_rate,
+                                    config.channels)}
+    if isinstance(msg, String):
+        return {"text": msg.data}
+    if isinstance(msg, Int32):
+        return {"value": msg.data}
+    raise InvalidInput(f"unsupported message type {type(msg).__name__}")
+
+
+def loader(config: InputConfig, msg: Any) -> Loader:
+    return lambda: to_record(config, msg)
+
+
+def to_message(type_: str, value: Any, header: Header | None = None) -> Any:
+    """A route value -> the output message of the given type."""
+    if type_ == "std_msgs/Int32":
+        return Int32(data=int(value))
+    if type_ == "std_msgs/String":
+        return String(data=str(value))
+    if type_ == "sensor_msgs/Image":
+        return image_message(value, header)
+    raise InvalidInput(f"unsupported output type {type_}")
+
+
+def image_message(frame: Frame, header: Header | None = None) -> Image:
+    if frame.encoding not in RAW_CHANNELS:  # an encoded annotation from the service
+        frame = Frame.from_pixels(frame.pixels())
+    msg = Image(height=frame.height, width=frame.width, encoding=frame.encoding,
+                is_bigendian=0, step=frame.width * RAW_CHANNELS[frame.encoding])
+    if header is not None:
+        msg.header = header
+    msg.data = frame.data
+    return msg
+
+
+def image_from_pixels(pixels: np.ndarray, encoding: str = "bgr8") -> Image:
+    """A sensor_msgs/Image from a uint8 array (for publishers in tests, demos, benchmarks)."""
+    height, width = pixels.shape[:2]
+    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    msg = Image(height=height, width=width, encoding=encoding, is_bigendian=0,
+                step=width * channels)
+    msg.data = np.ascontiguousarray(pixels).tobytes()
+    return msg

@@ -1,0 +1,134 @@
+"""A model service endpoint with a deadline on every call and failover to a fallback.
+
+State machine (per endpoint):
+
+    PRIMARY --call fails UNAVAILABLE / DEADLINE_EXCEEDED--> FALLBACK (the call is retried there)
+    FALLBACK --health probe of the primary says SERVING--> PRIMARY
+
+While on the fallback a background thread asks the primary's grpc.health.v1 service every
+probe_interval_s. Without a fallback, errors go back to the caller (the route logs them).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Any
+
+import grpc
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+from oricf.gateway.config import EndpointConfig
+from oricf.v1 import detector_pb2_grpc, language_pb2_grpc, speech_pb2_grpc
+
+log = logging.getLogger(__name__)
+
+FAILOVER_CODES = frozenset({grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED})
+STUBS: dict[str, Any] = {
+    "oricf.v1.Detector": detector_pb2_grpc.DetectorStub,
+    "oricf.v1.SpeechRecognizer": speech_pb2_grpc.SpeechRecognizerStub,
+    "oricf.v1.LanguageModel": language_pb2_grpc.LanguageModelStub,
+}
+# Short reconnect backoff: a restarted service is found within about a second, not the
+# default of up to two minutes.
+CHANNEL_OPTIONS = [
+    ("grpc.max_send_message_length", 64 * 1024 * 1024),
+    ("grpc.max_receive_message_length", 64 * 1024 * 1024),
+    ("grpc.initial_reconnect_backoff_ms", 200),
+    ("grpc.min_reconnect_backoff_ms", 200),
+    ("grpc.max_reconnect_backoff_ms", 1000),
+]
+PROBE_TIMEOUT_S = 1.0
+
+
+class Target:
+    """One address: a channel, the service's stub and its health stub."""
+
+    def __init__(self, address: str, service: str) -> None:
+        self.address = address
+        self.channel = grpc.insecure_channel(address, options=CHANNEL_OPTIONS)
+        self.stub = STUBS[service](self.channel)
+        self.health = health_pb2_grpc.HealthStub(self.channel)
+        self.service = service
+
+    def serving(self) -> bool:
+        try:
+            reply = self.health.Check(health_pb2.HealthCheckRequest(service=self.service),
+                                      timeout=PROBE_TIMEOUT_S)
+        except grpc.RpcError:
+            return False
+        return bool(reply.status == health_pb2.HealthCheckResponse.SERVING)
+
+    def close(self) -> None:
+        self.channel.close()
+
+
+class Endpoint:
+    def __init__(self, name: str, config: EndpointConfig, service: str) -> None:
+        self.name = name
+        self.config = config
+        self.primary = Target(config.address, service)
+        self.fallback = Target(config.fallback, service) if config.fallback else None
+        self.failovers = 0
+        self.recoveries = 0
+        self._on_fallback = False
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._probe: threading.Thread | None = None
+
+    @property
+    def deadline_s(self) -> float:
+        return self.config.deadline_ms / 1000.0
+
+    @property
+    def active(self) -> Target:
+        with self._lock:
+            return self.fallback if self._on_fallback and self.fallback else self.primary
+
+    def call(self, method: str, request: Any) -> Any:
+        """Calls method on the active target; fails over once on UNAVAILABLE/DEADLINE_EXCEEDED."""
+        target = self.active
+        try:
+            return getattr(target.stub, method)(request, timeout=self.deadline_s)
+        except grpc.RpcError as exc:
+            if self.fallback is None or target is self.fallback or exc.code() not in FAILOVER_CODES:
+                raise
+            self._fail_over(exc)
+            return getattr(self.fallback.stub, method)(request, timeout=self.deadline_s)
+
+    def _fail_over(self, exc: grpc.RpcError) -> None:
+        assert self.fallback is not None
+        with self._lock:
+            if self._on_fallback:
+                return
+            self._on_fallback = True
+            self.failovers += 1
+            # Started and cleared under the lock that flips the state: never two probes,
+            # never on the fallback without one.
+            self._probe = threading.Thread(target=self._probe_primary, daemon=True,
+                                           name=f"probe-{self.name}")
+            self._probe.start()
+        log.warning("endpoint %s: primary %s failed (%s); using fallback %s until it is "
+                    "SERVING again", self.name, self.primary.address, exc.code().name,
+                    self.fallback.address)
+
+    def _probe_primary(self) -> None:
+        while not self._stop.wait(self.config.probe_interval_s):
+            if self.primary.serving():
+                with self._lock:
+                    self._on_fallback = False
+                    self._probe = None
+                    self.recoveries += 1
+                log.info("endpoint %s: primary %s is SERVING again; back on it", self.name,
+                         self.primary.address)
+                return
+
+    def close(self) -> None:
+        self._stop.set()
+        with self._lock:
+            probe = self._probe
+        if probe is not None:
+            probe.join(timeout=PROBE_TIMEOUT_S + 1)
+        self.primary.close()
+        if self.fallback is not None:
+            self.fallback.close()

@@ -1,0 +1,111 @@
+"""`oricf gateway`: the ROS 2 node that routes topics to the model services.
+
+    oricf gateway --config configs/pipelines/people_qa.yaml \\
+        [--overlay configs/pipelines/placement/edge.yaml ...] [--profile edge] \\
+        [--ros-args -r __node:=my_gateway ...]
+
+Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`.
+
+Where rclpy comes from:
+- x86-64 workstation or CI: the PyPI Jazzy wheels, `pip install "oricf[ros]"` (the `ros` extra:
+  ros-jazzy-rclpy[fastrtps], ros-jazzy-std-msgs, ros-jazzy-sensor-msgs). Nothing to source.
+- A robot with its own ROS 2 (e.g. an aarch64 Jetson; there are no aarch64 wheels): install
+  Jazzy from apt (ros-jazzy-ros-base, which has rclpy, std_msgs and sensor_msgs), then
+
+      source /opt/ros/jazzy/setup.bash
+      python3 -m venv --system-site-packages ~/oricf-venv   # sees the apt rclpy
+      ~/oricf-venv/bin/pip install oricf                     # WITHOUT the [ros] extra
+      ~/oricf-venv/bin/oricf gateway --config people_qa.yaml
+
+  The venv's Python must be the one ROS was built for (Python 3.12 for Jazzy on Ubuntu 24.04).
+  Keep ROS_DOMAIN_ID (and ROS_AUTOMATIC_DISCOVERY_RANGE) the same as the robot's other nodes.
+
+Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, the int16
+values are the PCM samples (interleaved if several channels); sample rate and channels are
+set per route in the YAML (`input.sample_rate`, `input.channels`; 16000 Hz mono by default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from oricf.config import config_dir
+from oricf.errors import ConfigError
+from oricf.gateway.config import PipelineConfig, load_pipeline
+from oricf.logs import setup_logging
+
+log = logging.getLogger(__name__)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="oricf gateway", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--config", type=Path,
+                        default=config_dir() / "pipelines" / "people_qa.yaml",
+                        help="pipeline YAML (default configs/pipelines/people_qa.yaml)")
+    parser.add_argument("--overlay", type=Path, action="append", default=[],
+                        help="YAML merged on top, e.g. a placement file (repeatable)")
+    parser.add_argument("--profile", help="a named entry of the pipeline's `profiles:`")
+    parser.add_argument("--check", action="store_true",
+                        help="validate the configuration and exit")
+    return parser
+
+
+def run(config: PipelineConfig, ros_args: list[str]) -> int:
+    """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
+    try:
+        import rclpy
+        from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+
+        from oricf.gateway.node import GatewayNode
+    except ImportError as exc:
+        log.error("ROS 2 Python packages not found (%s): source /opt/ros/jazzy/setup.bash, "
+                  "or pip install 'oricf[ros]' on x86-64", exc)
+        return 2
+    rclpy.init(args=ros_args)
+    node = GatewayNode(config)
+    # One thread per route's callback group, plus one for the rest.
+    executor = MultiThreadedExecutor(num_threads=len(config.routes) + 1)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        log.info("gateway stopping")
+        node.shutdown()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(our arguments, the --ros-args ... part for rclpy)."""
+    if "--ros-args" not in argv:
+        return argv, []
+    at = argv.index("--ros-args")
+    return argv[:at], ["oricf_gateway", *argv[at:]]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ours, ros_args = split_ros_args(list(sys.argv[1:] if argv is None else argv))
+    args = build_parser().parse_args(ours)
+    config = load_pipeline(args.config, args.overlay, args.profile)
+    if args.check:
+        print(f"{args.config}: OK ({len(config.routes)} routes, "
+              f"endpoints {', '.join(config.endpoints)})")
+        return 0
+    return run(config, ros_args)
+
+
+if __name__ == "__main__":
+    setup_logging()
+    try:
+        sys.exit(main())
+    except ConfigError as error:
+        log.error("%s", error)
+        sys.exit(2)

@@ -1,0 +1,91 @@
+"""The ROS 2 node: input topics -> Pipeline routes -> output topics.
+
+One callback group and one worker thread per route, so a slow language-model call never
+delays the camera route. Camera inputs use the sensor_data QoS with depth 1 (best effort,
+newest frame only); text and audio inputs are reliable, queued up to the route's queue_size.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+from oricf.gateway import convert
+from oricf.gateway.config import InputConfig, OutputConfig, PipelineConfig
+from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.values import Record
+
+log = logging.getLogger(__name__)
+
+IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
+
+
+def input_qos(config: InputConfig) -> QoSProfile:
+    if config.type in IMAGE_TYPES:
+        qos = QoSProfile(depth=1)
+        qos.reliability = qos_profile_sensor_data.reliability
+        qos.durability = qos_profile_sensor_data.durability
+        qos.history = qos_profile_sensor_data.history
+        return qos
+    return QoSProfile(depth=config.queue_size, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class GatewayNode(Node):
+    def __init__(self, config: PipelineConfig, context: Context | None = None) -> None:
+        super().__init__(config.node_name, context=context)
+        self._publishers_by_topic: dict[str, Publisher] = {}
+        self._throttle = ThrottledLog(log)
+        self.pipeline = Pipeline(config, self._emit)
+        for route in config.routes.values():
+            for output in route.outputs:
+                if output.topic is not None:
+                    self._publisher(output)
+        for name, route in config.routes.items():
+            if route.input.topic is not None:
+                self._subscribe(name, route.input)
+        self.pipeline.start()
+        log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
+
+    def _publisher(self, output: OutputConfig) -> Publisher:
+        assert output.topic is not None and output.type is not None
+        publisher = self._publishers_by_topic.get(output.topic)
+        if publisher is None:
+            # Reliable publishers match both reliable and best-effort subscribers.
+            depth = 1 if output.type == "sensor_msgs/Image" else 10
+            publisher = self.create_publisher(convert.MESSAGE_TYPES[output.type], output.topic,
+                                              depth)
+            self._publishers_by_topic[output.topic] = publisher
+        return publisher
+
+    def _subscribe(self, route: str, config: InputConfig) -> None:
+        assert config.topic is not None and config.type is not None
+        submit = self.pipeline.submit
+
+        def on_message(msg: Any) -> None:
+            submit(route, convert.loader(config, msg))
+
+        self.create_subscription(convert.MESSAGE_TYPES[config.type], config.topic, on_message,
+                                 input_qos(config),
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        log.info("route %s: %s (%s) -> %s", route, config.topic, config.type,
+                 self.pipeline.config.routes[route].call.method)
+
+    def _emit(self, output: OutputConfig, value: Any, record: Record) -> None:
+        assert output.topic is not None and output.type is not None
+        try:
+            msg = convert.to_message(output.type, value, record.get("header"))
+        except (TypeError, ValueError) as exc:  # a value that does not fit the topic type
+            self._throttle.error(f"emit:{output.topic}", "cannot publish %r on %s (%s): %s",
+                                 value, output.topic, output.type, exc)
+            return
+        self._publishers_by_topic[output.topic].publish(msg)
+
+    def shutdown(self) -> None:
+        self.pipeline.stop()

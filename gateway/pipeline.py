@@ -1,0 +1,78 @@
+"""A whole pipeline without ROS: endpoints, data products, routes and their workers.
+
+The ROS node (oricf.gateway.node) only subscribes to input topics, submits loaders here,
+and publishes what `emit` receives. Tests and benchmarks drive this class directly too.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from oricf.gateway.config import PipelineConfig
+from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.products import ProductStore
+from oricf.gateway.route import Emit, Loader, Route
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.worker import RouteWorker
+
+log = logging.getLogger(__name__)
+
+ERROR_LOG_INTERVAL_S = 10.0
+
+
+class Pipeline:
+    def __init__(self, config: PipelineConfig, emit: Emit,
+                 products: ProductStore | None = None) -> None:
+        self.config = config
+        self.products = products or ProductStore()
+        throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
+        used = {route.call.service for route in config.routes.values()}
+        self.endpoints = {name: Endpoint(name, cfg, config.service_of(name))
+                          for name, cfg in config.endpoints.items() if name in used}
+        for route_config in config.routes.values():
+            for output in route_config.outputs:
+                if output.product is not None:
+                    self.products.declare(output.product, output.max_age_s)
+        self.routes: dict[str, Route] = {}
+        self.workers: dict[str, RouteWorker[Loader]] = {}
+        for name, rc in config.routes.items():
+            route = Route(name, rc, self.endpoints[rc.call.service], self.products, emit,
+                          throttle)
+            self.routes[name] = route
+            self.workers[name] = RouteWorker(name, route.process, rc.input.mode,
+                                             rc.input.queue_size)
+            if rc.input.product is not None:
+                self.products.subscribe(rc.input.product, self._feeder(name))
+
+    def _feeder(self, route: str) -> Any:
+        def feed(value: Any) -> None:
+            self.submit(route, lambda: {"value": value})
+
+        return feed
+
+    def submit(self, route: str, load: Loader) -> None:
+        self.workers[route].submit(load)
+
+    def start(self) -> None:
+        for worker in self.workers.values():
+            worker.start()
+        for name, endpoint in self.endpoints.items():
+            fallback = f", fallback {endpoint.fallback.address}" if endpoint.fallback else ""
+            log.info("endpoint %s: %s%s, deadline %d ms, images %s", name,
+                     endpoint.primary.address, fallback, endpoint.config.deadline_ms,
+                     endpoint.config.image.transport)
+
+    def idle(self, timeout: float) -> bool:
+        return all(worker.idle(timeout) for worker in self.workers.values())
+
+    def stop(self) -> None:
+        for worker in self.workers.values():
+            worker.stop()
+        for endpoint in self.endpoints.values():
+            endpoint.close()
+        for name, route in self.routes.items():
+            stats = self.workers[name].stats
+            log.info("route %s: %d received, %d dropped as stale, %d ok, %d skipped, "
+                     "errors %s", name, stats.received, stats.dropped, route.stats.ok,
+                     route.stats.skipped, route.stats.errors or "none")

@@ -1,0 +1,80 @@
+"""Data products: the latest value of a named result, its time, and how old it may get.
+
+One route writes a product (`outputs: - {product: people_count, max_age_s: 5}`); others
+read it as context for a call, or run on each new value (`input: {product: ...}`). A value
+older than max_age_s is stale: readers see that, it is never passed off as current.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+Listener = Callable[[Any], None]
+
+
+@dataclass(frozen=True)
+class Reading:
+    name: str
+    value: Any
+    age_s: float
+    max_age_s: float
+
+    @property
+    def stale(self) -> bool:
+        return self.age_s > self.max_age_s
+
+
+class ProductStore:
+    """Thread-safe latest values; `clock` is injectable so staleness is testable."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._max_age: dict[str, float] = {}
+        self._latest: dict[str, tuple[Any, float]] = {}
+        self._listeners: dict[str, list[Listener]] = {}
+
+    def declare(self, name: str, max_age_s: float) -> None:
+        with self._lock:
+            self._max_age[name] = max_age_s
+
+    def subscribe(self, name: str, listener: Listener) -> None:
+        """listener(value) is called (in the writer's thread) on every new value."""
+        with self._lock:
+            self._listeners.setdefault(name, []).append(listener)
+
+    def put(self, name: str, value: Any) -> None:
+        with self._lock:
+            if name not in self._max_age:
+                raise KeyError(f"data product '{name}' was never declared")
+            self._latest[name] = (value, self._clock())
+            listeners = list(self._listeners.get(name, ()))
+        for listener in listeners:
+            listener(value)
+
+    def read(self, name: str) -> Reading | None:
+        """The latest value with its age, or None if nothing was written yet."""
+        with self._lock:
+            if name not in self._latest:
+                return None
+            value, stamp = self._latest[name]
+            return Reading(name, value, self._clock() - stamp, self._max_age[name])
+
+    def context(self, names: list[str], stale: str) -> dict[str, str]:
+        """Products as call context: missing ones left out; stale ones left out
+        (stale="omit") or sent as "unknown (last value V, N s old)" (stale="mark")."""
+        context: dict[str, str] = {}
+        for name in names:
+            reading = self.read(name)
+            if reading is None or (reading.stale and stale == "omit"):
+                continue
+            if reading.stale:
+                context[name] = (f"unknown (last value {reading.value}, "
+                                 f"{reading.age_s:.0f} s old)")
+            else:
+                context[name] = str(reading.value)
+        return context

@@ -1,0 +1,106 @@
+"""A route: input record -> call -> post-processors -> outputs. No ROS in here.
+
+Every failure of one message is logged (throttled, per route and kind of failure) and
+counted; the route goes on with the next message. Topic outputs go to `emit` (the ROS node
+publishes them); product outputs go to the ProductStore.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import grpc
+
+from oricf.errors import InvalidInput
+from oricf.gateway import calls, post
+from oricf.gateway.config import OutputConfig, RouteConfig
+from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.products import ProductStore
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.values import Record
+
+log = logging.getLogger(__name__)
+
+# (output, its value, the whole record: e.g. the input header for an annotated image)
+Emit = Callable[[OutputConfig, Any, Record], None]
+Loader = Callable[[], Record]
+
+
+@dataclass
+class RouteStats:
+    ok: int = 0
+    skipped: int = 0
+    bad_input: int = 0
+    call_errors: int = 0
+    errors: dict[str, int] = field(default_factory=dict)  # kind -> count
+    last_ms: float = 0.0
+
+    def count_error(self, kind: str) -> None:
+        self.errors[kind] = self.errors.get(kind, 0) + 1
+
+
+class Route:
+    def __init__(self, name: str, config: RouteConfig, endpoint: Endpoint,
+                 products: ProductStore, emit: Emit, throttle: ThrottledLog) -> None:
+        self.name = name
+        self.config = config
+        self.endpoint = endpoint
+        self.products = products
+        self.stats = RouteStats()
+        self._emit = emit
+        self._post = post.chain(config.post)
+        self._throttle = throttle
+
+    def run(self, record: Record) -> Record:
+        """Call and post-process one record; returns it with every field filled in."""
+        record.update(calls.invoke(self.config.call, self.endpoint, self.products, record))
+        self._post(record)
+        return record
+
+    def send(self, record: Record) -> None:
+        for output in self.config.outputs:
+            value = record.get(output.source)
+            if value is None:  # e.g. no annotated image this time
+                continue
+            if output.product is not None:
+                self.products.put(output.product, value)
+            else:
+                self._emit(output, value, record)
+
+    def process(self, load: Loader) -> None:
+        """Worker entry point: one message, every failure logged and counted, never raised."""
+        started = time.perf_counter()
+        try:
+            self.send(self.run(load()))
+        except calls.Skip as exc:
+            self.stats.skipped += 1
+            log.info("route %s: nothing to send on: %s", self.name, exc)
+            return
+        except InvalidInput as exc:
+            self.stats.bad_input += 1
+            self.stats.count_error("bad_input")
+            self._throttle.warning(f"{self.name}:bad_input:{exc}",
+                                   "route %s: bad input dropped: %s", self.name, exc)
+            return
+        except grpc.RpcError as exc:
+            self._call_failed(exc)
+            return
+        except Exception:
+            self.stats.count_error("internal")
+            log.exception("route %s: unexpected error (message dropped)", self.name)
+            return
+        self.stats.ok += 1
+        self.stats.last_ms = (time.perf_counter() - started) * 1000
+
+    def _call_failed(self, exc: grpc.RpcError) -> None:
+        code = exc.code()
+        self.stats.call_errors += 1
+        self.stats.count_error(code.name)
+        self._throttle.error(f"{self.name}:{code.name}",
+                             "route %s: %s call to %s (%s) failed: %s %s", self.name,
+                             self.config.call.method, self.endpoint.name,
+                             self.endpoint.active.address, code.name, exc.details())

@@ -1,0 +1,115 @@
+"""The values a route carries, independent of ROS: frames, audio clips, records.
+
+A record is the dict of named fields one message turns into as it passes through a route:
+the input field (`image`, `audio`, `text`, `value`), the call's fields (`detections`,
+`counts`, `annotated`, `transcript`, `answer`), and whatever post-processors add. Outputs
+pick one field each (`from:`). Checks on incoming data raise InvalidInput naming the problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from oricf.audio import check_format
+from oricf.errors import InvalidInput
+from oricf.imaging import ENCODED, MAX_PIXELS, RAW_CHANNELS, decode_image, encode_image
+from oricf.v1 import common_pb2, speech_pb2
+
+Record = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """An image: raw pixels (rgb8, bgr8, mono8; rows unpadded) or encoded (jpeg, png)."""
+
+    data: bytes
+    encoding: str
+    width: int = 0
+    height: int = 0
+
+    def pixels(self) -> np.ndarray:
+        """BGR uint8 array (decodes encoded frames)."""
+        return decode_image(self.data, self.encoding, self.width, self.height)
+
+    def to_proto(self, transport: str = "raw", jpeg_quality: int = 80) -> common_pb2.Image:
+        """For a request: raw frames pass unchanged, or are JPEG-encoded for remote endpoints."""
+        if transport == "jpeg" and self.encoding in RAW_CHANNELS:
+            data = encode_image(self.pixels(), "jpeg", jpeg_quality)
+            return common_pb2.Image(data=data, encoding="jpeg", width=self.width,
+                                    height=self.height)
+        return common_pb2.Image(data=self.data, encoding=self.encoding, width=self.width,
+                                height=self.height)
+
+    @classmethod
+    def from_pixels(cls, pixels: np.ndarray) -> Frame:
+        """From a BGR uint8 array."""
+        height, width = pixels.shape[:2]
+        return cls(np.ascontiguousarray(pixels).tobytes(), "bgr8", width, height)
+
+
+def raw_frame(data: bytes | memoryview, encoding: str, width: int, height: int,
+              step: int) -> Frame:
+    """A sensor_msgs/Image's fields -> Frame, refusing anything that cannot be a valid image."""
+    if encoding not in RAW_CHANNELS:
+        raise InvalidInput(f"unsupported image encoding '{encoding}'; "
+                           f"use one of: {', '.join(RAW_CHANNELS)}")
+    if width <= 0 or height <= 0:
+        raise InvalidInput(f"image size {width}x{height}: width and height must be > 0")
+    if width * height > MAX_PIXELS:
+        raise InvalidInput(f"image size {width}x{height} is over {MAX_PIXELS:,} pixels")
+    row = width * RAW_CHANNELS[encoding]
+    step = step or row
+    if step < row:
+        raise InvalidInput(f"{encoding} image {width} px wide needs step >= {row}, got {step}")
+    if len(data) != step * height:
+        raise InvalidInput(f"{encoding} image {width}x{height} with step {step} needs "
+                           f"{step * height:,} bytes, got {len(data):,}")
+    if step != row:  # drop the row padding: the wire format has none
+        rows = np.frombuffer(data, np.uint8).reshape(height, step)[:, :row]
+        return Frame(rows.tobytes(), encoding, width, height)
+    return Frame(bytes(data), encoding, width, height)
+
+
+def compressed_frame(data: bytes | memoryview, format_: str) -> Frame:
+    """A sensor_msgs/CompressedImage -> Frame; format as image_transport writes it
+    ("jpeg", "png", or "bgr8; jpeg compressed bgr8")."""
+    text = format_.lower()
+    encoding = next((e for e in ENCODED if e in text), "jpeg" if "jpg" in text else "")
+    if not encoding:
+        raise InvalidInput(f"unsupported compressed image format '{format_}'; "
+                           f"use jpeg or png")
+    if not len(data):
+        raise InvalidInput("compressed image data is empty")
+    return Frame(bytes(data), encoding)
+
+
+@dataclass(frozen=True)
+class AudioClip:
+    """One utterance: interleaved little-endian int16 PCM."""
+
+    pcm: bytes
+    sample_rate: int
+    channels: int
+
+    @property
+    def duration_s(self) -> float:
+        return len(self.pcm) / (2 * self.channels * self.sample_rate)
+
+    def to_proto(self) -> speech_pb2.Audio:
+        return speech_pb2.Audio(data=self.pcm, encoding="pcm_s16le",
+                                sample_rate=self.sample_rate, channels=self.channels)
+
+
+def audio_clip(samples: Any, sample_rate: int, channels: int) -> AudioClip:
+    """int16 samples (a sequence or array) -> AudioClip, refusing empty or ragged audio."""
+    check_format(sample_rate, channels)
+    array = np.asarray(samples, dtype="<i2")
+    if array.size == 0:
+        raise InvalidInput("audio message carries no samples")
+    if array.size % channels:
+        raise InvalidInput(f"{array.size} samples are not a whole number of frames of "
+                           f"{channels} channels")
+    return AudioClip(array.tobytes(), sample_rate, channels)

@@ -1,0 +1,84 @@
+"""One worker thread per route, fed through a slot that never lets work pile up.
+
+`latest` (camera routes): one pending item; a newer one replaces it and counts a drop, so
+the route always works on the newest frame. `queue` (text, audio): up to queue_size items
+in order; when full the oldest is dropped (and counted). Items are loaders (callables that
+build the record), so a dropped message is never even converted.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+
+@dataclass
+class WorkerStats:
+    received: int = 0
+    dropped: int = 0
+    handled: int = 0
+
+
+class RouteWorker(Generic[T]):
+    def __init__(self, name: str, handle: Callable[[T], None], mode: str = "latest",
+                 queue_size: int = 8) -> None:
+        self.name = name
+        self.stats = WorkerStats()
+        self._handle = handle
+        self._pending: deque[T] = deque(maxlen=1 if mode == "latest" else queue_size)
+        self._cond = threading.Condition()
+        self._stopping = False
+        self._busy = False
+        self._thread = threading.Thread(target=self._run, name=f"route-{name}", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def submit(self, item: T) -> None:
+        with self._cond:
+            self.stats.received += 1
+            if len(self._pending) == self._pending.maxlen:
+                self.stats.dropped += 1  # deque(maxlen) discards the oldest on append
+            self._pending.append(item)
+            self._cond.notify()
+
+    def _next(self) -> T | None:
+        with self._cond:
+            self._busy = False
+            self._cond.notify_all()
+            while not self._pending and not self._stopping:
+                self._cond.wait()
+            if self._stopping:
+                return None
+            self._busy = True
+            return self._pending.popleft()
+
+    def _run(self) -> None:
+        while (item := self._next()) is not None:
+            try:
+                self._handle(item)
+            except Exception:  # the route logs its own errors; this is the last guard
+                log.exception("route %s: unexpected error", self.name)
+            self.stats.handled += 1
+
+    def idle(self, timeout: float) -> bool:
+        """Waits until nothing is pending or running (for tests and benchmarks)."""
+        with self._cond:
+            return self._cond.wait_for(lambda: not self._pending and not self._busy, timeout)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Drops what is pending; lets the item in progress finish (bounded by its deadline)."""
+        with self._cond:
+            self._stopping = True
+            self._pending.clear()
+            self._cond.notify_all()
+        if self._thread.is_alive():
+            self._thread.join(timeout)

@@ -1,0 +1,35 @@
+"""Fixtures for gateway tests: a private DDS domain, an rclpy context, real services."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+from rclpy.context import Context
+
+from tests.gateway.ros import private_domain
+
+
+@pytest.fixture(scope="session")
+def ros_env() -> Iterator[dict[str, str]]:
+    """ROS_DOMAIN_ID / discovery range for this run, set before any rclpy.init."""
+    env = private_domain()
+    saved = {key: os.environ.get(key) for key in env}
+    os.environ.update(env)
+    yield env
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
+
+
+@pytest.fixture()
+def ros_context(ros_env: dict[str, str]) -> Iterator[Context]:
+    import rclpy
+
+    context = Context()
+    rclpy.init(context=context)
+    yield context
+    rclpy.try_shutdown(context=context)

@@ -1,0 +1,19 @@
+"""The reference pipeline with test addresses merged in (what a placement overlay does)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from oricf.config import config_dir, deep_merge, read_yaml, validate
+from oricf.gateway.config import PipelineConfig
+
+PEOPLE_QA = config_dir() / "pipelines" / "people_qa.yaml"
+
+
+def people_qa(overlay: dict[str, Any] | None = None, **addresses: str) -> PipelineConfig:
+    """people_qa.yaml with endpoint addresses (detector="127.0.0.1:1234", ...) and an overlay."""
+    data = read_yaml(PEOPLE_QA)
+    data = deep_merge(data, {"endpoints": {name: {"address": address}
+                                           for name, address in addresses.items()}})
+    data = deep_merge(data, overlay or {})
+    return validate(data, PipelineConfig, f"{PEOPLE_QA} (test overlay)", PEOPLE_QA.parent)

@@ -1,0 +1,105 @@
+"""Real DDS for gateway tests: a private domain, an in-process gateway, a probe node.
+
+Each test session picks a random ROS_DOMAIN_ID and keeps discovery on localhost, so
+parallel runs on one machine never see each other's topics.
+"""
+
+from __future__ import annotations
+
+import queue
+import random
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from sensor_msgs.msg import Image
+from std_msgs.msg import Int16MultiArray, Int32, String
+
+from oricf.gateway.config import PipelineConfig
+from oricf.gateway.convert import image_from_pixels
+from oricf.gateway.node import GatewayNode
+
+OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
+           "/camera/image_annotated": Image}
+
+
+def private_domain() -> dict[str, str]:
+    """Environment for a DDS domain nobody else on this machine uses."""
+    return {"ROS_DOMAIN_ID": str(random.randint(1, 100)),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+
+class Probe:
+    """A test node: publishes inputs, collects every output message in a queue per topic."""
+
+    def __init__(self, context: Context) -> None:
+        self.node = Node("gateway_test_probe", context=context)
+        self.received: dict[str, queue.Queue[Any]] = {}
+        for topic, kind in OUTPUTS.items():
+            self.received[topic] = queue.Queue()
+            self.node.create_subscription(kind, topic, self._collector(topic), 10)
+        self.camera = self.node.create_publisher(Image, "camera/image_raw",
+                                                 qos_profile_sensor_data)
+        self.audio = self.node.create_publisher(Int16MultiArray, "/audio/utterance",
+                                                QoSProfile(depth=10))
+        self.question = self.node.create_publisher(String, "/question", QoSProfile(depth=10))
+
+    def _collector(self, topic: str) -> Any:
+        return lambda msg: self.received[topic].put(msg)
+
+    def wait_connected(self, timeout: float = 10.0) -> None:
+        """Until the gateway's subscriptions and publishers have been discovered."""
+        deadline = time.monotonic() + timeout
+        publishers = (self.camera, self.audio, self.question)
+        while time.monotonic() < deadline:
+            if all(p.get_subscription_count() > 0 for p in publishers) and \
+                    self.node.count_publishers("/human_counter") > 0:
+                return
+            time.sleep(0.05)
+        raise TimeoutError("the gateway's topics were not discovered")
+
+    def publish_frame(self, pixels: np.ndarray, encoding: str = "bgr8") -> None:
+        self.camera.publish(image_from_pixels(pixels, encoding))
+
+    def publish_audio(self, samples: np.ndarray) -> None:
+        msg = Int16MultiArray()
+        msg.data = samples.astype(np.int16)
+        self.audio.publish(msg)
+
+    def next(self, topic: str, timeout: float) -> Any:
+        return self.received[topic].get(timeout=timeout)
+
+    def drain(self, topic: str) -> list[Any]:
+        items = []
+        while not self.received[topic].empty():
+            items.append(self.received[topic].get_nowait())
+        return items
+
+
+@contextmanager
+def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[GatewayNode,
+                                                                                  Probe]]:
+    """The gateway node and a probe node, spun by one executor in a background thread."""
+    gateway = GatewayNode(config, context=context)
+    probe = Probe(context)
+    executor = MultiThreadedExecutor(num_threads=len(config.routes) + 2, context=context)
+    executor.add_node(gateway)
+    executor.add_node(probe.node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        probe.wait_connected()
+        yield gateway, probe
+    finally:
+        gateway.shutdown()
+        executor.shutdown(timeout_sec=5)
+        spinner.join(timeout=5)
+        probe.node.destroy_node()
+        gateway.destroy_node()
