@@ -133,7 +133,7 @@ def decode_audio(data: bytes, encoding: str, sample_rate: int = 0, channels: int
 
 def encode_wav(samples: np.ndarray, sample_rate: int) -> bytes:
     """A 16-bit PCM WAV file from int16 samples shaped (frames,) or (frames, channels)."""
-    frames = samples.reshape(samples.shape[0], -1).astype("<i2")
+    frames = (samples[:, None] if samples.ndim == 1 else samples).astype("<i2")
     channels = frames.shape[1]
     body = frames.tobytes()
     fmt = struct.pack("<HHIIHH", WAVE_FORMAT_PCM, channels, sample_rate,

@@ -1,0 +1,73 @@
+"""configs/services/asr.yaml."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
+
+from oricf.config import Schema, format_location
+from oricf.services.asr.recognizer import backend_class
+from oricf.services.runtime import ServiceConfig
+
+
+class AsrModelSettings(Schema):
+    backend: str = Field("faster-whisper", description="a name in recognizer.BACKENDS")
+    name: str = Field("whisper-tiny-en", description="catalog name in configs/models.yaml")
+    threads: int = Field(2, ge=1, le=64, description="CPU threads for inference")
+    language: str = Field("en", description="used when a request names no language")
+    options: Any = Field(default_factory=dict, validate_default=True,
+                         description="the back end's own settings (its Options schema)")
+
+    @field_validator("backend")
+    @classmethod
+    def _known_backend(cls, value: str) -> str:
+        backend_class(value)
+        return value
+
+    @field_validator("options")
+    @classmethod
+    def _backend_options(cls, value: Any, info: ValidationInfo) -> Schema:
+        """Checked against the chosen back end's schema, so typos fail at start-up."""
+        backend = info.data.get("backend")
+        if backend is None:  # the back end itself was refused; that error is enough
+            return Schema()
+        schema = backend_class(backend).Options
+        if isinstance(value, schema):
+            return value
+        try:
+            return schema.model_validate(value or {})
+        except ValidationError as exc:
+            problems = "; ".join(f"{format_location(e['loc'])}: {e['msg']}" for e in exc.errors())
+            raise ValueError(f"{backend} options: {problems}") from None
+
+
+class EndpointingSettings(Schema):
+    """Voice-activity endpointing of TranscribeStream (Silero VAD, 32 ms windows)."""
+
+    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts speech")
+    min_silence_ms: int = Field(
+        400, ge=32, le=10_000, description="this much silence ends an utterance")
+    speech_pad_ms: int = Field(
+        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
+    min_speech_ms: int = Field(
+        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
+    max_utterance_s: float = Field(
+        20.0, gt=1, le=60, description="an utterance this long is cut and transcribed")
+    vad_threads: int = Field(1, ge=1, le=8, description="onnxruntime threads of the VAD")
+
+
+class AudioSettings(Schema):
+    max_audio_s: float = Field(30.0, gt=0, le=3600, description="longest Transcribe request")
+
+
+class AsrConfig(ServiceConfig):
+    model: AsrModelSettings = AsrModelSettings()
+    endpointing: EndpointingSettings = EndpointingSettings()
+    audio: AudioSettings = AudioSettings()
+
+    @model_validator(mode="after")
+    def _utterance_fits(self) -> AsrConfig:
+        if self.endpointing.max_utterance_s > self.audio.max_audio_s:
+            raise ValueError("endpointing.max_utterance_s must not exceed audio.max_audio_s")
+        return self

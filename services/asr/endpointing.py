@@ -1,0 +1,136 @@
+"""Cuts a stream of 16 kHz audio into utterances by voice activity.
+
+Speech starts at the first window whose probability reaches `threshold`; it goes on while
+windows stay above a lower threshold (hysteresis keeps short dips inside a word from
+splitting it) and ends after `min_silence_ms` below it. Each utterance keeps
+`speech_pad_ms` of audio before and after the speech, because Whisper clips soft word
+onsets otherwise. Bursts shorter than `min_speech_ms` are dropped; an utterance reaching
+`max_utterance_s` is cut there and the next one starts at once.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from oricf.services.asr.config import EndpointingSettings
+from oricf.services.asr.vad import SAMPLE_RATE, WINDOW, VadStream
+
+# Silero's own streaming iterator ends speech at threshold - 0.15.
+HYSTERESIS = 0.15
+
+
+@dataclass(frozen=True)
+class Utterance:
+    samples: np.ndarray   # mono float32 at 16 kHz
+    start: int            # sample index in the stream (16 kHz)
+    vad_ms: float         # time spent in the VAD since the previous utterance
+
+    @property
+    def end(self) -> int:
+        return self.start + len(self.samples)
+
+
+def _ms_to_samples(ms: float) -> int:
+    return int(ms * SAMPLE_RATE / 1000)
+
+
+class Endpointer:
+    """push() audio as it arrives and get back the utterances it completes; flush() at the end."""
+
+    def __init__(self, vad: VadStream, settings: EndpointingSettings) -> None:
+        self.vad = vad
+        self.threshold = settings.threshold
+        self.end_threshold = max(settings.threshold - HYSTERESIS, 0.01)
+        self.min_silence = _ms_to_samples(settings.min_silence_ms)
+        self.pad = _ms_to_samples(settings.speech_pad_ms)
+        self.min_speech = _ms_to_samples(settings.min_speech_ms)
+        self.max_samples = int(settings.max_utterance_s * SAMPLE_RATE)
+        self._pending = np.zeros(0, dtype=np.float32)   # less than a window, not yet scored
+        self._position = 0       # stream index of the next window
+        self._recent = np.zeros(0, dtype=np.float32)    # audio before speech (for the pad)
+        self._speech: list[np.ndarray] | None = None     # windows of the current utterance
+        self._start = 0
+        self._length = 0
+        self._voiced = 0         # samples scored as speech in the current utterance
+        self._silence = 0        # trailing samples scored as silence
+        self._vad_ms = 0.0
+
+    @property
+    def in_speech(self) -> bool:
+        return self._speech is not None
+
+    def push(self, samples: np.ndarray) -> list[Utterance]:
+        audio = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
+        whole = len(audio) - len(audio) % WINDOW
+        self._pending = audio[whole:]
+        done: list[Utterance] = []
+        for offset in range(0, whole, WINDOW):
+            utterance = self._window(audio[offset:offset + WINDOW])
+            if utterance is not None:
+                done.append(utterance)
+        return done
+
+    def flush(self) -> list[Utterance]:
+        """Ends the stream: an utterance still open is finished with what has arrived."""
+        if self._speech is None:
+            return []
+        self._speech.append(self._pending)
+        self._length += len(self._pending)
+        self._pending = np.zeros(0, dtype=np.float32)
+        utterance = self._finish()
+        return [utterance] if utterance is not None else []
+
+    def _window(self, window: np.ndarray) -> Utterance | None:
+        started = time.perf_counter()
+        probability = self.vad.probability(window)
+        self._vad_ms += (time.perf_counter() - started) * 1e3
+        self._position += WINDOW
+        if self._speech is None:
+            if probability >= self.threshold:
+                self._begin(window)
+            else:
+                self._recent = self._tail(np.concatenate([self._recent, window]))
+            return None
+        self._speech.append(window)
+        self._length += WINDOW
+        if probability >= self.end_threshold:
+            self._voiced += WINDOW
+            self._silence = 0
+        else:
+            self._silence += WINDOW
+        if self._silence >= self.min_silence:
+            return self._finish()
+        if self._length >= self.max_samples:
+            utterance = self._finish()
+            self._begin(np.zeros(0, dtype=np.float32))  # the speech goes on
+            return utterance
+        return None
+
+    def _begin(self, window: np.ndarray) -> None:
+        self._speech = [self._recent, window]
+        self._length = len(self._recent) + len(window)
+        self._start = self._position - self._length
+        self._voiced = len(window)
+        self._silence = 0
+        self._recent = np.zeros(0, dtype=np.float32)
+
+    def _tail(self, audio: np.ndarray) -> np.ndarray:
+        """The last `pad` samples (audio[-0:] would be all of it)."""
+        return audio[-self.pad:] if self.pad else audio[:0]
+
+    def _finish(self) -> Utterance | None:
+        """Closes the current utterance, trimming trailing silence down to the pad."""
+        assert self._speech is not None
+        audio = np.concatenate(self._speech)
+        trim = max(self._silence - self.pad, 0)
+        kept = audio[:len(audio) - trim]
+        self._recent = self._tail(audio)
+        self._speech = None
+        if self._voiced < self.min_speech:
+            return None
+        utterance = Utterance(kept, self._start, self._vad_ms)
+        self._vad_ms = 0.0
+        return utterance

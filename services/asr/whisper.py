@@ -1,0 +1,107 @@
+"""Whisper on CTranslate2 through faster-whisper, weights from the model store only.
+
+The defaults favour latency for short spoken queries: greedy decoding (beam 1), one
+temperature (no fallback re-decoding), no timestamps, no conditioning on earlier text and
+no internal VAD (the stream does its own endpointing). `oricf bench asr` measures them.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.errors import InvalidInput, NotReady
+from oricf.services.asr.recognizer import Recognition
+from oricf.services.runtime import ModelInfo
+
+if TYPE_CHECKING:  # the config module imports this one while validating its defaults
+    from oricf.services.asr.config import AsrModelSettings
+    from oricf.store import ModelStore
+
+log = logging.getLogger(__name__)
+
+WEIGHTS = "model.bin"
+
+
+class WhisperOptions(Schema):
+    device: Literal["cpu", "cuda", "auto"] = "cpu"
+    compute_type: str = Field("int8", description="int8, int8_float32, float32, float16...")
+    beam_size: int = Field(1, ge=1, le=16, description="1: greedy decoding (fastest)")
+    temperature: float = Field(0.0, ge=0, le=1, description="0: deterministic")
+    without_timestamps: bool = True
+    condition_on_previous_text: bool = False
+    vad_filter: bool = Field(False, description="faster-whisper's own VAD on unary requests")
+    no_speech_threshold: float | None = Field(0.6, ge=0, le=1)
+    initial_prompt: str | None = Field(None, description="words to bias towards, e.g. a robot's")
+
+
+class WhisperRecognizer:
+    """The faster-whisper back end: load(), transcribe(), close(), info()."""
+
+    Options = WhisperOptions
+    sample_rate = 16000
+
+    def __init__(self, settings: AsrModelSettings, store: ModelStore) -> None:
+        self.settings = settings
+        self.options: WhisperOptions = settings.options
+        entry = store.entry(settings.name)
+        self.folder = store.path(settings.name, WEIGHTS).parent
+        self.license = entry.license
+        self.sha256 = next(f.sha256 for f in entry.files if f.name == WEIGHTS)
+        self._model: Any = None
+        self._runtime = "ctranslate2"
+
+    def load(self) -> None:
+        import ctranslate2
+        import faster_whisper
+
+        # faster-whisper logs every request at INFO; this service logs requests at DEBUG.
+        logging.getLogger("faster_whisper").setLevel(logging.WARNING)
+        o = self.options
+        self._model = faster_whisper.WhisperModel(
+            str(self.folder), device=o.device, compute_type=o.compute_type,
+            cpu_threads=self.settings.threads, local_files_only=True)
+        self._runtime = (f"ctranslate2 {ctranslate2.__version__} "
+                         f"(faster-whisper {faster_whisper.__version__})")
+        # The first call allocates CTranslate2's buffers: pay for it before serving.
+        self.transcribe(np.zeros(self.sample_rate, dtype=np.float32), self.settings.language)
+
+    def close(self) -> None:
+        self._model = None
+
+    def languages(self) -> list[str]:
+        model = self._model
+        return list(model.supported_languages) if model is not None else []
+
+    def info(self) -> ModelInfo:
+        o = self.options
+        parameters = {"backend": "faster-whisper", "threads": str(self.settings.threads),
+                      **{k: str(v) for k, v in o.model_dump().items() if v is not None}}
+        return ModelInfo(model=self.settings.name, runtime=self._runtime, providers=[o.device],
+                         license=self.license, sha256=self.sha256, parameters=parameters)
+
+    def transcribe(self, samples: np.ndarray, language: str) -> Recognition:
+        model = self._model
+        if model is None:
+            raise NotReady("the speech model is not loaded")
+        if language not in model.supported_languages:
+            raise InvalidInput(f"language '{language}' is not supported by {self.settings.name} "
+                               f"(supported: {', '.join(model.supported_languages[:12])}"
+                               f"{'...' if len(model.supported_languages) > 12 else ''})")
+        o = self.options
+        started = time.perf_counter()
+        segments, info = model.transcribe(
+            samples, language=language, beam_size=o.beam_size, temperature=o.temperature,
+            without_timestamps=o.without_timestamps,
+            condition_on_previous_text=o.condition_on_previous_text, vad_filter=o.vad_filter,
+            no_speech_threshold=o.no_speech_threshold, initial_prompt=o.initial_prompt)
+        # Segments are produced lazily: decoding happens while they are read.
+        text = "".join(segment.text for segment in segments).strip()
+        elapsed_ms = (time.perf_counter() - started) * 1e3
+        return Recognition(text=text, language=info.language, duration_s=info.duration,
+                           timings_ms={"inference_ms": elapsed_ms})
