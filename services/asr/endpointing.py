@@ -87,35 +87,40 @@ class Endpointer:
         started = time.perf_counter()
         probability = self.vad.probability(window)
         self._vad_ms += (time.perf_counter() - started) * 1e3
-        self._position += WINDOW
+        window_start, self._position = self._position, self._position + WINDOW
+        cut = None
         if self._speech is None:
-            if probability >= self.threshold:
-                self._begin(window)
-            else:
+            if probability < self.threshold:
                 self._recent = self._tail(np.concatenate([self._recent, window]))
-            return None
-        self._speech.append(window)
+                return None
+            speech = self._begin(window_start, self._recent)
+        elif self._length + WINDOW > self.max_samples:
+            # Too long: close it and go on in a new utterance from this window, without a
+            # pre-speech pad (that audio is already in the one just closed).
+            cut = self._finish()
+            speech = self._begin(window_start, window[:0])
+        else:
+            speech = self._speech
+        speech.append(window)
         self._length += WINDOW
         if probability >= self.end_threshold:
             self._voiced += WINDOW
             self._silence = 0
         else:
             self._silence += WINDOW
-        if self._silence >= self.min_silence:
+        if cut is None and self._silence >= self.min_silence:
             return self._finish()
-        if self._length >= self.max_samples:
-            utterance = self._finish()
-            self._begin(np.zeros(0, dtype=np.float32))  # the speech goes on
-            return utterance
-        return None
+        return cut
 
-    def _begin(self, window: np.ndarray) -> None:
-        self._speech = [self._recent, window]
-        self._length = len(self._recent) + len(window)
-        self._start = self._position - self._length
-        self._voiced = len(window)
+    def _begin(self, start: int, preroll: np.ndarray) -> list[np.ndarray]:
+        """Opens an utterance at stream index `start`, with `preroll` audio before it."""
+        self._speech = [preroll]
+        self._length = len(preroll)
+        self._start = start - len(preroll)
+        self._voiced = 0
         self._silence = 0
-        self._recent = np.zeros(0, dtype=np.float32)
+        self._recent = self._recent[:0]
+        return self._speech
 
     def _tail(self, audio: np.ndarray) -> np.ndarray:
         """The last `pad` samples (audio[-0:] would be all of it)."""

@@ -1,0 +1,144 @@
+"""TranscribeStream: microphone-sized chunks in, one transcript per utterance out."""
+
+from collections.abc import Iterable, Iterator
+
+import grpc
+import numpy as np
+import pytest
+
+from oricf.v1 import speech_pb2, speech_pb2_grpc
+from tests.services.test_asr import QUESTION, speech, words
+from tests.support.services import RunningService, running_service
+
+COMMAND = "Stop moving and turn left"
+CHUNK_MS = 20   # a typical microphone buffer
+
+
+def silence(seconds: float, rate: int = 16000) -> np.ndarray:
+    return np.zeros(int(seconds * rate), dtype=np.int16)
+
+
+def chunks(samples: np.ndarray, rate: int = 16000, channels: int = 1,
+           chunk_ms: int = CHUNK_MS) -> Iterator[speech_pb2.TranscribeStreamRequest]:
+    """The format in the first message only, then bare chunks, as a microphone client sends."""
+    data = samples.astype("<i2").tobytes()
+    size = rate * chunk_ms // 1000 * 2 * channels
+    for offset in range(0, len(data), size):
+        audio = speech_pb2.Audio(data=data[offset:offset + size])
+        if offset == 0:
+            audio.encoding, audio.sample_rate, audio.channels = "pcm_s16le", rate, channels
+        yield speech_pb2.TranscribeStreamRequest(audio=audio)
+
+
+@pytest.fixture(scope="module")
+def asr() -> Iterator[RunningService]:
+    with running_service("asr") as service:
+        yield service
+
+
+@pytest.fixture
+def stub(asr: RunningService) -> speech_pb2_grpc.SpeechRecognizerStub:
+    return speech_pb2_grpc.SpeechRecognizerStub(asr.channel)
+
+
+def transcripts(stub: speech_pb2_grpc.SpeechRecognizerStub,
+                requests: Iterable[speech_pb2.TranscribeStreamRequest]
+                ) -> list[speech_pb2.Transcript]:
+    return list(stub.TranscribeStream(iter(requests), timeout=60))
+
+
+def test_one_transcript_per_utterance(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    first, second = speech(QUESTION), speech(COMMAND, voice="en-gb")
+    audio = np.concatenate([silence(0.5), first, silence(1.0), second, silence(1.0)])
+    results = transcripts(stub, chunks(audio))
+    assert len(results) == 2, [r.text for r in results]
+    assert {"many", "people", "see"} <= set(words(results[0].text)), results[0].text
+    assert words(results[1].text) == ["stop", "moving", "and", "turn", "left"], results[1].text
+    assert [r.utterance for r in results] == [0, 1]
+    # Each utterance lies where its speech was put in the stream (with the pad around it).
+    first_end = (8000 + len(first)) / 16000
+    assert 0.4 <= results[0].start_s < results[0].end_s <= first_end + 0.1
+    assert first_end + 0.5 < results[1].start_s < results[1].end_s <= len(audio) / 16000
+    for result in results:
+        assert result.duration_s == pytest.approx(result.end_s - result.start_s, abs=0.001)
+        assert result.timings.inference_ms > 0 and result.timings.preprocess_ms > 0
+        assert result.timings.total_ms >= result.timings.inference_ms
+
+
+def test_a_stream_ending_mid_utterance_is_flushed(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    audio = np.concatenate([silence(0.3), speech(QUESTION)[:-3200]])  # cut right after speech
+    results = transcripts(stub, chunks(audio))
+    assert len(results) == 1
+    assert {"many", "people"} <= set(words(results[0].text)), results[0].text
+
+
+def test_silence_alone_gives_nothing(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    assert transcripts(stub, chunks(silence(2.0))) == []
+
+
+def test_an_empty_stream_gives_nothing(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    assert transcripts(stub, []) == []
+
+
+def test_48k_stereo_in_chunks_that_split_frames(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    mono = np.concatenate([speech(COMMAND, rate=48000), silence(0.8, 48000)])
+    data = np.stack([mono, mono], axis=1).astype("<i2").tobytes()
+    sizes = [1001, 7, 3, 4097]  # never a whole frame (4 bytes)
+    requests, offset, turn = [], 0, 0
+    while offset < len(data):
+        size = sizes[turn % len(sizes)]
+        audio = speech_pb2.Audio(data=data[offset:offset + size], encoding="pcm_s16le",
+                                 sample_rate=48000, channels=2)
+        requests.append(speech_pb2.TranscribeStreamRequest(audio=audio))
+        offset, turn = offset + size, turn + 1
+    results = transcripts(stub, requests)
+    assert [words(r.text) for r in results] == [["stop", "moving", "and", "turn", "left"]]
+
+
+BAD_STREAMS = {
+    "wav in a stream": ([speech_pb2.Audio(data=bytes(64), encoding="wav")],
+                        "must set audio.encoding to 'pcm_s16le'"),
+    "no format": ([speech_pb2.Audio(data=bytes(64))], "must set audio.encoding"),
+    "zero sample rate": ([speech_pb2.Audio(data=bytes(64), encoding="pcm_s16le")],
+                         "sample_rate must be > 0"),
+    "rate changes": ([speech_pb2.Audio(data=bytes(64), encoding="pcm_s16le", sample_rate=16000),
+                      speech_pb2.Audio(data=bytes(64), sample_rate=8000)],
+                     "sample_rate changed mid-stream from 16000 to 8000 Hz"),
+    "encoding changes": ([speech_pb2.Audio(data=bytes(64), encoding="pcm_s16le",
+                                           sample_rate=16000),
+                          speech_pb2.Audio(data=bytes(64), encoding="wav")],
+                         "encoding changed mid-stream"),
+    "channels change": ([speech_pb2.Audio(data=bytes(64), encoding="pcm_s16le",
+                                          sample_rate=16000, channels=1),
+                         speech_pb2.Audio(data=bytes(64), channels=2)],
+                        "channels changed mid-stream from 1 to 2"),
+    "stray byte at the end": ([speech_pb2.Audio(data=bytes(65), encoding="pcm_s16le",
+                                                sample_rate=16000)],
+                              "1 stray byte(s)"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_STREAMS)
+def test_bad_stream_is_invalid_argument_and_the_service_goes_on(
+        stub: speech_pb2_grpc.SpeechRecognizerStub, case: str) -> None:
+    audios, message = BAD_STREAMS[case]
+    requests = [speech_pb2.TranscribeStreamRequest(audio=a) for a in audios]
+    with pytest.raises(grpc.RpcError) as error:
+        transcripts(stub, requests)
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert message in error.value.details()
+    good = transcripts(stub, chunks(np.concatenate([speech(QUESTION), silence(0.6)])))
+    assert len(good) == 1 and "people" in words(good[0].text)
+
+
+def test_long_speech_is_cut_at_max_utterance() -> None:
+    overrides = {"endpointing": {"max_utterance_s": 2.0}}
+    talk = np.concatenate([speech(QUESTION)[3200:-3200]] * 3)  # about 5 s without a pause
+    with running_service("asr", overrides) as service:
+        stub = speech_pb2_grpc.SpeechRecognizerStub(service.channel)
+        results = transcripts(stub, chunks(np.concatenate([talk, silence(1.0)])))
+    assert len(results) >= 3, [r.text for r in results]
+    assert all(r.duration_s <= 2.0 + 1e-6 for r in results)
+    assert sum("people" in words(r.text) for r in results) >= 2
