@@ -1,6 +1,7 @@
 """Voice-activity endpointing with the real Silero VAD on real speech, and the service's config."""
 
 from collections.abc import Iterator
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -86,7 +87,7 @@ def test_long_speech_is_cut_into_contiguous_pieces(vad: SileroVad, question: np.
     pieces = run(vad, np.concatenate([talk, np.zeros(RATE, np.float32)]), max_utterance_s=2.0)
     assert len(pieces) >= 3
     assert all(len(p.samples) <= 2 * RATE for p in pieces)
-    for before, after in zip(pieces, pieces[1:], strict=False):
+    for before, after in pairwise(pieces):
         assert after.start == before.end   # nothing lost, nothing repeated at a cut
 
 
