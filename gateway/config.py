@@ -22,7 +22,7 @@ endpoint, a data product, a record field) is checked at load time.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -216,21 +216,6 @@ class RouteConfig(Schema):
     post: list[PostStep] = Field(default_factory=list)
     outputs: list[OutputConfig] = Field(min_length=1)
 
-    @model_validator(mode="after")
-    def _fields_exist(self) -> RouteConfig:
-        fields = {self.input.field, *METHOD_FIELDS[self.call.method]}
-        for i, step in enumerate(self.post):
-            if step.writes:
-                fields.add(step.writes)
-            if step.kind in ("map_labels", "filter", "count", "annotate") \
-                    and self.call.method != "Detect":
-                raise ValueError(f"post[{i}].{step.kind}: works on detections (method Detect)")
-        for i, output in enumerate(self.outputs):
-            if output.source not in fields:
-                raise ValueError(f"outputs[{i}].from: no field '{output.source}' in this route "
-                                 f"(fields: {', '.join(sorted(fields))})")
-        return self
-
 
 class PipelineConfig(Schema):
     node_name: str = Field("oricf_gateway", pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -239,33 +224,57 @@ class PipelineConfig(Schema):
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="named overlays chosen with --profile")
 
-    @model_validator(mode="after")
-    def _references(self) -> PipelineConfig:
-        produced = {o.product: name for name, r in self.routes.items()
-                    for o in r.outputs if o.product}
-        service_of: dict[str, str] = {}
-        for name, route in self.routes.items():
-            call = route.call
-            if call.service not in self.endpoints:
-                raise ValueError(f"routes.{name}.call.service: no endpoint '{call.service}' "
-                                 f"(endpoints: {', '.join(sorted(self.endpoints)) or 'none'})")
-            kind = SERVICE_OF[call.method]
-            if service_of.setdefault(call.service, kind) != kind:
-                raise ValueError(f"routes.{name}.call: endpoint '{call.service}' is used for "
-                                 f"both {service_of[call.service]} and {kind}")
-            wanted = [route.input.product] + (call.context.products if call.context else [])
-            for product in filter(None, wanted):
-                if product not in produced:
-                    raise ValueError(f"routes.{name}: no route outputs the data product "
-                                     f"'{product}'")
-        return self
-
     def service_of(self, endpoint: str) -> str:
         """The gRPC service an endpoint serves (from the routes that call it)."""
         for route in self.routes.values():
             if route.call.service == endpoint:
                 return SERVICE_OF[route.call.method]
         return ""
+
+
+def _route_problems(name: str, route: RouteConfig) -> Iterator[str]:
+    """Outputs must name fields the route has (input, call and post-processor fields)."""
+    fields = {route.input.field, *METHOD_FIELDS[route.call.method]}
+    for i, step in enumerate(route.post):
+        if step.kind in ("map_labels", "filter", "count", "annotate") \
+                and route.call.method != "Detect":
+            yield f"routes.{name}.post[{i}].{step.kind}: works on detections (method Detect)"
+        if step.writes:
+            fields.add(step.writes)
+    for i, output in enumerate(route.outputs):
+        if output.source not in fields:
+            yield (f"routes.{name}.outputs[{i}].from: no field '{output.source}' in this route "
+                   f"(fields: {', '.join(sorted(fields))})")
+
+
+def _reference_problems(config: PipelineConfig) -> Iterator[str]:
+    """Endpoints, data products and fields that routes name must exist."""
+    produced = {o.product for r in config.routes.values() for o in r.outputs if o.product}
+    service_of: dict[str, str] = {}
+    for name, route in config.routes.items():
+        call = route.call
+        if call.service not in config.endpoints:
+            yield (f"routes.{name}.call.service: no endpoint '{call.service}' "
+                   f"(endpoints: {', '.join(sorted(config.endpoints)) or 'none'})")
+        kind = SERVICE_OF[call.method]
+        if service_of.setdefault(call.service, kind) != kind:
+            yield (f"routes.{name}.call.service: endpoint '{call.service}' would serve both "
+                   f"{service_of[call.service]} and {kind}")
+        if route.input.product is not None and route.input.product not in produced:
+            yield f"routes.{name}.input.product: no route outputs '{route.input.product}'"
+        for i, product in enumerate(call.context.products if call.context else []):
+            if product not in produced:
+                yield f"routes.{name}.call.context.products[{i}]: no route outputs '{product}'"
+        yield from _route_problems(name, route)
+
+
+def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:
+    """Validates parsed YAML, then every cross-reference; errors name source and key."""
+    config = validate(data, PipelineConfig, source, base_dir)
+    problems = [f"{source}: {problem}" for problem in _reference_problems(config)]
+    if problems:
+        raise ConfigError("\n".join(problems))
+    return config
 
 
 def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
@@ -284,4 +293,4 @@ def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
                               f"(profiles: {', '.join(sorted(profiles)) or 'none'})")
         data = deep_merge(data, profiles[profile])
         sources.append(f"profile {profile}")
-    return validate(data, PipelineConfig, " + ".join(sources), base_dir=path.parent)
+    return parse_pipeline(data, " + ".join(sources), path.parent)

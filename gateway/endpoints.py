@@ -30,12 +30,13 @@ STUBS: dict[str, Any] = {
     "oricf.v1.LanguageModel": language_pb2_grpc.LanguageModelStub,
 }
 # Short reconnect backoff: a restarted service is found within about a second, not the
-# default of up to two minutes.
+# default of up to two minutes. gRPC also uses the minimum as the connect timeout, so a host
+# that accepts connections but never completes the handshake fails within a second too.
 CHANNEL_OPTIONS = [
     ("grpc.max_send_message_length", 64 * 1024 * 1024),
     ("grpc.max_receive_message_length", 64 * 1024 * 1024),
-    ("grpc.initial_reconnect_backoff_ms", 200),
-    ("grpc.min_reconnect_backoff_ms", 200),
+    ("grpc.initial_reconnect_backoff_ms", 250),
+    ("grpc.min_reconnect_backoff_ms", 1000),
     ("grpc.max_reconnect_backoff_ms", 1000),
 ]
 PROBE_TIMEOUT_S = 1.0

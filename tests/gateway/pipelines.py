@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from oricf.config import config_dir, deep_merge, read_yaml, validate
-from oricf.gateway.config import PipelineConfig
+from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.gateway.config import PipelineConfig, parse_pipeline
 
 PEOPLE_QA = config_dir() / "pipelines" / "people_qa.yaml"
 
@@ -16,4 +16,4 @@ def people_qa(overlay: dict[str, Any] | None = None, **addresses: str) -> Pipeli
     data = deep_merge(data, {"endpoints": {name: {"address": address}
                                            for name, address in addresses.items()}})
     data = deep_merge(data, overlay or {})
-    return validate(data, PipelineConfig, f"{PEOPLE_QA} (test overlay)", PEOPLE_QA.parent)
+    return parse_pipeline(data, f"{PEOPLE_QA} (test overlay)", PEOPLE_QA.parent)

@@ -1,0 +1,148 @@
+"""Pipeline YAML: the shipped files load; every mistake names the file and the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from oricf.config import config_dir
+from oricf.errors import ConfigError
+from oricf.gateway.config import load_pipeline
+from oricf.gateway.main import main
+
+PIPELINES = config_dir() / "pipelines"
+PEOPLE_QA = PIPELINES / "people_qa.yaml"
+
+MINIMAL: dict[str, Any] = {
+    "endpoints": {"detector": {"address": "127.0.0.1:50051"}},
+    "routes": {"people": {
+        "input": {"topic": "camera/image_raw", "type": "sensor_msgs/Image"},
+        "call": {"service": "detector", "method": "Detect", "labels": ["person"]},
+        "post": [{"count": {"label": "person"}}],
+        "outputs": [{"topic": "/human_counter", "type": "std_msgs/Int32", "from": "count"}],
+    }},
+}
+
+
+def write(tmp_path: Path, data: Any, name: str = "pipeline.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def edited(change: dict[str, Any]) -> dict[str, Any]:
+    from oricf.config import deep_merge
+
+    return deep_merge(MINIMAL, change)  # type: ignore[no-any-return]
+
+
+def test_reference_pipeline_keeps_the_fixed_topic_names() -> None:
+    config = load_pipeline(PEOPLE_QA)
+    people, speech = config.routes["people"], config.routes["speech"]
+    assert (people.input.topic, people.input.type) == ("camera/image_raw", "sensor_msgs/Image")
+    assert {(o.topic, o.type) for o in people.outputs if o.topic} == {
+        ("/human_counter", "std_msgs/Int32"), ("/camera/image_annotated", "sensor_msgs/Image")}
+    assert [o.product for o in people.outputs if o.product] == ["people_count"]
+    assert speech.input.topic == "/audio/utterance"
+    assert [o.topic for o in speech.outputs if o.topic] == ["/speech/transcript"]
+    assert config.routes["typed_question"].input.topic == "/question"
+    for name in ("typed_question", "spoken_question"):
+        route = config.routes[name]
+        assert route.call.context is not None
+        assert route.call.context.products == ["people_count"]
+        assert [o.topic for o in route.outputs] == ["/answer"]
+    assert {n: e.address for n, e in config.endpoints.items()} == {
+        "detector": "127.0.0.1:50051", "asr": "127.0.0.1:50052", "llm": "127.0.0.1:50053"}
+
+
+@pytest.mark.parametrize("placement", ["onboard", "edge"])
+def test_placement_by_overlay_or_profile_gives_the_same_result(placement: str) -> None:
+    by_overlay = load_pipeline(PEOPLE_QA, [PIPELINES / "placement" / f"{placement}.yaml"])
+    by_profile = load_pipeline(PEOPLE_QA, profile=placement)
+    assert by_overlay.routes == by_profile.routes == load_pipeline(PEOPLE_QA).routes
+    detector = by_overlay.endpoints["detector"]
+    if placement == "edge":
+        assert detector.address == "edge.local:50051"
+        assert detector.fallback == "127.0.0.1:50051"
+        assert detector.image.transport == "jpeg"
+        assert by_profile.endpoints["detector"].address == detector.address
+    else:
+        assert detector.address == "127.0.0.1:50051" and detector.image.transport == "raw"
+
+
+BAD = [
+    ({"routes": {"people": {"call": {"deadline": 3}}}}, "routes.people.call.deadline: unknown key"),
+    ({"endpoints": {"detector": {"address": "localhost"}}},
+     "endpoints.detector.address: 'localhost' is not host:port"),
+    ({"endpoints": {"detector": {"deadline_ms": 0}}}, "endpoints.detector.deadline_ms"),
+    ({"endpoints": {"detector": {"image": {"transport": "png"}}}},
+     "endpoints.detector.image.transport"),
+    ({"routes": {"people": {"call": {"service": "detektor"}}}},
+     "routes.people.call.service: no endpoint 'detektor'"),
+    ({"routes": {"people": {"call": {"method": "Classify"}}}}, "routes.people.call.method"),
+    ({"routes": {"people": {"call": {"max_tokens": 5}}}},
+     "max_tokens: only for method Generate, not Detect"),
+    ({"routes": {"people": {"input": {"type": "sensor_msgs/PointCloud2"}}}},
+     "routes.people.input.type"),
+    ({"routes": {"people": {"input": {"product": "frames"}}}},
+     "give exactly one of topic or product"),
+    ({"routes": {"people": {"post": [{"count": {}, "annotate": {}}]}}},
+     "routes.people.post[0]: give exactly one of"),
+    ({"routes": {"people": {"outputs": [{"topic": "/n", "type": "std_msgs/Int32",
+                                         "from": "cnt"}]}}},
+     "routes.people.outputs[0].from: no field 'cnt'"),
+    ({"routes": {"people": {"outputs": [{"topic": "/n", "from": "count"}]}}},
+     "type: required with topic"),
+    ({"routes": {"ask": {"input": {"topic": "/q", "type": "std_msgs/String"},
+                         "call": {"service": "detector", "method": "Generate"},
+                         "outputs": [{"topic": "/a", "type": "std_msgs/String",
+                                      "from": "answer"}]}}},
+     "call.service: endpoint 'detector' would serve both"),
+]
+
+
+@pytest.mark.parametrize(("change", "message"), BAD)
+def test_mistakes_name_the_file_and_the_key(tmp_path: Path, change: dict[str, Any],
+                                            message: str) -> None:
+    path = write(tmp_path, edited(change))
+    with pytest.raises(ConfigError) as error:
+        load_pipeline(path)
+    assert str(path) in str(error.value)
+    assert message in str(error.value)
+
+
+def test_context_must_name_a_product_some_route_outputs(tmp_path: Path) -> None:
+    data = edited({"endpoints": {"llm": {"address": "127.0.0.1:50053"}},
+                   "routes": {"ask": {
+                       "input": {"topic": "/q", "type": "std_msgs/String"},
+                       "call": {"service": "llm", "method": "Generate",
+                                "context": {"products": ["people_count"]}},
+                       "outputs": [{"topic": "/a", "type": "std_msgs/String",
+                                    "from": "answer"}]}}})
+    message = r"routes.ask.call.context.products\[0\]: no route outputs 'people_count'"
+    with pytest.raises(ConfigError, match=message):
+        load_pipeline(write(tmp_path, data))
+
+
+def test_overlay_errors_name_every_file(tmp_path: Path) -> None:
+    base = write(tmp_path, MINIMAL)
+    overlay = write(tmp_path, {"endpoints": {"detector": {"fallback": "nowhere"}}}, "edge.yaml")
+    with pytest.raises(ConfigError) as error:
+        load_pipeline(base, [overlay])
+    assert f"{base} + {overlay}: endpoints.detector.fallback: 'nowhere'" in str(error.value)
+
+
+def test_unknown_profile_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"profiles: no profile 'cloud' \(profiles: edge"):
+        load_pipeline(PEOPLE_QA, profile="cloud")
+
+
+def test_check_option_validates_without_ros(capsys: pytest.CaptureFixture[str],
+                                            tmp_path: Path) -> None:
+    assert main(["--config", str(PEOPLE_QA), "--profile", "edge", "--check"]) == 0
+    assert "4 routes" in capsys.readouterr().out
+    with pytest.raises(ConfigError, match="file not found"):
+        main(["--config", str(tmp_path / "missing.yaml"), "--check"])

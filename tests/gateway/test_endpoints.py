@@ -1,0 +1,120 @@
+"""Endpoint failover against real gRPC servers: a real detector, a dead port, a hung host."""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import grpc
+import pytest
+
+from oricf.gateway.config import EndpointConfig
+from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.values import Frame
+from oricf.v1 import common_pb2, detector_pb2
+from tests.support.data import video_frames
+from tests.support.processes import free_port
+from tests.support.services import running_service
+
+DETECTOR = "oricf.v1.Detector"
+
+
+@pytest.fixture(scope="module")
+def request_0() -> detector_pb2.DetectRequest:
+    return detector_pb2.DetectRequest(image=Frame.from_pixels(video_frames([0])[0]).to_proto(),
+                                      labels=["person"])
+
+
+def endpoint(address: str, fallback: str | None = None, deadline_ms: int = 2000) -> Endpoint:
+    config = EndpointConfig(address=address, fallback=fallback, deadline_ms=deadline_ms,
+                            probe_interval_s=0.1)
+    return Endpoint("detector", config, DETECTOR)
+
+
+@pytest.fixture()
+def hung_address() -> Iterator[str]:
+    """A host that accepts connections, reads, and never answers (a hung machine)."""
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)
+    held: list[socket.socket] = []
+
+    def accept_and_hold() -> None:
+        with contextlib.suppress(OSError):
+            while True:
+                connection, _ = listener.accept()
+                held.append(connection)
+
+    threading.Thread(target=accept_and_hold, daemon=True).start()
+    yield f"127.0.0.1:{listener.getsockname()[1]}"
+    listener.close()
+    for connection in held:
+        connection.close()
+
+
+def test_without_a_fallback_errors_reach_the_caller(request_0: detector_pb2.DetectRequest
+                                                     ) -> None:
+    dead = endpoint(f"127.0.0.1:{free_port()}")
+    with pytest.raises(grpc.RpcError) as error:
+        dead.call("Detect", request_0)
+    dead.close()
+    assert error.value.code() == grpc.StatusCode.UNAVAILABLE
+
+
+def test_client_errors_do_not_fail_over(request_0: detector_pb2.DetectRequest) -> None:
+    with running_service("detector") as primary, running_service("detector") as fallback:
+        ep = endpoint(primary.address, fallback.address)
+        bad = detector_pb2.DetectRequest(image=common_pb2.Image(data=b"x", encoding="jpeg"))
+        with pytest.raises(grpc.RpcError) as error:
+            ep.call("Detect", bad)
+        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert ep.active is ep.primary and ep.failovers == 0
+        assert ep.call("Detect", request_0).counts["person"] == 4
+        ep.close()
+
+
+def test_fails_over_when_unavailable_and_returns_when_serving(
+        request_0: detector_pb2.DetectRequest) -> None:
+    port = free_port()
+    with running_service("detector") as fallback:
+        ep = endpoint(f"127.0.0.1:{port}", fallback.address)
+        assert ep.call("Detect", request_0).counts["person"] == 4  # answered by the fallback
+        assert ep.active is ep.fallback and ep.failovers == 1
+        assert ep.call("Detect", request_0).counts["person"] == 4
+        assert ep.failovers == 1  # no second switch while already on the fallback
+        with running_service("detector", {"server": {"listen": f"127.0.0.1:{port}"}}):
+            deadline = time.monotonic() + 10
+            while ep.active is not ep.primary and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert ep.active is ep.primary and ep.recoveries == 1
+            fallback.host.stop(grace=0)
+            assert ep.call("Detect", request_0).counts["person"] == 4  # the primary answers
+        ep.close()
+
+
+def test_a_primary_not_serving_yet_is_not_returned_to(request_0: detector_pb2.DetectRequest
+                                                       ) -> None:
+    port = free_port()
+    with running_service("detector") as fallback:
+        ep = endpoint(f"127.0.0.1:{port}", fallback.address)
+        ep.call("Detect", request_0)
+        with running_service("detector", {"server": {"listen": f"127.0.0.1:{port}"}},
+                             load=False):  # up, but health NOT_SERVING: model not loaded
+            time.sleep(0.5)
+            assert ep.active is ep.fallback and ep.recoveries == 0
+        ep.close()
+
+
+def test_deadline_exceeded_fails_over(hung_address: str, request_0: detector_pb2.DetectRequest,
+                                      caplog: pytest.LogCaptureFixture) -> None:
+    with running_service("detector") as fallback:
+        ep = endpoint(hung_address, fallback.address, deadline_ms=300)
+        started = time.monotonic()
+        assert ep.call("Detect", request_0).counts["person"] == 4
+        assert 0.3 <= time.monotonic() - started < 2.0
+        assert ep.active is ep.fallback
+        assert "failed (DEADLINE_EXCEEDED); using fallback" in caplog.text
+        ep.close()

@@ -1,0 +1,82 @@
+"""Route workers: newest-frame slot with drop counting, bounded queues, errors contained."""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import pytest
+
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.worker import RouteWorker
+
+
+def blocked_worker(mode: str, size: int = 8) -> tuple[RouteWorker[int], list[int],
+                                                         threading.Event]:
+    release = threading.Event()
+    handled: list[int] = []
+
+    def handle(item: int) -> None:
+        release.wait(5)
+        handled.append(item)
+
+    worker: RouteWorker[int] = RouteWorker("test", handle, mode, size)
+    worker.start()
+    return worker, handled, release
+
+
+def test_latest_keeps_only_the_newest_frame_while_busy() -> None:
+    worker, handled, release = blocked_worker("latest")
+    worker.submit(0)
+    assert not worker.idle(0.2)  # 0 is being handled (blocked)
+    for item in range(1, 6):
+        worker.submit(item)
+    release.set()
+    assert worker.idle(5)
+    worker.stop()
+    assert handled == [0, 5]
+    assert (worker.stats.received, worker.stats.dropped, worker.stats.handled) == (6, 4, 2)
+
+
+def test_queue_keeps_order_and_drops_the_oldest_when_full() -> None:
+    worker, handled, release = blocked_worker("queue", size=3)
+    worker.submit(0)
+    assert not worker.idle(0.2)
+    for item in range(1, 6):
+        worker.submit(item)
+    release.set()
+    assert worker.idle(5)
+    worker.stop()
+    assert handled == [0, 3, 4, 5]
+    assert worker.stats.dropped == 2
+
+
+def test_an_exception_does_not_stop_the_worker(caplog: pytest.LogCaptureFixture) -> None:
+    handled: list[int] = []
+
+    def handle(item: int) -> None:
+        if item == 1:
+            raise RuntimeError("boom")
+        handled.append(item)
+
+    worker: RouteWorker[int] = RouteWorker("test", handle, "queue")
+    worker.start()
+    for item in range(3):
+        worker.submit(item)
+    assert worker.idle(5)
+    worker.stop()
+    assert handled == [0, 2]
+    assert "route test: unexpected error" in caplog.text
+
+
+def test_throttled_log_suppresses_repeats(caplog: pytest.LogCaptureFixture) -> None:
+    now = [0.0]
+    throttle = ThrottledLog(logging.getLogger("t"), 10.0, clock=lambda: now[0])
+    assert throttle.error("a", "service down")
+    assert not throttle.error("a", "service down")
+    assert throttle.error("b", "another problem")  # other keys are not held back
+    now[0] = 11.0
+    assert throttle.error("a", "service down")
+    messages = [r.getMessage() for r in caplog.records]
+    assert messages == ["service down", "another problem",
+                        "service down (1 similar suppressed in the last 10 s)"]
