@@ -1,0 +1,198 @@
+"""`oricf bench llm`: how often the language model states the right people count, and how fast.
+
+Starts the real service in-process on a free port for each model, asks varied count
+questions with the count in the request's context (as the gateway sends it) over
+GenerateStream, and grades each answer: it must state the right count and no other.
+Also measures prompt-prefix reuse: the same questions with the KV cache of the fixed
+prefix kept (the default) and thrown away before every call.
+
+    oricf bench llm                                   # both catalog models
+    oricf bench llm --model gemma3-270m --show        # one model, print every answer
+    oricf bench llm --prompt my-prompt.yaml --threads 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import statistics
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import grpc
+
+from oricf.config import config_dir, deep_merge, read_yaml, validate
+from oricf.services import load_spec
+from oricf.services.runtime import ServiceHost
+from oricf.store import ModelStore
+from oricf.v1 import language_pb2, language_pb2_grpc
+
+MODELS = ("gemma3-270m", "smollm2-135m-instruct")
+PHRASINGS = (
+    "How many people do you see?",
+    "Is anyone there?",
+    "Are you alone?",
+    "How many humans are in the room?",
+    "How many persons are in front of you?",
+    "Is there somebody in the room?",
+    "Do you see anyone?",
+    "Count the people you can see.",
+    "How many people are here right now?",
+    "Is there a person in view?",
+    "Are there any people around?",
+    "How many visitors are there?",
+    "Anybody here?",
+    "How many people are in the room?",
+    "Am I the only one here?",
+    "Do you see any humans?",
+    "What is the number of people in front of you?",
+    "Is the room empty?",
+    "How many folks can you spot?",
+    "Is there a single person?",
+)
+MAX_COUNT = 15
+NUMBER_WORDS = (
+    "zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten",
+    "eleven", "twelve", "thirteen", "fourteen", "fifteen", "sixteen", "seventeen", "eighteen",
+    "nineteen", "twenty")
+ZERO_PHRASES = re.compile(r"\b(no one|no-one|nobody|no people|no persons|no humans|zero)\b")
+REUSE_SAMPLE = 8
+DEADLINE_S = 30.0
+
+
+def questions(n: int) -> list[tuple[str, int]]:
+    """n (question, count) pairs; with n = 80 every phrasing meets every count at most once
+    and each count 0-15 is asked 5 different ways."""
+    return [(PHRASINGS[i % len(PHRASINGS)], i % (MAX_COUNT + 1)) for i in range(n)]
+
+
+def stated_counts(answer: str) -> set[int]:
+    """The people counts an answer states, as digits, number words or "no one"-type phrases."""
+    text = answer.lower()
+    counts = {0} if ZERO_PHRASES.search(text) else set()
+    text = ZERO_PHRASES.sub(" ", text)  # "no one" must not read as "one"
+    counts |= {int(d) for d in re.findall(r"\b\d+\b", text)}
+    counts |= {i for i, word in enumerate(NUMBER_WORDS) if re.search(rf"\b{word}\b", text)}
+    return counts
+
+
+def is_right(answer: str, count: int) -> bool:
+    return stated_counts(answer) == {count}
+
+
+@dataclass
+class Answer:
+    question: str
+    count: int
+    text: str
+    first_s: float
+    total_s: float
+
+    @property
+    def right(self) -> bool:
+        return is_right(self.text, self.count)
+
+
+def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int) -> Answer:
+    request = language_pb2.GenerateRequest(prompt=question,
+                                           context={"people_count": str(count)})
+    started = time.perf_counter()
+    first = None
+    pieces = []
+    for message in stub.GenerateStream(request, timeout=DEADLINE_S):
+        if first is None and message.text:
+            first = time.perf_counter() - started
+        pieces.append(message.text)
+    total = time.perf_counter() - started
+    return Answer(question, count, "".join(pieces), total if first is None else first, total)
+
+
+@contextmanager
+def service(overrides: dict[str, Any], config_path: Path) -> Iterator[grpc.Channel]:
+    spec = load_spec("llm")
+    data = deep_merge(read_yaml(config_path), overrides)
+    config = validate(data, spec.config_schema, str(config_path), base_dir=config_path.parent)
+    host = ServiceHost(spec, config, spec.create_model(config, ModelStore()))
+    host.start()
+    host.load_model()
+    channel = grpc.insecure_channel(f"127.0.0.1:{host.port}")
+    try:
+        yield channel
+    finally:
+        channel.close()
+        host.stop(grace=1.0)
+
+
+def overrides_for(model: str, args: argparse.Namespace, reuse: bool) -> dict[str, Any]:
+    settings: dict[str, Any] = {"name": model, "reuse_prefix": reuse}
+    if args.threads:
+        settings["threads"] = args.threads
+    data: dict[str, Any] = {"server": {"listen": "127.0.0.1:0"}, "model": settings}
+    if args.prompt:
+        data["prompts"] = {model: str(args.prompt.resolve())}
+    return data
+
+
+def run_model(model: str, args: argparse.Namespace) -> dict[str, Any]:
+    asked = questions(args.questions)
+    with service(overrides_for(model, args, reuse=True), args.config) as channel:
+        stub = language_pb2_grpc.LanguageModelStub(channel)
+        answers = [ask(stub, q, c) for q, c in asked]
+    with service(overrides_for(model, args, reuse=False), args.config) as channel:
+        stub = language_pb2_grpc.LanguageModelStub(channel)
+        cold = [ask(stub, q, c) for q, c in asked[:REUSE_SAMPLE]]
+    if args.show:
+        for a in answers:
+            print(f"  {'ok ' if a.right else 'BAD'} {a.count:2d} {a.question:40} -> {a.text}")
+    return {
+        "model": model,
+        "right": sum(a.right for a in answers),
+        "asked": len(answers),
+        "first": statistics.median(a.first_s for a in answers),
+        "total": statistics.median(a.total_s for a in answers),
+        "p90": sorted(a.total_s for a in answers)[int(0.9 * (len(answers) - 1))],
+        "cold_first": statistics.median(a.first_s for a in cold),
+    }
+
+
+def print_table(rows: Sequence[dict[str, Any]]) -> None:
+    print(f"\n{'model':24} {'right':>9} {'share':>6} {'1st tok':>8} {'answer':>8} "
+          f"{'p90':>7} {'1st tok, no prefix reuse':>25}")
+    for r in rows:
+        ratio = r["cold_first"] / r["first"] if r["first"] else float("nan")
+        print(f"{r['model']:24} {r['right']:>4}/{r['asked']:<4} {r['right'] / r['asked']:6.0%} "
+              f"{r['first'] * 1e3:6.0f}ms {r['total'] * 1e3:6.0f}ms {r['p90'] * 1e3:5.0f}ms "
+              f"{r['cold_first'] * 1e3:14.0f}ms ({ratio:.1f}x)")
+    print("medians over the questions, measured by the client over gRPC (GenerateStream); "
+          "right = the answer states the right count and no other")
+
+
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="oricf bench llm", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--model", action="append", choices=MODELS,
+                        help="catalog model to measure (repeatable; default: both)")
+    parser.add_argument("--config", type=Path, default=config_dir() / "services" / "llm.yaml",
+                        help="service YAML (default configs/services/llm.yaml)")
+    parser.add_argument("--prompt", type=Path, help="prompt template for every model measured")
+    parser.add_argument("--threads", type=int, help="llama.cpp threads (default: the YAML's)")
+    parser.add_argument("--questions", type=int, default=64, help="how many questions")
+    parser.add_argument("--show", action="store_true", help="print every answer")
+    args = parser.parse_args(argv)
+    if args.questions < REUSE_SAMPLE:
+        parser.error(f"--questions must be at least {REUSE_SAMPLE}")
+    return args
+
+
+def main(argv: Sequence[str]) -> int:
+    args = parse_args(argv)
+    rows = []
+    for model in args.model or MODELS:
+        print(f"{model}: asking {args.questions} count questions...", flush=True)
+        rows.append(run_model(model, args))
+    print_table(rows)
+    return 0

@@ -1,0 +1,203 @@
+"""A GGUF language model on llama.cpp (llama-cpp-python): load(), generate(), close(), info().
+
+Knows nothing of gRPC: the caller passes a `still_wanted` check that raises Cancelled or
+DeadlineExceeded, and the model calls it between tokens and while waiting for its turn.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from oricf.errors import InvalidInput, NotReady, OricfError
+from oricf.services.llm.decode import LoopResult, Sampling, run_tokens
+from oricf.services.llm.domain import (
+    Chunk,
+    Finished,
+    GenerationRequest,
+    GenerationStats,
+    StillWanted,
+)
+from oricf.services.llm.gate import GenerationGate
+from oricf.services.llm.prompt import PromptRenderer, PromptTemplate
+from oricf.services.runtime import ModelInfo
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LlamaSettings:
+    path: Path
+    catalog_name: str
+    sha256: str
+    license: str
+    template: PromptTemplate
+    prompt_file: str
+    n_ctx: int
+    n_batch: int
+    threads: int
+    omp_wait_policy: str
+    reuse_prefix: bool
+    sampling: Sampling          # temperature here is the default; requests may override it
+    max_waiting: int
+    wait_timeout_s: float
+
+
+def _ms(start: float, end: float) -> float:
+    return (end - start) * 1e3
+
+
+class LlamaModel:
+    def __init__(self, settings: LlamaSettings) -> None:
+        self.settings = settings
+        self.renderer = PromptRenderer(settings.template)
+        self.gate = GenerationGate(settings.max_waiting, settings.wait_timeout_s)
+        self.stats = GenerationStats()
+        self._llm: Any = None
+        self._is_end: Callable[[int], bool] = lambda token: False
+        self._runtime = "llama.cpp"
+
+    def load(self) -> None:
+        s = self.settings
+        # OpenMP reads this when llama.cpp's library loads: spinning threads would steal
+        # the second core from the other services on a 2-core machine.
+        os.environ.setdefault("OMP_WAIT_POLICY", s.omp_wait_policy)
+        import llama_cpp
+
+        llm = llama_cpp.Llama(
+            model_path=str(s.path), n_ctx=s.n_ctx, n_batch=s.n_batch, n_ubatch=s.n_batch,
+            n_threads=s.threads, n_threads_batch=s.threads, verbose=False)
+        vocab = llama_cpp.llama_model_get_vocab(llm.model)
+        self._is_end = lambda token: bool(llama_cpp.llama_vocab_is_eog(vocab, token))
+        self._runtime = f"llama.cpp (llama-cpp-python {llama_cpp.__version__})"
+        self._llm = llm
+        self._warm_up()
+        log.info("%s loaded: context %d tokens, %d thread(s), prompt prefix %d tokens",
+                 s.catalog_name, s.n_ctx, s.threads, len(self._tokenize(self.renderer.prefix)))
+
+    def _warm_up(self) -> None:
+        """One short generation: evaluates the fixed prompt prefix so it is cached."""
+        examples = self.settings.template.examples
+        question = examples[0].question if examples else "Hello"
+        for _ in self.generate(GenerationRequest(question, max_tokens=2), lambda: None):
+            pass
+        self.stats = GenerationStats()
+
+    def close(self) -> None:
+        llm, self._llm = self._llm, None
+        if llm is not None:
+            llm.close()
+
+    def info(self) -> ModelInfo:
+        s = self.settings
+        return ModelInfo(
+            model=s.catalog_name, runtime=self._runtime, providers=["CPU"], license=s.license,
+            sha256=s.sha256,
+            parameters={"n_ctx": str(s.n_ctx), "threads": str(s.threads),
+                        "prompt": s.prompt_file, "temperature": str(s.sampling.temperature),
+                        "reuse_prefix": str(s.reuse_prefix).lower(),
+                        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "")})
+
+    @property
+    def loaded(self) -> bool:
+        return self._llm is not None
+
+    def generate(self, request: GenerationRequest, still_wanted: StillWanted) -> Iterator[Chunk]:
+        """Text chunks as they are produced; the last one carries `finished`.
+
+        Raises InvalidInput (prompt does not fit), Overloaded (queue full or wait too long),
+        or whatever still_wanted raises.
+        """
+        started = time.perf_counter()
+        llm = self._require_loaded()
+        self._refuse_control_text([request.prompt, *request.context.values()])
+        rendered = self.renderer.render(request.prompt, request.context)
+        tokens = self._tokenize(rendered.text, add_bos=True)
+        self._check_fits(len(tokens), request.max_tokens)
+        log.debug("prompt facts: %s", rendered.facts)
+        prepared = time.perf_counter()
+        with self.gate.turn(still_wanted) as waited_s:
+            yield from self._run(llm, tokens, request, still_wanted,
+                                 (started, prepared, waited_s))
+
+    def _run(self, llm: Any, tokens: list[int], request: GenerationRequest,
+             still_wanted: StillWanted, marks: tuple[float, float, float]) -> Iterator[Chunk]:
+        started, prepared, waited_s = marks
+        acquired = time.perf_counter()
+        if not self.settings.reuse_prefix:
+            llm.reset()
+        cached = self._cached_prefix(llm, tokens)
+        result = LoopResult()
+        sampling = Sampling(**{**self.settings.sampling.__dict__,
+                               "temperature": request.temperature})
+        stops = [*self.renderer.stop, *request.stop]
+        try:
+            for text in run_tokens(llm, tokens, sampling, request.max_tokens, stops,
+                                   self._is_end, still_wanted, result, time.perf_counter):
+                yield Chunk(text)
+        except OricfError as exc:
+            self._record(len(tokens), cached, result, type(exc).__name__)
+            log.info("generation stopped after %d token(s): %s", result.completion_tokens, exc)
+            raise
+        self._record(len(tokens), cached, result, result.finish_reason)
+        ended = time.perf_counter()
+        first = result.first_token_at if result.first_token_at is not None else ended
+        yield Chunk("", Finished(
+            finish_reason=result.finish_reason, prompt_tokens=len(tokens),
+            completion_tokens=result.completion_tokens, cached_tokens=cached,
+            queue_ms=waited_s * 1e3, preprocess_ms=_ms(started, prepared),
+            first_token_ms=_ms(started, first), inference_ms=_ms(acquired, ended),
+            total_ms=_ms(started, ended)))
+
+    def _record(self, prompt_tokens: int, cached: int, result: LoopResult, reason: str) -> None:
+        stats = self.stats
+        stats.generations += 1
+        stats.completion_tokens += result.completion_tokens
+        stats.last_finish_reason = reason
+        stats.last_completion_tokens = result.completion_tokens
+        stats.last_cached_tokens = cached
+        stats.last_prompt_tokens = prompt_tokens
+        if reason not in ("stop", "length"):
+            stats.stopped_early += 1
+
+    def _require_loaded(self) -> Any:
+        if self._llm is None:
+            raise NotReady("the language model is not loaded")
+        return self._llm
+
+    def _tokenize(self, text: str, add_bos: bool = False, special: bool = True) -> list[int]:
+        tokens: list[int] = self._require_loaded().tokenize(
+            text.encode("utf-8"), add_bos=add_bos, special=special)
+        return tokens
+
+    def _refuse_control_text(self, texts: Sequence[str]) -> None:
+        """Caller text must not smuggle in the model's control tokens (e.g. <end_of_turn>)."""
+        for text in texts:
+            if self._tokenize(text, special=True) != self._tokenize(text, special=False):
+                raise InvalidInput("the prompt or a context value contains the model's control "
+                                   "token text (such as <end_of_turn> or <|im_end|>)")
+
+    def _check_fits(self, prompt_tokens: int, max_tokens: int) -> None:
+        n_ctx = self.settings.n_ctx
+        if prompt_tokens + max_tokens > n_ctx:
+            raise InvalidInput(
+                f"the prompt ({prompt_tokens} tokens with the template) plus max_tokens "
+                f"({max_tokens}) exceeds the model's context window of {n_ctx} tokens; "
+                f"shorten the prompt or context, or ask for fewer tokens")
+
+    @staticmethod
+    def _cached_prefix(llm: Any, tokens: list[int]) -> int:
+        """How many leading prompt tokens llama.cpp can take from its KV cache."""
+        previous = llm.input_ids[:llm.n_tokens].tolist()
+        same = 0
+        for a, b in zip(previous, tokens, strict=False):
+            if a != b:
+                break
+            same += 1
+        # llama.cpp re-evaluates at least the last prompt token to get fresh logits.
+        return min(same, len(tokens) - 1)

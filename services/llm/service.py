@@ -1,0 +1,42 @@
+"""The language model as a runtime service: `oricf serve llm`."""
+
+from __future__ import annotations
+
+import grpc
+
+from oricf.services.llm.config import LlmConfig, load_prompt
+from oricf.services.llm.decode import Sampling
+from oricf.services.llm.model import LlamaModel, LlamaSettings
+from oricf.services.llm.servicer import LanguageModelServicer
+from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.store import ModelStore
+from oricf.v1 import language_pb2, language_pb2_grpc
+
+
+def create_model(config: LlmConfig, store: ModelStore) -> LlamaModel:
+    name = config.model.name
+    entry = store.entry(name)
+    path = store.path(name, "model.gguf")
+    g = config.generation
+    return LlamaModel(LlamaSettings(
+        path=path, catalog_name=name, sha256=entry.files[0].sha256, license=entry.license,
+        template=load_prompt(config.prompt_path), prompt_file=config.prompt_path.name,
+        n_ctx=config.model.n_ctx, n_batch=config.model.n_batch, threads=config.model.threads,
+        omp_wait_policy=config.model.omp_wait_policy, reuse_prefix=config.model.reuse_prefix,
+        sampling=Sampling(temperature=g.temperature, top_k=g.top_k, top_p=g.top_p,
+                          min_p=g.min_p, repeat_penalty=g.repeat_penalty),
+        max_waiting=config.queue.max_waiting, wait_timeout_s=config.queue.wait_timeout_s))
+
+
+def add_servicer(server: grpc.Server, slot: ModelSlot[LlamaModel], config: LlmConfig) -> None:
+    language_pb2_grpc.add_LanguageModelServicer_to_server(
+        LanguageModelServicer(slot, config), server)
+
+
+SPEC = ServiceSpec(
+    name="llm",
+    service_name=language_pb2.DESCRIPTOR.services_by_name["LanguageModel"].full_name,
+    config_schema=LlmConfig,
+    create_model=create_model,
+    add_servicer=add_servicer,
+)

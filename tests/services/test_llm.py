@@ -1,0 +1,193 @@
+"""The language model service with its shipped config: real model, real gRPC, real grpcurl."""
+
+import json
+import subprocess
+from collections.abc import Iterator
+
+import grpc
+import pytest
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+from oricf.services.llm.model import LlamaModel
+from oricf.store import ModelStore
+from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
+from tests.support.services import RunningService, running_service
+
+DEADLINE_S = 30
+
+
+@pytest.fixture(scope="module")
+def llm() -> Iterator[RunningService]:
+    with running_service("llm") as service:
+        yield service
+
+
+@pytest.fixture
+def stub(llm: RunningService) -> language_pb2_grpc.LanguageModelStub:
+    return language_pb2_grpc.LanguageModelStub(llm.channel)
+
+
+def model_of(service: RunningService) -> LlamaModel:
+    model: LlamaModel = service.host.slot.peek()
+    return model
+
+
+def generate(stub: language_pb2_grpc.LanguageModelStub, prompt: str,
+             **fields: object) -> language_pb2.GenerateResponse:
+    request = language_pb2.GenerateRequest(prompt=prompt, **fields)
+    response: language_pb2.GenerateResponse = stub.Generate(request, timeout=DEADLINE_S)
+    return response
+
+
+def test_the_answer_states_the_people_count(stub: language_pb2_grpc.LanguageModelStub) -> None:
+    answer = generate(stub, "How many people do you see?", context={"people_count": "3"})
+    assert "3" in answer.text, answer.text
+    assert answer.finish_reason == "stop"
+    assert "\n" not in answer.text and answer.text == answer.text.strip()
+    assert 0 < answer.completion_tokens < 20
+    assert answer.prompt_tokens > 100  # the template's system text and examples
+    t = answer.timings
+    assert 0 < t.first_token_ms <= t.total_ms
+    assert 0 < t.inference_ms <= t.total_ms
+
+
+@pytest.mark.parametrize(("count", "question", "expected"), [
+    ("0", "Is anyone there?", "no one"),
+    ("1", "Are you alone?", "1 person"),
+    ("12", "How many humans are in the room?", "12"),
+])
+def test_other_counts_and_phrasings(stub: language_pb2_grpc.LanguageModelStub, count: str,
+                                    question: str, expected: str) -> None:
+    answer = generate(stub, question, context={"people_count": count})
+    assert expected in answer.text.lower(), answer.text
+
+
+@pytest.mark.parametrize("context", [
+    {},
+    {"people_count": ""},
+    {"people_count": "unknown"},
+    {"people_count": "3", "people_count_stale": "true"},
+    {"people_count": "3", "people_count_age_s": "60"},
+], ids=["absent", "empty", "unknown", "marked-stale", "too-old"])
+def test_an_unknown_or_stale_count_is_not_stated(stub: language_pb2_grpc.LanguageModelStub,
+                                                 context: dict[str, str]) -> None:
+    answer = generate(stub, "How many people do you see?", context=context)
+    assert "know" in answer.text, answer.text
+    assert not any(ch.isdigit() for ch in answer.text), answer.text
+
+
+def test_a_recent_count_is_used(stub: language_pb2_grpc.LanguageModelStub) -> None:
+    answer = generate(stub, "How many people do you see?",
+                      context={"people_count": "5", "people_count_age_s": "1.5"})
+    assert "5" in answer.text, answer.text
+
+
+def test_stream_yields_the_answer_in_several_chunks(
+        stub: language_pb2_grpc.LanguageModelStub) -> None:
+    request = language_pb2.GenerateRequest(prompt="How many people do you see?",
+                                           context={"people_count": "7"})
+    messages = list(stub.GenerateStream(request, timeout=DEADLINE_S))
+    assert len([m for m in messages if m.text]) >= 3
+    assert all(not m.finish_reason for m in messages[:-1])
+    last = messages[-1]
+    assert last.finish_reason == "stop"
+    assert last.completion_tokens >= 3 and last.prompt_tokens > 100
+    assert 0 < last.timings.first_token_ms < last.timings.total_ms
+    streamed = "".join(m.text for m in messages)
+    assert streamed == generate(stub, request.prompt, context=request.context).text
+    assert "7" in streamed
+
+
+def test_the_fixed_prompt_prefix_is_reused(llm: RunningService,
+                                           stub: language_pb2_grpc.LanguageModelStub) -> None:
+    model = model_of(llm)
+    prefix_tokens = len(model._tokenize(model.renderer.prefix, add_bos=True))
+    generate(stub, "Is anyone there?", context={"people_count": "2"})
+    generate(stub, "How many visitors are there?", context={"people_count": "8"})
+    assert model.stats.last_cached_tokens >= prefix_tokens - 1
+    assert model.stats.last_prompt_tokens - model.stats.last_cached_tokens < 30
+
+
+def test_max_tokens_cuts_the_answer(stub: language_pb2_grpc.LanguageModelStub) -> None:
+    answer = generate(stub, "How many people do you see?", context={"people_count": "3"},
+                      max_tokens=2)
+    assert answer.finish_reason == "length"
+    assert answer.completion_tokens == 2
+
+
+def test_a_request_stop_sequence_ends_the_answer(
+        stub: language_pb2_grpc.LanguageModelStub) -> None:
+    full = generate(stub, "How many people do you see?", context={"people_count": "4"})
+    assert "people" in full.text
+    cut = generate(stub, "How many people do you see?", context={"people_count": "4"},
+                   stop=["people"])
+    assert cut.finish_reason == "stop"
+    assert cut.text == full.text[:full.text.index("people")]  # "I see 4 "
+
+
+def test_temperature_is_accepted(stub: language_pb2_grpc.LanguageModelStub) -> None:
+    answer = generate(stub, "How many people do you see?", context={"people_count": "3"},
+                      temperature=0.7)
+    assert answer.text and answer.finish_reason in ("stop", "length")
+
+
+def test_get_model_info(stub: language_pb2_grpc.LanguageModelStub) -> None:
+    info = stub.GetModelInfo(common_pb2.GetModelInfoRequest(), timeout=DEADLINE_S)
+    entry = ModelStore().entry("gemma3-270m")
+    assert info.service == "llm"
+    assert info.model == "gemma3-270m"
+    assert info.runtime.startswith("llama.cpp (llama-cpp-python 0.3.")
+    assert info.sha256 == entry.files[0].sha256
+    assert info.license == entry.license
+    assert info.parameters["threads"] == "1"
+    assert info.parameters["prompt"] == "gemma3-270m.yaml"
+    assert info.load_seconds > 0
+
+
+def test_health_is_serving(llm: RunningService) -> None:
+    health = health_pb2_grpc.HealthStub(llm.channel)
+    for service in ("", "oricf.v1.LanguageModel"):
+        answer = health.Check(health_pb2.HealthCheckRequest(service=service), timeout=5)
+        assert answer.status == health_pb2.HealthCheckResponse.SERVING
+
+
+def grpcurl(*args: str, data: str | None = None) -> str:
+    binary = str(ModelStore().path("grpcurl"))
+    command = [binary, "-plaintext", *(["-d", data] if data is not None else []), *args]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_grpcurl_lists_the_service(llm: RunningService) -> None:
+    services = grpcurl(llm.address, "list").split()
+    assert {"oricf.v1.LanguageModel", "grpc.health.v1.Health"} <= set(services)
+    methods = grpcurl(llm.address, "list", "oricf.v1.LanguageModel").split()
+    assert "oricf.v1.LanguageModel.Generate" in methods
+
+
+def test_grpcurl_generate(llm: RunningService) -> None:
+    body = json.dumps({"prompt": "How many people do you see?",
+                       "context": {"people_count": "3"}})
+    answer = json.loads(grpcurl(llm.address, "oricf.v1.LanguageModel/Generate", data=body))
+    assert "3" in answer["text"]
+    assert answer["finish_reason"] == "stop"
+    assert int(answer["completion_tokens"]) > 0
+
+
+def test_grpcurl_bad_input_is_invalid_argument(llm: RunningService) -> None:
+    binary = str(ModelStore().path("grpcurl"))
+    result = subprocess.run(
+        [binary, "-plaintext", "-d", '{"prompt": ""}', llm.address,
+         "oricf.v1.LanguageModel/Generate"],
+        capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode != 0
+    assert "InvalidArgument" in result.stderr and "prompt is empty" in result.stderr
+
+
+def test_not_ready_before_the_model_loads() -> None:
+    with running_service("llm", load=False) as service:
+        stub = language_pb2_grpc.LanguageModelStub(service.channel)
+        with pytest.raises(grpc.RpcError) as caught:
+            stub.Generate(language_pb2.GenerateRequest(prompt="Hi"), timeout=DEADLINE_S)
+        assert caught.value.code() == grpc.StatusCode.UNAVAILABLE
