@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Fills the optional, git-ignored build context of compose/Dockerfile from this machine, so an
+# image builds in minutes and without a package index:
+#   compose/.wheels/  the llama-cpp-python wheel that scripts/setup.sh built once for this CPU
+#                     (~/.cache/oricf/wheels/<cpu-key>/), plus every other wheel the image
+#                     installs (pip download), for building with PIP_OPTIONS=--no-index
+#   compose/.models/  the models named in MODELS, copied from the local model store
+#                     (the image build still checks each file's sha256)
+#
+#   compose/prepare-build.sh [EXTRAS] [MODEL ...]
+#   EXTRAS default: asr,llm    MODELS default: yolox-nano whisper-tiny-en gemma3-270m
+#
+# The llama.cpp wheel is compiled for this machine's CPU: an image made with it runs on CPUs
+# of the same kind. Leave compose/.wheels empty to compile inside the build instead.
+# Wheels are for the Python of .venv: use them only with a base image of the same version.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+EXTRAS="${1:-asr,llm}"
+shift || true
+MODELS=("$@")
+((${#MODELS[@]})) || MODELS=(yolox-nano whisper-tiny-en gemma3-270m)
+PY="${ORICF_VENV:-.venv}/bin/python"
+CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
+CPU_KEY=$(grep -m1 '^flags' /proc/cpuinfo | sha256sum | cut -c1-12)
+
+mkdir -p compose/.wheels compose/.models
+if ls "$CACHE/wheels/$CPU_KEY"/llama_cpp_python-*.whl >/dev/null 2>&1; then
+    cp -p "$CACHE/wheels/$CPU_KEY"/llama_cpp_python-*.whl compose/.wheels/
+fi
+echo "==> wheels for .[$EXTRAS] into compose/.wheels"
+"$PY" -m pip download -q -d compose/.wheels --find-links compose/.wheels \
+    ".[$EXTRAS]" "setuptools>=69" wheel pip
+rm -f compose/.wheels/oricf-*     # the project itself is built from source in the image
+
+echo "==> models into compose/.models: ${MODELS[*]}"
+STORE=$("$PY" -c 'from oricf.store import ModelStore; print(ModelStore().root)')
+for name in "${MODELS[@]}"; do
+    "$PY" -c 'import sys; from oricf.store import ModelStore; ModelStore().path(sys.argv[1])' "$name"
+    rm -rf "compose/.models/$name"
+    # hard links when the store is on the same file system: no copy of 100s of MB
+    cp -a -l "$STORE/$name" compose/.models/ 2>/dev/null || cp -a "$STORE/$name" compose/.models/
+done
+du -sh compose/.wheels compose/.models

@@ -1,0 +1,160 @@
+#!/usr/bin/env bash
+# Compose smoke test of the edge stack (compose/edge.yaml). Not part of CI: it builds images.
+#
+#   compose/smoke-test.sh            build, start, check, tear down
+#   compose/smoke-test.sh --keep     leave the stack running afterwards
+#
+# 1. Picks the engine: `docker compose` when a Docker engine answers, else podman with
+#    podman-compose (as root, with compose/containers.conf unless CONTAINERS_CONF is set).
+# 2. Base image: $ORICF_BASE_IMAGE if set; else python:3.11-slim if present or pullable; else
+#    one made from Debian packages by compose/make-base-image.sh (no registry needed).
+# 3. compose/prepare-build.sh fills the build context (cached wheels, this machine's model
+#    store); with a base image of the same Python as .venv the build then uses no index.
+# 4. Builds the image with the build arguments of edge.yaml, starts the stack, waits until
+#    each service reports SERVING (grpc.health.v1, over the published port and through the
+#    container's own health check), then calls each one with grpcurl and checks the answer:
+#    Detect finds a person in darknet's person.jpg, Transcribe of espeak-ng speech gives the
+#    words back, Generate with context people_count=3 answers with the count.
+# 5. Tears the stack down (unless --keep) and checks no container is left.
+#
+# Needs: scripts/setup.sh done (.venv, models, grpcurl), espeak-ng and sox, and either Docker
+# with compose v2 or `apt-get install podman podman-compose runc debootstrap` (as root).
+# Exit 0 only when every check passed. Environment: ORICF_IMAGE (default oricf:local),
+# ORICF_SMOKE_TIMEOUT (seconds to reach SERVING, default 600).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+KEEP=0
+[[ "${1:-}" == "--keep" ]] && KEEP=1
+PY="${ORICF_VENV:-.venv}/bin/python"
+PROJECT=oricf-smoke
+export ORICF_IMAGE="${ORICF_IMAGE:-oricf:local}"
+TIMEOUT="${ORICF_SMOKE_TIMEOUT:-600}"
+SERVICES=(detector asr llm)
+declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053)
+declare -A RPCS=([detector]=oricf.v1.Detector/Detect [asr]=oricf.v1.SpeechRecognizer/Transcribe
+                 [llm]=oricf.v1.LanguageModel/Generate)
+
+step() { printf '\n==> %s\n' "$*"; }
+die() { printf 'smoke-test: FAIL: %s\n' "$*" >&2; exit 1; }
+
+if docker compose version >/dev/null 2>&1 && docker info >/dev/null 2>&1; then
+    ENGINE=docker; COMPOSE=(docker compose)
+elif command -v podman >/dev/null && command -v podman-compose >/dev/null; then
+    ENGINE=podman; COMPOSE=(podman-compose)
+    export CONTAINERS_CONF="${CONTAINERS_CONF:-$PWD/compose/containers.conf}"
+else
+    die "neither docker compose (with a running engine) nor podman-compose is installed"
+fi
+COMPOSE+=(-p "$PROJECT" -f compose/edge.yaml)
+GRPCURL=$("$PY" -c 'from oricf.store import ModelStore; print(ModelStore().path("grpcurl"))')
+WORK=$(mktemp -d /tmp/oricf-smoke.XXXXXX)
+STARTED=0
+step "engine: ${COMPOSE[*]}"
+
+cleanup() {
+    local status=$?
+    if ((status != 0)) && ((STARTED)); then
+        "${COMPOSE[@]}" logs >"$WORK/logs.txt" 2>&1 || true
+        echo "--- last lines of the services' logs"; tail -60 "$WORK/logs.txt"
+    fi
+    if ((KEEP)); then
+        echo "stack left running: ${COMPOSE[*]} down"
+    else
+        step "tear down"
+        "${COMPOSE[@]}" down >"$WORK/down.log" 2>&1 || cat "$WORK/down.log"
+    fi
+    rm -rf "$WORK"
+}
+
+base_image() {
+    if [[ -n "${ORICF_BASE_IMAGE:-}" ]]; then echo "$ORICF_BASE_IMAGE"; return; fi
+    if $ENGINE image inspect python:3.11-slim >/dev/null 2>&1 \
+        || timeout 60 $ENGINE pull -q python:3.11-slim >/dev/null 2>&1; then
+        echo python:3.11-slim; return
+    fi
+    echo "no registry reachable: making a Debian base image" >&2
+    compose/make-base-image.sh localhost/oricf-base:bookworm >&2
+    echo localhost/oricf-base:bookworm
+}
+
+build_image() {
+    local base=$1 pip_options="" venv_py image_py
+    compose/prepare-build.sh >"$WORK/prepare.log" 2>&1 || { cat "$WORK/prepare.log"; die "prepare-build"; }
+    venv_py=$("$PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+    image_py=$($ENGINE run --rm "$base" python3 -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+    [[ "$venv_py" == "$image_py" ]] && pip_options="--no-index"
+    # The build arguments of edge.yaml (EXTRAS, MODELS), so the image matches the stack.
+    mapfile -t args < <("$PY" -c 'import yaml, sys
+args = yaml.safe_load(open("compose/edge.yaml"))["services"]["detector"]["build"]["args"]
+for key in ("EXTRAS", "MODELS"):
+    print(f"--build-arg={key}={args[key]}")')
+    local extra=()
+    [[ $ENGINE == podman ]] && extra=(--format docker --ignorefile compose/Dockerfile.dockerignore)
+    echo "base $base, Python $image_py, pip options '${pip_options}', ${args[*]}"
+    DOCKER_BUILDKIT=1 $ENGINE build "${extra[@]}" -f compose/Dockerfile -t "$ORICF_IMAGE" \
+        --build-arg "BASE_IMAGE=$base" --build-arg "PIP_OPTIONS=$pip_options" "${args[@]}" . \
+        >"$WORK/build.log" 2>&1 || { tail -40 "$WORK/build.log"; die "image build"; }
+}
+
+container_of() {  # the container running a compose service
+    $ENGINE ps -q --filter "label=com.docker.compose.project=$PROJECT" \
+        --filter "label=com.docker.compose.service=$1" | head -1
+}
+
+container_healthy() {
+    local id
+    id=$(container_of "$1")
+    [[ -n "$id" ]] || return 1
+    if [[ $ENGINE == podman ]]; then
+        podman healthcheck run "$id" >/dev/null 2>&1   # podman without systemd: run it here
+    else
+        [[ $(docker inspect -f '{{.State.Health.Status}}' "$id") == healthy ]]
+    fi
+}
+
+wait_serving() {
+    local name=$1 port=${PORTS[$1]} start=$SECONDS
+    until "$GRPCURL" -plaintext -max-time 3 "127.0.0.1:$port" grpc.health.v1.Health/Check \
+            2>/dev/null | grep -q '"SERVING"'; do
+        ((SECONDS - start < TIMEOUT)) || die "$name not SERVING after $TIMEOUT s"
+        sleep 2
+    done
+    until container_healthy "$name"; do
+        ((SECONDS - start < TIMEOUT)) || die "$name: the container's health check never passed"
+        sleep 2
+    done
+    echo "$name SERVING on :$port after $((SECONDS - start)) s (container health check passed)"
+}
+
+call_and_check() {
+    local name=$1
+    "$PY" compose/smoke_check.py request "$name" >"$WORK/$name.json"
+    "$GRPCURL" -plaintext -max-time 60 -max-msg-sz 67108864 -d @ "127.0.0.1:${PORTS[$name]}" \
+        "${RPCS[$name]}" <"$WORK/$name.json" >"$WORK/$name.reply" \
+        || die "$name: grpcurl ${RPCS[$name]} failed"
+    "$PY" compose/smoke_check.py check "$name" <"$WORK/$name.reply"
+}
+
+step "base image"
+BASE=$(base_image)
+step "image $ORICF_IMAGE (build log: $WORK/build.log)"
+SECONDS=0
+build_image "$BASE"
+echo "built in $SECONDS s"
+trap cleanup EXIT
+step "start the edge stack"
+STARTED=1
+"${COMPOSE[@]}" up -d >"$WORK/up.log" 2>&1 || { cat "$WORK/up.log"; die "compose up"; }
+step "wait for SERVING"
+for name in "${SERVICES[@]}"; do wait_serving "$name"; done
+step "call each service with grpcurl"
+failed=0
+for name in "${SERVICES[@]}"; do call_and_check "$name" || failed=1; done
+((failed == 0)) || die "a check failed"
+((KEEP)) && { echo "PASS"; exit 0; }
+trap - EXIT
+STARTED=0
+cleanup
+left=$($ENGINE ps -a -q --filter "label=com.docker.compose.project=$PROJECT")
+[[ -z "$left" ]] || die "containers left after down: $left"
+echo "PASS: edge stack built, SERVING, answered correctly and torn down"

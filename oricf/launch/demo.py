@@ -1,0 +1,110 @@
+"""`oricf demo`: the reference pipeline end to end on one machine, with real data.
+
+Starts the services and the gateway of a deployment (configs/deployments/local.yaml, or
+robot.yaml with --placement edge: the services of an edge server such as compose/edge.yaml),
+replays a pedestrian video (vtest.avi) on camera/image_raw at its frame rate, speaks each
+question (espeak-ng) on /audio/utterance, and prints for each question the transcript, the
+person count, the answer, and the latency of each stage:
+
+  ASR       audio published -> /speech/transcript received
+  detector  frame published -> /human_counter received (median while the question ran)
+  LLM       transcript received -> /answer received
+  total     audio published -> /answer received
+
+The services' and gateway's own output goes to a log file (--verbose: to the terminal).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from oricf.config import config_dir
+from oricf.launch.demo_run import DemoOptions, run_demo
+from oricf.launch.deployment import Deployment, load_deployment
+from oricf.launch.launcher import LaunchFailed, Stopped
+from oricf.launch.progress import ProgressLine
+
+log = logging.getLogger(__name__)
+
+DEFAULT_QUESTIONS = ["How many people do you see?", "Is anyone there?",
+                     "Are there more than two people?"]
+PLACEMENTS = {"onboard": "local.yaml", "edge": "robot.yaml"}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="oricf demo", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--video", type=Path, help="video file (default: vtest.avi from the "
+                        "model store)")
+    parser.add_argument("--question", action="append", dest="questions",
+                        help="a question to speak (repeatable; default: three questions)")
+    parser.add_argument("--placement", choices=sorted(PLACEMENTS), default="onboard",
+                        help="onboard: start every service here; edge: use the services of an "
+                        "edge server (configs/deployments/robot.yaml)")
+    parser.add_argument("--deployment", type=Path,
+                        help="deployment YAML to use instead of the placement's")
+    parser.add_argument("--edge-host", help="host of the edge server (replaces the host of "
+                        "every remote service, e.g. 127.0.0.1 for compose/edge.yaml here)")
+    parser.add_argument("--frames", type=int, help="stop the video after this many frames "
+                        "(default: play, looping, until every question is answered)")
+    parser.add_argument("--voice", default="en-us", help="espeak-ng voice")
+    parser.add_argument("--timeout", type=float, default=120.0,
+                        help="seconds to wait for each stage of a question")
+    parser.add_argument("--log", type=Path, help="file for the processes' output")
+    parser.add_argument("--verbose", action="store_true",
+                        help="show the processes' output instead of writing it to the log file")
+    return parser
+
+
+def pick_deployment(args: argparse.Namespace) -> tuple[Path, Deployment]:
+    path = args.deployment or config_dir() / "deployments" / PLACEMENTS[args.placement]
+    deployment = load_deployment(path)
+    if args.edge_host:
+        remote = {name: service.model_copy(update={
+            "address": f"{args.edge_host}:{service.address.rpartition(':')[2]}"})
+            for name, service in deployment.remote.items()}
+        deployment = deployment.model_copy(update={"remote": remote})
+    if deployment.gateway is None:
+        raise LaunchFailed(f"{path}: the demo needs a deployment with a gateway")
+    return path, deployment
+
+
+def raise_interrupt(_signum: int, _frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str]) -> int:
+    args = build_parser().parse_args(argv)
+    if args.frames is not None and args.frames < 1:
+        print("--frames must be at least 1", file=sys.stderr)
+        return 2
+    if args.video is None:
+        from oricf.store import ModelStore
+
+        args.video = ModelStore().path("vtest-video", "vtest.avi")
+    log_path = args.log or Path(tempfile.mkstemp(prefix="oricf-demo-", suffix=".log")[1])
+    # SIGTERM ends the demo like Ctrl-C: everything it started is stopped.
+    previous = signal.signal(signal.SIGTERM, raise_interrupt)
+    try:
+        path, deployment = pick_deployment(args)
+        options = DemoOptions(
+            video=args.video, questions=args.questions or DEFAULT_QUESTIONS,
+            max_frames=args.frames, voice=args.voice, stage_timeout_s=args.timeout,
+            log_path=log_path, verbose=args.verbose)
+        print(f"ORICF demo: deployment {path}, video {args.video.name}, "
+              f"log {log_path}", flush=True)
+        return run_demo(deployment, options, ProgressLine(sys.stdout))
+    except (LaunchFailed, TimeoutError) as exc:
+        print(f"demo failed: {exc}\n(process output: {log_path})", file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, Stopped):
+        print("demo interrupted", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,189 @@
+"""The demo's sequence: launch, connect, replay the video, ask each question, report."""
+
+from __future__ import annotations
+
+import logging
+import statistics
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from oricf.launch.deployment import Deployment
+from oricf.launch.launcher import Launcher, LaunchFailed
+from oricf.launch.progress import ProgressLine
+
+log = logging.getLogger(__name__)
+
+CONNECT_TIMEOUT_S = 60.0
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    video: Path
+    questions: list[str]
+    max_frames: int | None
+    voice: str
+    stage_timeout_s: float
+    log_path: Path
+    verbose: bool
+
+
+@dataclass
+class Result:
+    question: str
+    transcript: str | None = None
+    count: int | None = None
+    answer: str | None = None
+    asr_ms: float | None = None
+    detector_ms: float | None = None
+    llm_ms: float | None = None
+    total_ms: float | None = None
+
+    @property
+    def complete(self) -> bool:
+        return None not in (self.transcript, self.count, self.answer)
+
+
+class LogFile:
+    """The processes' output, `name | line`, into a file (and the terminal if verbose)."""
+
+    def __init__(self, handle: IO[str], verbose: bool) -> None:
+        self.handle = handle
+        self.verbose = verbose
+        self._lock = threading.Lock()
+
+    def __call__(self, name: str, line: str) -> None:
+        with self._lock:
+            self.handle.write(f"{name:<8} | {line}\n")
+            self.handle.flush()
+            if self.verbose:
+                print(f"{name:<8} | {line}", flush=True)
+
+
+@contextmanager
+def launched(deployment: Deployment, options: DemoOptions,
+             progress: ProgressLine) -> Iterator[Launcher]:
+    with options.log_path.open("w", encoding="utf-8") as handle:
+        launcher = Launcher(deployment, LogFile(handle, options.verbose), progress)
+        try:
+            launcher.start(threading.Event())
+            yield launcher
+        finally:
+            launcher.stop()
+
+
+def run_demo(deployment: Deployment, options: DemoOptions, progress: ProgressLine) -> int:
+    from oricf.audio import synthesize
+
+    # Speech is synthesized before anything is timed (espeak-ng takes a moment).
+    speech = [synthesize(q, voice=options.voice) for q in options.questions]
+    with launched(deployment, options, progress) as launcher:
+        results = _with_ros(launcher, options, speech, progress)
+    for index, result in enumerate(results, 1):
+        print(format_result(index, result))
+    print(format_summary(results))
+    return 0 if all(r.complete for r in results) else 1
+
+
+def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
+              progress: ProgressLine) -> list[Result]:
+    import rclpy
+
+    from oricf.launch.demo_node import COUNT, DemoNode, VideoReplay, ros_context
+
+    context = ros_context()
+    node = DemoNode(context)
+    replay = VideoReplay(node.camera.publish, options.video, options.max_frames)
+    try:
+        _wait_connected(node, launcher, progress)
+        replay.start()
+        progress(f"replaying {options.video.name} at {replay.fps:.0f} fps; "
+                 "waiting for the first person count", False)
+        if node.next(COUNT, options.stage_timeout_s) is None:
+            raise LaunchFailed("no /human_counter message: the people route does not answer")
+        progress("the gateway counts people; asking the questions", True)
+        return [ask(node, replay, q, s, options.stage_timeout_s)
+                for q, s in zip(options.questions, speech, strict=True)]
+    finally:
+        replay.stop()
+        node.close()
+        rclpy.try_shutdown(context=context)
+
+
+def _wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> None:
+    start = time.monotonic()
+    while not node.connected():
+        gateway = launcher.gateway
+        if gateway is not None and gateway.poll() is not None:
+            tail = "\n".join(gateway.tail)
+            raise LaunchFailed(f"the gateway ended while starting:\n{tail}")
+        elapsed = time.monotonic() - start
+        if elapsed > CONNECT_TIMEOUT_S:
+            raise LaunchFailed(f"the gateway's topics were not seen in {elapsed:.0f} s")
+        progress(f"waiting for the gateway's topics ({elapsed:.0f} s)", False)
+        time.sleep(0.1)
+    progress(f"gateway connected ({time.monotonic() - start:.1f} s)", True)
+
+
+def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float) -> Result:
+    from oricf.launch.demo_node import ANSWER, TRANSCRIPT
+
+    result = Result(question)
+    node.drain(TRANSCRIPT)
+    node.drain(ANSWER)
+    sent = node.say(samples)
+    heard = node.next(TRANSCRIPT, timeout)
+    if heard is None:
+        return result
+    result.transcript, result.asr_ms = str(heard.value), (heard.at - sent) * 1000
+    answer = node.next(ANSWER, timeout)
+    if answer is not None:
+        result.answer = str(answer.value)
+        result.llm_ms = (answer.at - heard.at) * 1000
+        result.total_ms = (answer.at - sent) * 1000
+    end = answer.at if answer is not None else time.monotonic()
+    counts = [c for c in node.counts if c.at <= end]
+    if counts:
+        result.count = int(counts[-1].value)
+        result.detector_ms = detector_latency_ms(counts, replay, since=sent)
+    return result
+
+
+def detector_latency_ms(counts: list[Any], replay: Any, since: float) -> float | None:
+    """Median of (count received - latest frame sent before it) over the counts received
+    while the question ran (else the last ten). Exact while a frame is counted before the
+    next one is sent, which holds when the detector keeps up with the frame rate."""
+    window = [c for c in counts if c.at >= since] or counts[-10:]
+    delays = []
+    for count in window:
+        sent = replay.last_sent_before(count.at)
+        if sent is not None:
+            delays.append((count.at - sent) * 1000)
+    return statistics.median(delays) if delays else None
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value:.0f} ms"
+
+
+def format_result(index: int, r: Result) -> str:
+    missing = "(nothing within the timeout)"
+    return "\n".join([
+        f"\nQ{index}: {r.question}",
+        f"  transcript : {missing if r.transcript is None else r.transcript}",
+        f"  people     : {'-' if r.count is None else r.count}",
+        f"  answer     : {missing if r.answer is None else r.answer}",
+        f"  latency    : ASR {_ms(r.asr_ms)} | detector {_ms(r.detector_ms)} | "
+        f"LLM {_ms(r.llm_ms)} | total {_ms(r.total_ms)}",
+    ])
+
+
+def format_summary(results: list[Result]) -> str:
+    done = sum(r.complete for r in results)
+    totals = [r.total_ms for r in results if r.total_ms is not None]
+    median = f"; median total {statistics.median(totals):.0f} ms" if totals else ""
+    return f"\n{done}/{len(results)} questions answered{median}"
