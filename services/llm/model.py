@@ -29,6 +29,9 @@ from oricf.services.runtime import ModelInfo
 
 log = logging.getLogger(__name__)
 
+# GenerationStats.last_finish_reason when the consumer stopped reading mid-way.
+ABANDONED = "abandoned"
+
 
 @dataclass(frozen=True)
 class LlamaSettings:
@@ -136,15 +139,20 @@ class LlamaModel:
         sampling = Sampling(**{**self.settings.sampling.__dict__,
                                "temperature": request.temperature})
         stops = [*self.renderer.stop, *request.stop]
+        # A consumer that stops reading (a streaming client gone between chunks) closes
+        # this generator at its yield: nothing more is generated, and it is recorded.
+        reason = ABANDONED
         try:
             for text in run_tokens(llm, tokens, sampling, request.max_tokens, stops,
                                    self._is_end, still_wanted, result, time.perf_counter):
                 yield Chunk(text)
+            reason = result.finish_reason
         except OricfError as exc:
-            self._record(len(tokens), cached, result, type(exc).__name__)
+            reason = type(exc).__name__
             log.info("generation stopped after %d token(s): %s", result.completion_tokens, exc)
             raise
-        self._record(len(tokens), cached, result, result.finish_reason)
+        finally:
+            self._record(len(tokens), cached, result, reason)
         ended = time.perf_counter()
         first = result.first_token_at if result.first_token_at is not None else ended
         yield Chunk("", Finished(

@@ -123,13 +123,13 @@ class PromptRenderer:
 
     def __init__(self, template: PromptTemplate) -> None:
         self.template = template
+        self._named = {f.key for f in template.facts}
         fmt = template.format
         parts = [fmt.header.format(system=template.system)]
         for example in template.examples:
             parts.append(self._turn(example.question, example.context))
             parts.append(fmt.answer.format(answer=example.answer))
         self.prefix = "".join(parts)
-        self._named = {f.key for f in template.facts}
 
     @property
     def stop(self) -> list[str]:
