@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -38,6 +39,8 @@ from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.logs import setup_logging
 
 log = logging.getLogger(__name__)
+
+DDS_PROFILE = config_dir() / "pipelines" / "dds" / "fastdds_large_data.xml"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,6 +57,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def use_large_data_profile() -> None:
+    """Fast DDS's default 512 KB shared-memory segment cannot carry a raw camera frame (it
+    falls back to fragmented UDP and loses most frames): unless the user chose a profile or
+    another RMW, use the shipped one with a 16 MB segment. Camera publishers need it too."""
+    if os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or \
+            os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+        return
+    if DDS_PROFILE.is_file():
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(DDS_PROFILE)
+        log.info("Fast DDS profile: %s", DDS_PROFILE)
+
+
 def run(config: PipelineConfig, ros_args: list[str]) -> int:
     """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
     try:
@@ -65,6 +80,7 @@ def run(config: PipelineConfig, ros_args: list[str]) -> int:
         log.error("ROS 2 Python packages not found (%s): source /opt/ros/jazzy/setup.bash, "
                   "or pip install 'oricf[ros]' on x86-64", exc)
         return 2
+    use_large_data_profile()
     rclpy.init(args=ros_args)
     node = GatewayNode(config)
     # One thread per route's callback group, plus one for the rest.

@@ -59,9 +59,10 @@ class Pipeline:
             worker.start()
         for name, endpoint in self.endpoints.items():
             fallback = f", fallback {endpoint.fallback.address}" if endpoint.fallback else ""
-            log.info("endpoint %s: %s%s, deadline %d ms, images %s", name,
-                     endpoint.primary.address, fallback, endpoint.config.deadline_ms,
-                     endpoint.config.image.transport)
+            images = (f", images {endpoint.config.image.transport}"
+                      if endpoint.primary.service == "oricf.v1.Detector" else "")
+            log.info("endpoint %s: %s%s, deadline %d ms%s", name, endpoint.primary.address,
+                     fallback, endpoint.config.deadline_ms, images)
 
     def idle(self, timeout: float) -> bool:
         return all(worker.idle(timeout) for worker in self.workers.values())

@@ -95,7 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(run=lambda a: _delegate(f"oricf.bench.{a.target}", a.rest))
 
     for verb, module in DELEGATED.items():
-        sub = verbs.add_parser(verb, help=f"see `oricf {verb} --help`", add_help=False)
+        # No option prefix: every argument (--config ...) goes to the module's own parser.
+        sub = verbs.add_parser(verb, help=f"see `oricf {verb} --help`", add_help=False,
+                               prefix_chars="\0")
         sub.add_argument("rest", nargs=argparse.REMAINDER)
         sub.set_defaults(run=_delegator(module))
     return parser

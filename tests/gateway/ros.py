@@ -24,6 +24,7 @@ from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.convert import image_from_pixels
+from oricf.gateway.main import DDS_PROFILE
 from oricf.gateway.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
@@ -31,9 +32,11 @@ OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": Str
 
 
 def private_domain() -> dict[str, str]:
-    """Environment for a DDS domain nobody else on this machine uses."""
+    """Environment for a DDS domain nobody else on this machine uses, with the Fast DDS
+    profile that lets raw camera frames cross processes (see the XML file)."""
     return {"ROS_DOMAIN_ID": str(random.randint(1, 100)),
-            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)}
 
 
 class Probe:
@@ -65,6 +68,21 @@ class Probe:
             time.sleep(0.05)
         raise TimeoutError("the gateway's topics were not discovered")
 
+    def warm_up(self, pixels: np.ndarray, timeout: float = 20.0) -> None:
+        """Publishes a frame until a count comes back: discovery is complete both ways
+        (a best-effort message sent before the other side has matched is simply lost)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.publish_frame(pixels)
+            try:
+                self.next("/human_counter", timeout=0.5)
+            except queue.Empty:
+                continue
+            time.sleep(0.5)  # let late answers to the repeats arrive, then forget them
+            self.drain("/human_counter")
+            return
+        raise TimeoutError("no count came back from the gateway")
+
     def publish_frame(self, pixels: np.ndarray, encoding: str = "bgr8") -> None:
         self.camera.publish(image_from_pixels(pixels, encoding))
 
@@ -84,22 +102,44 @@ class Probe:
 
 
 @contextmanager
-def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[GatewayNode,
-                                                                                  Probe]]:
-    """The gateway node and a probe node, spun by one executor in a background thread."""
-    gateway = GatewayNode(config, context=context)
-    probe = Probe(context)
-    executor = MultiThreadedExecutor(num_threads=len(config.routes) + 2, context=context)
-    executor.add_node(gateway)
-    executor.add_node(probe.node)
+def spinning(context: Context, *nodes: Node) -> Iterator[MultiThreadedExecutor]:
+    """An executor spinning the nodes in a background thread until the block ends."""
+    executor = MultiThreadedExecutor(num_threads=len(nodes) + 4, context=context)
+    for node in nodes:
+        executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
     spinner.start()
     try:
-        probe.wait_connected()
-        yield gateway, probe
+        yield executor
     finally:
-        gateway.shutdown()
         executor.shutdown(timeout_sec=5)
         spinner.join(timeout=5)
+
+
+@contextmanager
+def running_probe(context: Context) -> Iterator[Probe]:
+    """A probe node alone (the gateway runs elsewhere, e.g. as a child process)."""
+    probe = Probe(context)
+    try:
+        with spinning(context, probe.node):
+            yield probe
+    finally:
+        probe.node.destroy_node()
+
+
+@contextmanager
+def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[GatewayNode,
+                                                                                  Probe]]:
+    """The gateway node and a probe node in this process, on real DDS."""
+    gateway = GatewayNode(config, context=context)
+    probe = Probe(context)
+    try:
+        with spinning(context, gateway, probe.node):
+            try:
+                probe.wait_connected()
+                yield gateway, probe
+            finally:
+                gateway.shutdown()
+    finally:
         probe.node.destroy_node()
         gateway.destroy_node()

@@ -1,0 +1,51 @@
+"""`oricf gateway` as its own process: overlay on the command line, real DDS, clean stop."""
+
+from __future__ import annotations
+
+import re
+import signal
+from pathlib import Path
+
+import yaml
+from rclpy.context import Context
+
+from tests.gateway.pipelines import PEOPLE_QA
+from tests.gateway.ros import running_probe
+from tests.support.data import video_frames
+from tests.support.processes import oricf_process
+from tests.support.services import running_service
+
+
+def test_gateway_process_counts_people_and_stops_on_sigterm(
+        ros_context: Context, ros_env: dict[str, str], tmp_path: Path) -> None:
+    overlay = tmp_path / "here.yaml"
+    frames = video_frames([0, 400])
+    with running_service("detector") as detector:
+        overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
+            "address": detector.address}}}))
+        with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay", str(overlay),
+                           env=ros_env) as gateway, running_probe(ros_context) as probe:
+            probe.wait_connected(timeout=30)
+            probe.warm_up(frames[1])
+            counts = []
+            for frame in frames:
+                probe.publish_frame(frame)
+                counts.append(probe.next("/human_counter", timeout=10).data)
+            gateway.send_signal(signal.SIGTERM)
+            assert gateway.wait(timeout=15) == 0
+            assert gateway.stdout is not None
+            log = gateway.stdout.read()
+    assert counts == [4, 4]
+    assert f"endpoint detector: {detector.address}" in log
+    assert re.search(r"route people: (\d+) received, 0 dropped as stale, \1 ok", log)
+
+
+def test_gateway_process_refuses_a_bad_config(tmp_path: Path) -> None:
+    overlay = tmp_path / "bad.yaml"
+    overlay.write_text("endpoints: {detector: {deadline_ms: -1}}\n")
+    with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay",
+                       str(overlay)) as gateway:
+        assert gateway.wait(timeout=30) == 2
+        assert gateway.stdout is not None
+        assert "endpoints.detector.deadline_ms: Input should be greater than 0" in \
+            gateway.stdout.read()
