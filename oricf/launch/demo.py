@@ -32,8 +32,9 @@ from oricf.launch.progress import ProgressLine
 
 log = logging.getLogger(__name__)
 
-DEFAULT_QUESTIONS = ["How many people do you see?", "Is anyone there?",
-                     "Are there more than two people?"]
+# Phrasings that espeak-ng speaks and Whisper tiny.en hears back word for word.
+DEFAULT_QUESTIONS = ["How many people do you see?", "Can you see any people?",
+                     "How many people are there?"]
 PLACEMENTS = {"onboard": "local.yaml", "edge": "robot.yaml"}
 
 

@@ -83,9 +83,7 @@ def run_demo(deployment: Deployment, options: DemoOptions, progress: ProgressLin
     speech = [synthesize(q, voice=options.voice) for q in options.questions]
     with launched(deployment, options, progress) as launcher:
         results = _with_ros(launcher, options, speech, progress)
-    for index, result in enumerate(results, 1):
-        print(format_result(index, result))
-    print(format_summary(results))
+    print(format_summary(results), flush=True)
     return 0 if all(r.complete for r in results) else 1
 
 
@@ -106,8 +104,12 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
         if node.next(COUNT, options.stage_timeout_s) is None:
             raise LaunchFailed("no /human_counter message: the people route does not answer")
         progress("the gateway counts people; asking the questions", True)
-        return [ask(node, replay, q, s, options.stage_timeout_s)
-                for q, s in zip(options.questions, speech, strict=True)]
+        results = []
+        for index, (question, samples) in enumerate(zip(options.questions, speech,
+                                                        strict=True), 1):
+            results.append(ask(node, replay, question, samples, options.stage_timeout_s))
+            print(format_result(index, results[-1]), flush=True)
+        return results
     finally:
         replay.stop()
         node.close()

@@ -33,6 +33,7 @@ class ManagedProcess:
         self.tail: deque[str] = deque(maxlen=TAIL_LINES)
         self._popen: subprocess.Popen[bytes] | None = None
         self._pump: threading.Thread | None = None
+        self._terminated = False
 
     @property
     def name(self) -> str:
@@ -44,6 +45,7 @@ class ManagedProcess:
 
     def start(self) -> None:
         env = {**os.environ, **self.plan.env, "PYTHONUNBUFFERED": "1"}
+        self._terminated = False
         self._popen = subprocess.Popen(
             self.plan.argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, start_new_session=True)
@@ -68,8 +70,10 @@ class ManagedProcess:
         return self._popen is not None and self._popen.poll() is None
 
     def terminate(self) -> None:
-        """SIGTERM to the whole process group (the service drains and exits)."""
-        if self._popen is not None and self._popen.poll() is None:
+        """SIGTERM to the whole process group (the service drains and exits), once: a
+        second SIGTERM during the interpreter's shutdown would kill it mid-exit."""
+        if self._popen is not None and self._popen.poll() is None and not self._terminated:
+            self._terminated = True
             self._signal_group(self._popen.pid, signal.SIGTERM)
 
     def stop(self, grace_s: float) -> int | None:

@@ -1,0 +1,148 @@
+"""The compose files against the Compose specification (its JSON schema, from the model
+store), and against the repository: mounted configs exist, published ports are the ports
+the services listen on, baked models are the ones the services load."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import pytest
+import yaml
+
+from oricf.config import REPO_ROOT, config_dir, read_yaml
+from oricf.store import ModelStore
+
+COMPOSE = REPO_ROOT / "compose"
+FILES = [COMPOSE / "edge.yaml", COMPOSE / "robot.yaml"]
+CONTAINER_CONFIGS = "/etc/oricf"
+VARIABLE = re.compile(r"\$\{(\w+)(?::-([^}]*))?\}")
+
+
+def validator() -> jsonschema.Draft201909Validator:
+    schema = json.loads(ModelStore().path("compose-spec").read_text())
+    return jsonschema.Draft201909Validator(schema)
+
+
+def load(path: Path) -> dict[str, Any]:
+    data: dict[str, Any] = yaml.safe_load(path.read_text())
+    return data
+
+
+def with_defaults(text: str) -> str:
+    """${VAR:-default} -> default, as compose does with VAR unset."""
+    return VARIABLE.sub(lambda m: m.group(2) or "", text)
+
+
+def mounts(service: dict[str, Any]) -> dict[str, Path]:
+    """Container path -> host path (resolved against compose/) of each bind mount."""
+    result = {}
+    for volume in service.get("volumes", []):
+        host, container = volume.split(":")[:2]
+        result[container] = (COMPOSE / host).resolve()
+    return result
+
+
+def model_services(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {name: s for name, s in data["services"].items() if s["command"][0] == "serve"}
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_compose_file_follows_the_compose_specification(path: Path) -> None:
+    errors = [f"{'/'.join(map(str, e.absolute_path))}: {e.message}"
+              for e in validator().iter_errors(load(path))]
+    assert errors == []
+
+
+def test_the_schema_refuses_what_compose_refuses() -> None:
+    data = load(COMPOSE / "edge.yaml")
+    data["services"]["detector"]["restart_policy"] = "always"  # not a service key
+    data["services"]["asr"]["ports"] = [{"target": "fifty"}]
+    messages = [e.message for e in validator().iter_errors(data)]
+    assert any("restart_policy" in m for m in messages), messages
+    assert any("fifty" in m for m in messages), messages
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_every_mounted_config_exists_and_is_read_only(path: Path) -> None:
+    for name, service in load(path)["services"].items():
+        for volume in service.get("volumes", []):
+            assert volume.endswith(":ro"), f"{name}: {volume} is writable"
+        for container, host in mounts(service).items():
+            assert host.exists(), f"{name}: {host} (mounted at {container}) is missing"
+            assert config_dir().resolve() in host.parents or host == config_dir().resolve()
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_every_config_a_command_names_is_mounted(path: Path) -> None:
+    for name, service in load(path)["services"].items():
+        command = [with_defaults(part) for part in service["command"]]
+        named = [v for f, v in itertools.pairwise(command)
+                 if f in ("--config", "--overlay")]
+        assert named, f"{name}: no config named"
+        for container_path in named:
+            host = resolve_in_mounts(mounts(service), container_path)
+            assert host is not None and host.is_file(), f"{name}: {container_path}"
+
+
+def resolve_in_mounts(table: dict[str, Path], container_path: str) -> Path | None:
+    for container, host in table.items():
+        if container_path == container:
+            return host
+        if container_path.startswith(container + "/"):
+            return host / container_path[len(container) + 1:]
+    return None
+
+
+def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
+    services = model_services(load(COMPOSE / "edge.yaml"))
+    assert set(services) == {"detector", "asr", "llm"}
+    for name, service in services.items():
+        assert service["command"][:2] == ["serve", name]
+        config_path = service["command"][service["command"].index("--config") + 1]
+        host_config = resolve_in_mounts(mounts(service), config_path)
+        assert host_config == (config_dir() / "services" / f"{name}.yaml").resolve()
+        listen = read_yaml(host_config)["server"]["listen"]
+        host, _, port = listen.rpartition(":")
+        assert host == "0.0.0.0", f"{name}: a container must listen on every interface"
+        assert service["ports"] == [f"{port}:{port}"]
+        assert service["healthcheck"]["test"][-1] == f"127.0.0.1:{port}"
+        assert service["healthcheck"]["test"][1:4] == [
+            "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health"]
+        assert service["restart"] in ("always", "unless-stopped", "on-failure")
+
+
+def test_images_bake_the_models_the_services_load() -> None:
+    services = model_services(load(COMPOSE / "edge.yaml"))
+    store = ModelStore()
+    for name, service in services.items():
+        baked = service["build"]["args"]["MODELS"].split()
+        for model in baked:
+            store.entry(model)  # raises for a name the catalog lacks
+        config = read_yaml(config_dir() / "services" / f"{name}.yaml")
+        assert config["model"]["name"] in baked, f"{name} loads a model the image lacks"
+
+
+def test_dockerfile_follows_the_container_rules() -> None:
+    text = (COMPOSE / "Dockerfile").read_text()
+    instructions = re.findall(r"^(ENTRYPOINT|CMD|USER|HEALTHCHECK|ARG BASE_IMAGE)(.*)$", text,
+                              re.MULTILINE)
+    found = {key: value.strip() for key, value in instructions}
+    assert found["ARG BASE_IMAGE"] == "=python:3.11-slim"
+    json.loads(found["ENTRYPOINT"])  # exec form: JSON arrays, no shell between
+    json.loads(found["CMD"])         # the HEALTHCHECK line's CMD is on its next line
+    assert found["USER"] not in ("root", "0")
+    healthcheck = text[text.index("HEALTHCHECK"):].split("CMD", 1)[1].strip()
+    assert json.loads(healthcheck.splitlines()[0]) == [
+        "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health"]
+
+
+def test_robot_gateway_uses_the_host_network_and_no_model_health_check() -> None:
+    gateway = load(COMPOSE / "robot.yaml")["services"]["gateway"]
+    assert gateway["network_mode"] == "host"
+    assert gateway["healthcheck"] == {"disable": True}
+    assert gateway["build"]["args"]["EXTRAS"] == "ros"

@@ -1,0 +1,71 @@
+"""`oricf demo` end to end: real services, the real gateway, real DDS, vtest.avi, espeak-ng."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from tests.launch.helpers import (
+    OricfCommand,
+    alive,
+    group_members,
+    private_ros_env,
+    service_entry,
+    shipped_pipeline,
+    write_deployment,
+)
+from tests.support.processes import free_port
+
+
+def demo_deployment(folder: Path) -> Path:
+    """local.yaml's shape on free ports, so the test never meets another run's services."""
+    return write_deployment(folder, {
+        "services": {name: service_entry(free_port()) for name in ("detector", "asr", "llm")},
+        "gateway": {"config": shipped_pipeline()}})
+
+
+def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
+    command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
+                           "--question", "How many people do you see?",
+                           "--log", str(tmp_path / "demo.log"), env=private_ros_env())
+    try:
+        code = command.finish(timeout=600)
+    finally:
+        command.kill()
+    output = command.output
+    assert code == 0, output
+    assert "SERVING" in output  # progress while the models load
+    transcript = re.search(r"transcript : (.+)", output)
+    people = re.search(r"people     : (\d+)", output)
+    answer = re.search(r"answer     : (.+)", output)
+    assert transcript and people and answer, output
+    assert "how many people" in transcript.group(1).lower()
+    # vtest.avi shows a handful of pedestrians at any time; the answer states a number
+    assert 1 <= int(people.group(1)) <= 15
+    assert re.search(r"\d|one|two|three|four|five|six|seven|eight|nine", answer.group(1))
+    assert re.search(r"latency    : ASR \d+ ms \| detector \d+ ms \| LLM \d+ ms \| "
+                     r"total \d+ ms", output), output
+    assert "1/1 questions answered" in output
+    started = command.started()
+    assert set(started) == {"detector", "asr", "llm", "gateway"}
+    for pids in started.values():
+        assert not any(alive(pid) or group_members(pid) for pid in pids), started
+    log = (tmp_path / "demo.log").read_text()
+    assert "gateway  | " in log and "detector | " in log
+
+
+def test_demo_refuses_a_deployment_without_gateway(tmp_path: Path) -> None:
+    path = write_deployment(tmp_path, {"services": {"detector": service_entry(free_port())}})
+    command = OricfCommand("demo", "--deployment", str(path), env=private_ros_env())
+    try:
+        assert command.finish(timeout=120) == 1
+    finally:
+        command.kill()
+    assert "the demo needs a deployment with a gateway" in command.output
+    assert command.started() == {}
+
+
+def test_demo_refuses_zero_frames() -> None:
+    command = OricfCommand("demo", "--frames", "0")
+    assert command.finish(timeout=60) == 2
+    assert "--frames must be at least 1" in command.output

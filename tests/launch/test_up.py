@@ -1,0 +1,117 @@
+"""`oricf up` as a real process on a detector-only deployment on a free port."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from oricf.cli import main as oricf_main
+from oricf.launch import health
+from tests.launch.helpers import (
+    OricfCommand,
+    alive,
+    group_members,
+    service_entry,
+    write_deployment,
+)
+from tests.support.processes import free_port
+
+RUNNING = r"deployment \S+ running"
+
+
+@contextmanager
+def oricf_up(path: Path) -> Iterator[OricfCommand]:
+    command = OricfCommand("up", str(path))
+    try:
+        yield command
+    finally:
+        command.kill()
+
+
+def assert_all_gone(pids: list[int]) -> None:
+    for pid in pids:
+        assert not alive(pid), f"pid {pid} still running"
+        assert group_members(pid) == [], f"processes left in group {pid}"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_up_reaches_serving_and_stops_cleanly(tmp_path: Path, signum: int) -> None:
+    port = free_port()
+    path = write_deployment(tmp_path, {"services": {"detector": service_entry(port)},
+                                       "stop_grace_s": 5})
+    with oricf_up(path) as up:
+        up.wait_for(RUNNING, timeout=120)
+        assert health.status(f"127.0.0.1:{port}") == "SERVING"
+        pids = up.started()["detector"]
+        assert len(pids) == 1 and alive(pids[0])
+        up.process.send_signal(signum)  # SIGINT: what Ctrl-C delivers
+        assert up.finish(timeout=30) == 0
+    assert_all_gone(pids)
+    assert health.status(f"127.0.0.1:{port}", timeout=0.5) == "UNREACHABLE"
+    # every line of the service comes with its name; the stop was a drain, not a kill
+    assert "detector | " in up.output and "SERVING" in up.output
+    assert "detector stopped (exit code 0)" in up.output
+
+
+def test_crashed_service_is_restarted_then_given_up(tmp_path: Path) -> None:
+    port = free_port()
+    entry = service_entry(port, restart={"policy": "on-failure", "max_restarts": 1,
+                                         "delay_s": 0.2})
+    path = write_deployment(tmp_path, {"services": {"detector": entry}})
+    with oricf_up(path) as up:
+        up.wait_for(RUNNING, timeout=120)
+        first = up.started()["detector"][0]
+        os.kill(first, signal.SIGKILL)
+        up.wait_for(r"detector ended \(killed by SIGKILL\); restart 1 of 1", timeout=30)
+        up.wait_for(r"started detector", timeout=30)
+        second = up.started()["detector"][1]
+        assert second != first
+        deadline = time.monotonic() + 60
+        while health.status(f"127.0.0.1:{port}") != "SERVING":
+            assert time.monotonic() < deadline, up.output
+            time.sleep(0.2)
+        os.kill(second, signal.SIGKILL)
+        up.wait_for(r"detector ended \(killed by SIGKILL\); not restarted", timeout=30)
+        assert up.finish(timeout=30) == 1
+    assert_all_gone([first, second])
+
+
+def test_service_that_cannot_start_fails_the_launch(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        path = write_deployment(tmp_path, {"services": {"detector": service_entry(
+            port, restart={"policy": "no"})}})
+        with oricf_up(path) as up:
+            code = up.finish(timeout=120)
+    assert code == 1
+    assert "detector ended while starting" in up.output
+    assert "cannot listen" in up.output  # the service's own last words are shown
+    assert_all_gone(up.started()["detector"])
+
+
+def test_bad_deployment_is_refused_before_anything_starts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_deployment(tmp_path, {"services": {"detector": {"listen": "127.0.0.1:1",
+                                                                 "replicas": 2}}})
+    assert oricf_main(["up", str(path)]) == 2
+    assert f"{path}: services.detector.replicas: unknown key" in capsys.readouterr().err
+
+
+def test_invalid_service_config_is_refused_before_anything_starts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    service = tmp_path / "detector.yaml"
+    service.write_text("server: {listen: '127.0.0.1:1'}\ndetection: {min_score: 7}\n")
+    path = write_deployment(tmp_path, {"services": {"detector": {"config": str(service)}}})
+    assert oricf_main(["up", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{service}: detection.min_score" in err
+    assert "started detector" not in err
