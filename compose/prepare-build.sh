@@ -7,18 +7,21 @@
 #   compose/.models/  the models named in MODELS, copied from the local model store
 #                     (the image build still checks each file's sha256)
 #
-#   compose/prepare-build.sh [EXTRAS] [MODEL ...]
-#   EXTRAS default: asr,llm    MODELS default: yolox-nano whisper-tiny-en gemma3-270m
+#   compose/prepare-build.sh                     the edge image: asr,llm and its three models
+#   compose/prepare-build.sh EXTRAS [MODEL ...]  e.g. `ros` (the gateway image: no models)
 #
 # The llama.cpp wheel is compiled for this machine's CPU: an image made with it runs on CPUs
 # of the same kind. Leave compose/.wheels empty to compile inside the build instead.
 # Wheels are for the Python of .venv: use them only with a base image of the same version.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-EXTRAS="${1:-asr,llm}"
-shift || true
-MODELS=("$@")
-((${#MODELS[@]})) || MODELS=(yolox-nano whisper-tiny-en gemma3-270m)
+if (($#)); then
+    EXTRAS="$1"; shift
+    MODELS=("$@")
+else
+    EXTRAS="asr,llm"
+    MODELS=(yolox-nano whisper-tiny-en gemma3-270m)
+fi
 PY="${ORICF_VENV:-.venv}/bin/python"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
 CPU_KEY=$(grep -m1 '^flags' /proc/cpuinfo | sha256sum | cut -c1-12)
@@ -32,9 +35,9 @@ echo "==> wheels for .[$EXTRAS] into compose/.wheels"
     ".[$EXTRAS]" "setuptools>=69" wheel pip
 rm -f compose/.wheels/oricf-*     # the project itself is built from source in the image
 
-echo "==> models into compose/.models: ${MODELS[*]}"
+echo "==> models into compose/.models: ${MODELS[*]:-none}"
 STORE=$("$PY" -c 'from oricf.store import ModelStore; print(ModelStore().root)')
-for name in "${MODELS[@]}"; do
+for name in "${MODELS[@]+"${MODELS[@]}"}"; do
     "$PY" -c 'import sys; from oricf.store import ModelStore; ModelStore().path(sys.argv[1])' "$name"
     rm -rf "compose/.models/$name"
     # hard links when the store is on the same file system: no copy of 100s of MB

@@ -2,6 +2,9 @@
 # Compose smoke test of the edge stack (compose/edge.yaml). Not part of CI: it builds images.
 #
 #   compose/smoke-test.sh            build, start, check, tear down
+#   compose/smoke-test.sh --robot    also the robot side (compose/robot.yaml): the gateway
+#                                    image, started with every service onboard
+#                                    (ORICF_PLACEMENT=onboard), checked over real DDS
 #   compose/smoke-test.sh --keep     leave the stack running afterwards
 #
 # 1. Picks the engine: `docker compose` when a Docker engine answers, else podman with
@@ -15,6 +18,8 @@
 #    container's own health check), then calls each one with grpcurl and checks the answer:
 #    Detect finds a person in darknet's person.jpg, Transcribe of espeak-ng speech gives the
 #    words back, Generate with context people_count=3 answers with the count.
+#    With --robot: publishes vtest.avi frames and a question from this machine on a private
+#    ROS_DOMAIN_ID and checks the containerized gateway answers on /human_counter and /answer.
 # 5. Tears the stack down (unless --keep) and checks no container is left.
 #
 # Needs: scripts/setup.sh done (.venv, models, grpcurl), espeak-ng and sox, and either Docker
@@ -23,11 +28,18 @@
 # ORICF_SMOKE_TIMEOUT (seconds to reach SERVING, default 600).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-KEEP=0
-[[ "${1:-}" == "--keep" ]] && KEEP=1
+KEEP=0 ROBOT=0
+for arg in "$@"; do
+    case "$arg" in
+        --keep) KEEP=1 ;;
+        --robot) ROBOT=1 ;;
+        *) echo "usage: compose/smoke-test.sh [--robot] [--keep]" >&2; exit 2 ;;
+    esac
+done
 PY="${ORICF_VENV:-.venv}/bin/python"
 PROJECT=oricf-smoke
 export ORICF_IMAGE="${ORICF_IMAGE:-oricf:local}"
+export ORICF_GATEWAY_IMAGE="${ORICF_GATEWAY_IMAGE:-oricf-gateway:local}"
 TIMEOUT="${ORICF_SMOKE_TIMEOUT:-600}"
 SERVICES=(detector asr llm)
 declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053)
@@ -46,6 +58,11 @@ else
     die "neither docker compose (with a running engine) nor podman-compose is installed"
 fi
 COMPOSE+=(-p "$PROJECT" -f compose/edge.yaml)
+if ((ROBOT)); then
+    COMPOSE+=(-f compose/robot.yaml)
+    export ORICF_PLACEMENT=onboard ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+    export ROS_DOMAIN_ID=$((RANDOM % 100 + 1))
+fi
 GRPCURL=$("$PY" -c 'from oricf.store import ModelStore; print(ModelStore().path("grpcurl"))')
 WORK=$(mktemp -d /tmp/oricf-smoke.XXXXXX)
 STARTED=0
@@ -77,23 +94,25 @@ base_image() {
     echo localhost/oricf-base:bookworm
 }
 
-build_image() {
-    local base=$1 pip_options="" venv_py image_py
-    compose/prepare-build.sh >"$WORK/prepare.log" 2>&1 || { cat "$WORK/prepare.log"; die "prepare-build"; }
+build_image() {  # base, compose file, service, image tag, prepare-build arguments...
+    local base=$1 file=$2 service=$3 tag=$4 pip_options="" venv_py image_py
+    shift 4
+    compose/prepare-build.sh "$@" >"$WORK/prepare.log" 2>&1 \
+        || { cat "$WORK/prepare.log"; die "prepare-build"; }
     venv_py=$("$PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')
     image_py=$($ENGINE run --rm "$base" python3 -c 'import sys; print("%d.%d" % sys.version_info[:2])')
     [[ "$venv_py" == "$image_py" ]] && pip_options="--no-index"
-    # The build arguments of edge.yaml (EXTRAS, MODELS), so the image matches the stack.
+    # The build arguments of the compose file (EXTRAS, MODELS), so the image matches it.
     mapfile -t args < <("$PY" -c 'import yaml, sys
-args = yaml.safe_load(open("compose/edge.yaml"))["services"]["detector"]["build"]["args"]
+args = yaml.safe_load(open(sys.argv[1]))["services"][sys.argv[2]]["build"]["args"]
 for key in ("EXTRAS", "MODELS"):
-    print(f"--build-arg={key}={args[key]}")')
+    print(f"--build-arg={key}={args[key]}")' "$file" "$service")
     local extra=()
     [[ $ENGINE == podman ]] && extra=(--format docker --ignorefile compose/Dockerfile.dockerignore)
-    echo "base $base, Python $image_py, pip options '${pip_options}', ${args[*]}"
-    DOCKER_BUILDKIT=1 $ENGINE build "${extra[@]}" -f compose/Dockerfile -t "$ORICF_IMAGE" \
+    echo "$tag: base $base, Python $image_py, pip options '${pip_options}', ${args[*]}"
+    DOCKER_BUILDKIT=1 $ENGINE build "${extra[@]}" -f compose/Dockerfile -t "$tag" \
         --build-arg "BASE_IMAGE=$base" --build-arg "PIP_OPTIONS=$pip_options" "${args[@]}" . \
-        >"$WORK/build.log" 2>&1 || { tail -40 "$WORK/build.log"; die "image build"; }
+        >"$WORK/build.log" 2>&1 || { tail -40 "$WORK/build.log"; die "image build of $tag"; }
 }
 
 container_of() {  # the container running a compose service
@@ -137,9 +156,10 @@ call_and_check() {
 
 step "base image"
 BASE=$(base_image)
-step "image $ORICF_IMAGE (build log: $WORK/build.log)"
+step "images (build log: $WORK/build.log)"
 SECONDS=0
-build_image "$BASE"
+build_image "$BASE" compose/edge.yaml detector "$ORICF_IMAGE"
+((ROBOT)) && build_image "$BASE" compose/robot.yaml gateway "$ORICF_GATEWAY_IMAGE" ros
 echo "built in $SECONDS s"
 trap cleanup EXIT
 step "start the edge stack"
@@ -150,6 +170,10 @@ for name in "${SERVICES[@]}"; do wait_serving "$name"; done
 step "call each service with grpcurl"
 failed=0
 for name in "${SERVICES[@]}"; do call_and_check "$name" || failed=1; done
+if ((ROBOT)); then
+    step "the robot side over DDS (ROS_DOMAIN_ID $ROS_DOMAIN_ID)"
+    "$PY" compose/smoke_check.py ros || failed=1
+fi
 ((failed == 0)) || die "a check failed"
 ((KEEP)) && { echo "PASS"; exit 0; }
 trap - EXIT

@@ -147,8 +147,9 @@ def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float) -> 
         result.answer = str(answer.value)
         result.llm_ms = (answer.at - heard.at) * 1000
         result.total_ms = (answer.at - sent) * 1000
-    end = answer.at if answer is not None else time.monotonic()
-    counts = [c for c in node.counts if c.at <= end]
+    # The count the language model was given: the latest one when the transcript arrived
+    # (the gateway reads its people_count product at that moment).
+    counts = [c for c in node.counts if c.at <= heard.at]
     if counts:
         result.count = int(counts[-1].value)
         result.detector_ms = detector_latency_ms(counts, replay, since=sent)

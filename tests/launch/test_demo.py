@@ -15,6 +15,7 @@ from tests.launch.helpers import (
     write_deployment,
 )
 from tests.support.processes import free_port
+from tests.support.services import running_service
 
 
 def demo_deployment(folder: Path) -> Path:
@@ -69,3 +70,25 @@ def test_demo_refuses_zero_frames() -> None:
     command = OricfCommand("demo", "--frames", "0")
     assert command.finish(timeout=60) == 2
     assert "--frames must be at least 1" in command.output
+
+
+def test_demo_with_the_services_on_an_edge(tmp_path: Path) -> None:
+    """--placement edge's path: nothing started but the gateway, which calls remote
+    services (real ones, in this test's process, standing in for compose/edge.yaml)."""
+    with running_service("detector") as detector, running_service("asr") as asr, \
+            running_service("llm") as llm:
+        path = write_deployment(tmp_path, {
+            "remote": {"detector": {"address": detector.address},
+                       "asr": {"address": asr.address}, "llm": {"address": llm.address}},
+            "gateway": {"config": shipped_pipeline()}})
+        command = OricfCommand("demo", "--deployment", str(path), "--question",
+                               "How many people are there?", env=private_ros_env())
+        try:
+            code = command.finish(timeout=600)
+        finally:
+            command.kill()
+    assert code == 0, command.output
+    assert set(command.started()) == {"gateway"}
+    assert f"llm SERVING at {llm.address}" in command.output
+    assert re.search(r"answer     : .*\d", command.output), command.output
+    assert "1/1 questions answered" in command.output

@@ -19,6 +19,7 @@ from tests.launch.helpers import (
     alive,
     group_members,
     service_entry,
+    shipped_pipeline,
     write_deployment,
 )
 from tests.support.processes import free_port
@@ -115,3 +116,14 @@ def test_invalid_service_config_is_refused_before_anything_starts(
     err = capsys.readouterr().err
     assert f"{service}: detection.min_score" in err
     assert "started detector" not in err
+
+
+def test_unreachable_remote_service_fails_the_launch_in_time(tmp_path: Path) -> None:
+    address = f"127.0.0.1:{free_port()}"  # nothing listens there
+    path = write_deployment(tmp_path, {"remote": {"llm": {"address": address}},
+                                       "gateway": {"config": shipped_pipeline()},
+                                       "startup_timeout_s": 2})
+    with oricf_up(path) as up:
+        assert up.finish(timeout=60) == 1
+    assert "not SERVING after" in up.output and "llm (UNREACHABLE)" in up.output
+    assert "gateway" not in up.started()  # never started without its services
