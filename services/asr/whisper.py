@@ -1,8 +1,9 @@
 """Whisper on CTranslate2 through faster-whisper, weights from the model store only.
 
 The defaults favour latency for short spoken queries: greedy decoding (beam 1), one
-temperature (no fallback re-decoding), no timestamps, no conditioning on earlier text and
-no internal VAD (the stream does its own endpointing). `oricf bench asr` measures them.
+temperature (no fallback re-decoding), no timestamps, no conditioning on earlier text, no
+internal VAD (the stream does its own endpointing), and a short encoder window for short
+audio (short_window.py). `oricf bench asr` measures them.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pydantic import Field
 from oricf.config import Schema
 from oricf.errors import InvalidInput, NotReady
 from oricf.services.asr.recognizer import Recognition
+from oricf.services.asr.short_window import ShortWindowDecoder
 from oricf.services.runtime import ModelInfo
 
 if TYPE_CHECKING:  # the config module imports this one while validating its defaults
@@ -38,6 +40,9 @@ class WhisperOptions(Schema):
     vad_filter: bool = Field(False, description="faster-whisper's own VAD on unary requests")
     no_speech_threshold: float | None = Field(0.6, ge=0, le=1)
     initial_prompt: str | None = Field(None, description="words to bias towards, e.g. a robot's")
+    short_window: bool = Field(
+        True, description="encode short audio in a window shorter than 30 s (short_window.py)")
+    min_window_s: float = Field(10.0, ge=5, le=30, description="shortest such window")
 
 
 class WhisperRecognizer:
@@ -54,6 +59,7 @@ class WhisperRecognizer:
         self.license = entry.license
         self.sha256 = next(f.sha256 for f in entry.files if f.name == WEIGHTS)
         self._model: Any = None
+        self._short: dict[str, ShortWindowDecoder] = {}
         self._runtime = "ctranslate2"
 
     def load(self) -> None:
@@ -73,6 +79,7 @@ class WhisperRecognizer:
 
     def close(self) -> None:
         self._model = None
+        self._short.clear()
 
     def languages(self) -> list[str]:
         model = self._model
@@ -93,15 +100,34 @@ class WhisperRecognizer:
             raise InvalidInput(f"language '{language}' is not supported by {self.settings.name} "
                                f"(supported: {', '.join(model.supported_languages[:12])}"
                                f"{'...' if len(model.supported_languages) > 12 else ''})")
-        o = self.options
         started = time.perf_counter()
-        segments, info = model.transcribe(
+        text = None
+        if self.options.short_window and not self.options.vad_filter:
+            text = self._short_decoder(language).decode(samples)
+        if text is None:
+            text = self._full_window(samples, language)
+        if not any(c.isalnum() for c in text):  # "." or "..." from silence or noise
+            text = ""
+        elapsed_ms = (time.perf_counter() - started) * 1e3
+        return Recognition(text=text, language=language,
+                           duration_s=len(samples) / self.sample_rate,
+                           timings_ms={"inference_ms": elapsed_ms})
+
+    def _full_window(self, samples: np.ndarray, language: str) -> str:
+        o = self.options
+        segments, _info = self._model.transcribe(
             samples, language=language, beam_size=o.beam_size, temperature=o.temperature,
             without_timestamps=o.without_timestamps,
             condition_on_previous_text=o.condition_on_previous_text, vad_filter=o.vad_filter,
             no_speech_threshold=o.no_speech_threshold, initial_prompt=o.initial_prompt)
         # Segments are produced lazily: decoding happens while they are read.
-        text = "".join(segment.text for segment in segments).strip()
-        elapsed_ms = (time.perf_counter() - started) * 1e3
-        return Recognition(text=text, language=info.language, duration_s=info.duration,
-                           timings_ms={"inference_ms": elapsed_ms})
+        return "".join(segment.text for segment in segments).strip()
+
+    def _short_decoder(self, language: str) -> ShortWindowDecoder:
+        decoder = self._short.get(language)
+        if decoder is None:  # a race builds it twice at worst: harmless
+            o = self.options
+            decoder = ShortWindowDecoder(self._model, language, o.beam_size, o.min_window_s,
+                                         o.no_speech_threshold, o.initial_prompt)
+            self._short[language] = decoder
+        return decoder
