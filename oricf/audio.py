@@ -26,6 +26,9 @@ MAX_CHANNELS = 32
 
 WAVE_FORMAT_PCM = 0x0001
 WAVE_FORMAT_EXTENSIBLE = 0xFFFE
+# A data chunk this large (or 0) is a placeholder written by a tool that could not seek back
+# (0x7FFFF000 from espeak-ng, 0xFFFFFFFF from others): the data runs to the end of the file.
+STREAMED_DATA_SIZE = 0x7FFF0000
 
 
 @dataclass(frozen=True)
@@ -69,14 +72,18 @@ def pcm_from_bytes(data: bytes, sample_rate: int, channels: int = 1) -> PcmAudio
     return PcmAudio(samples, sample_rate)
 
 
-def _chunks(data: bytes) -> dict[bytes, bytes]:
-    """The chunks of a RIFF/WAVE file by id (first of each kind); a short data chunk is kept."""
+def _chunks(data: bytes) -> tuple[dict[bytes, bytes], bool]:
+    """The chunks of a RIFF/WAVE file by id (first of each kind), and whether the data chunk
+    had a placeholder size (a WAV written to a pipe, e.g. by `espeak-ng --stdout`)."""
     if len(data) < 12 or data[:4] != b"RIFF" or data[8:12] != b"WAVE":
         raise InvalidInput("not a WAV file (no RIFF/WAVE header)")
     chunks: dict[bytes, bytes] = {}
     offset = 12
     while offset + 8 <= len(data):
         chunk_id, size = struct.unpack_from("<4sI", data, offset)
+        if chunk_id == b"data" and (size == 0 or size >= STREAMED_DATA_SIZE):
+            chunks.setdefault(chunk_id, data[offset + 8:])
+            return chunks, True
         body = data[offset + 8: offset + 8 + size]
         if len(body) < size:
             raise InvalidInput(
@@ -84,12 +91,12 @@ def _chunks(data: bytes) -> dict[bytes, bytes]:
                 f"bytes but only {len(body)} are present")
         chunks.setdefault(chunk_id, body)
         offset += 8 + size + (size & 1)  # chunks are padded to an even length
-    return chunks
+    return chunks, False
 
 
 def parse_wav(data: bytes) -> PcmAudio:
     """Reads a complete 16-bit PCM WAV file; refuses truncated or non-PCM files."""
-    chunks = _chunks(data)
+    chunks, streamed = _chunks(data)
     fmt, body = chunks.get(b"fmt "), chunks.get(b"data")
     if fmt is None or len(fmt) < 16:
         raise InvalidInput("WAV file has no valid 'fmt ' chunk")
@@ -102,6 +109,8 @@ def parse_wav(data: bytes) -> PcmAudio:
     if tag != WAVE_FORMAT_PCM or bits != 16:
         raise InvalidInput(
             f"unsupported WAV format (tag {tag:#06x}, {bits} bits): only 16-bit PCM is accepted")
+    if streamed and channels:  # no declared length: a recording cut mid-frame is still audio
+        body = body[:len(body) - len(body) % (2 * channels)]
     return pcm_from_bytes(body, rate, channels)
 
 

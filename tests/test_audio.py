@@ -1,6 +1,7 @@
 """oricf.audio: WAV parsing, sample conversion, mix-down, resampling and speech synthesis."""
 
 import struct
+import subprocess
 
 import numpy as np
 import pytest
@@ -70,6 +71,19 @@ def test_extensible_pcm_wav_is_accepted() -> None:
     chunks = b"fmt " + struct.pack("<I", len(fmt)) + fmt + b"data" + struct.pack("<I", 4) + body
     wav = b"RIFF" + struct.pack("<I", 4 + len(chunks)) + b"WAVE" + chunks
     np.testing.assert_array_equal(parse_wav(wav).samples[:, 0], [5, -5])
+
+
+def test_wav_written_to_a_pipe_is_read_to_its_end() -> None:
+    # espeak-ng --stdout cannot seek back to fill in the sizes: it writes placeholders.
+    wav = subprocess.run(["espeak-ng", "--stdout", "hello robot"], check=True,
+                         capture_output=True).stdout
+    assert struct.unpack_from("<I", wav, 40)[0] >= 0x7FFF0000
+    audio = parse_wav(wav)
+    assert audio.sample_rate == 22050 and audio.channels == 1
+    assert audio.frames == (len(wav) - 44) // 2 and 0.4 < audio.duration_s < 2.0
+    # The same with the 0xFFFFFFFF placeholder and a final half frame.
+    other = wav[:40] + struct.pack("<I", 0xFFFFFFFF) + wav[44:] + b"\x01"
+    assert parse_wav(other).frames == audio.frames
 
 
 @pytest.mark.parametrize(("data", "message"), [
