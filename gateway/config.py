@@ -219,6 +219,9 @@ class RouteConfig(Schema):
 
 class PipelineConfig(Schema):
     node_name: str = Field("oricf_gateway", pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    executor_threads: int = Field(
+        1, ge=1, le=64, description="ROS executor threads; callbacks only hand off to the "
+                                    "routes' worker threads, so 1 suffices")
     endpoints: dict[str, EndpointConfig] = Field(default_factory=dict)
     routes: dict[str, RouteConfig] = Field(min_length=1)
     profiles: dict[str, dict[str, Any]] = Field(

@@ -24,7 +24,7 @@ from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.convert import image_from_pixels
-from oricf.gateway.main import DDS_PROFILE
+from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,

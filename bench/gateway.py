@@ -1,0 +1,241 @@
+"""`oricf bench gateway`: what the gateway adds per frame, and robot CPU onboard vs offloaded.
+
+Real processes on a private DDS domain: `oricf serve detector` and `oricf gateway` (the
+people_qa pipeline, its people route counting only), and this process as the camera,
+publishing 640x480 vtest.avi frames on camera/image_raw.
+
+1. Latency, interleaved frame by frame: publish -> /human_counter through the gateway, and a
+   direct Detect call with the same raw frame. Medians; the difference is what the gateway
+   adds (DDS both ways, conversion, the worker hand-off).
+2. Robot-side CPU per processed frame (utime + stime from /proc over --frames frames at
+   --fps): onboard = gateway + detector processes; offloaded = the gateway process only (the
+   detector would run on the edge server). Offloaded is measured with raw frames and again with
+   a gateway sending JPEG (what a remote endpoint would use). The detector runs on this
+   machine in every case; it is simply not counted as robot CPU when offloaded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import queue
+import random
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from oricf.bench.common import median_ms, print_table, served
+from oricf.config import config_dir
+from oricf.gateway.dds import DDS_PROFILE
+from oricf.gateway.values import Frame
+from oricf.store import ModelStore
+from oricf.v1 import detector_pb2, detector_pb2_grpc
+
+FRAME_SIZE = (640, 480)
+PIPELINE = config_dir() / "pipelines" / "people_qa.yaml"
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (fields 14 and 15 of /proc/PID/stat)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICKS
+
+
+def load_frames(count: int) -> list[np.ndarray]:
+    capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
+    frames: list[np.ndarray] = []
+    while len(frames) < count:
+        ok, frame = capture.read()
+        if not ok:
+            capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            continue
+        frames.append(cv2.resize(frame, FRAME_SIZE))
+    capture.release()
+    return frames
+
+
+def overlay(detector: str, transport: str) -> dict[str, Any]:
+    """The people route counting only (no annotated image), at the given placement."""
+    return {"endpoints": {"detector": {"address": detector, "deadline_ms": 2000,
+                                       "image": {"transport": transport, "jpeg_quality": 80}}},
+            "routes": {"people": {
+                "post": [{"count": {"label": "person", "into": "count"}}],
+                "outputs": [{"topic": "/human_counter", "type": "std_msgs/Int32",
+                             "from": "count"},
+                            {"product": "people_count", "from": "count", "max_age_s": 5}]}}}
+
+
+@contextmanager
+def gateway(detector: str, transport: str, folder: Path) -> Iterator[subprocess.Popen[bytes]]:
+    path = folder / f"{transport}.yaml"
+    path.write_text(yaml.safe_dump(overlay(detector, transport)))
+    command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
+               str(PIPELINE), "--overlay", str(path)]
+    process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
+    try:
+        yield process
+    finally:
+        process.terminate()
+        try:
+            process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+class Camera:
+    """This process's ROS side: publishes frames, receives counts."""
+
+    def __init__(self) -> None:
+        import threading
+
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import Image
+        from std_msgs.msg import Int32
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("bench_camera", context=self.context)
+        self.counts: queue.Queue[int] = queue.Queue()
+        self.publisher = self.node.create_publisher(Image, "camera/image_raw",
+                                                    qos_profile_sensor_data)
+        self.node.create_subscription(Int32, "/human_counter", self._on_count, 10)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinner.start()
+
+    def _on_count(self, msg: Any) -> None:
+        self.counts.put(int(msg.data))
+
+    def publish(self, frame: np.ndarray) -> None:
+        from oricf.gateway.convert import image_from_pixels
+
+        self.publisher.publish(image_from_pixels(frame))
+
+    def count_of(self, frame: np.ndarray, timeout: float = 5.0) -> int | None:
+        self.publish(frame)
+        try:
+            return self.counts.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+    def warm_up(self, frame: np.ndarray, process: subprocess.Popen[bytes]) -> None:
+        """Until the gateway answers (discovery done both ways), then forgets the extras."""
+        deadline = time.monotonic() + 60
+        while self.count_of(frame, timeout=0.5) is None:
+            if process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError("the gateway did not answer")
+        time.sleep(0.5)
+        while not self.counts.empty():
+            self.counts.get_nowait()
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=5)
+        self.spinner.join(timeout=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def latency(camera: Camera, stub: Any, frames: list[np.ndarray]) -> tuple[float, float, int]:
+    """(median gateway ms, median direct ms, frames that got no count), interleaved."""
+    through, direct, lost = [], [], 0
+    for i, frame in enumerate(frames):
+        request = detector_pb2.DetectRequest(image=Frame.from_pixels(frame).to_proto(),
+                                             labels=["person"])
+        order = ("gateway", "direct") if i % 2 == 0 else ("direct", "gateway")
+        for path in order:
+            started = time.perf_counter()
+            if path == "direct":
+                stub.Detect(request, timeout=5)
+                direct.append(time.perf_counter() - started)
+            elif camera.count_of(frame) is None:
+                lost += 1
+            else:
+                through.append(time.perf_counter() - started)
+    return median_ms(through), median_ms(direct), lost
+
+
+def cpu_per_frame(camera: Camera, frames: list[np.ndarray], fps: float,
+                  pids: list[int]) -> tuple[list[float], int]:
+    """CPU seconds per processed frame of each process, at a camera's pace."""
+    before = [cpu_seconds(pid) for pid in pids]
+    processed = 0
+    period = 1.0 / fps
+    next_at = time.monotonic()
+    for frame in frames:
+        next_at += period
+        if camera.count_of(frame, timeout=2.0) is not None:
+            processed += 1
+        time.sleep(max(0.0, next_at - time.monotonic()))
+    used = [cpu_seconds(pid) - b for pid, b in zip(pids, before, strict=True)]
+    return [u / max(processed, 1) for u in used], processed
+
+
+def run(args: argparse.Namespace) -> None:
+    frames = load_frames(args.frames)
+    os.environ.update({"ROS_DOMAIN_ID": str(random.randint(1, 100)),
+                       "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+                       "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)})
+    import grpc
+
+    camera = Camera()
+    try:
+        with served("detector") as (address, detector), \
+                tempfile.TemporaryDirectory() as folder, \
+                grpc.insecure_channel(address) as channel:
+            stub = detector_pb2_grpc.DetectorStub(channel)
+            with gateway(address, "raw", Path(folder)) as raw:
+                camera.warm_up(frames[0], raw)
+                through, direct, lost = latency(camera, stub, frames)
+                (gw_raw, det), n_raw = cpu_per_frame(camera, frames, args.fps,
+                                                     [raw.pid, detector.pid])
+            with gateway(address, "jpeg", Path(folder)) as jpeg:
+                camera.warm_up(frames[0], jpeg)
+                (gw_jpeg,), n_jpeg = cpu_per_frame(camera, frames, args.fps, [jpeg.pid])
+    finally:
+        camera.close()
+    report(args, through, direct, lost, gw_raw, det, gw_jpeg, (n_raw, n_jpeg))
+
+
+def report(args: argparse.Namespace, through: float, direct: float, lost: int, gw_raw: float,
+           det: float, gw_jpeg: float, processed: tuple[int, int]) -> None:
+    print_table(f"Latency per {FRAME_SIZE[0]}x{FRAME_SIZE[1]} frame, median of {args.frames} "
+                f"(interleaved; {lost} frames without a count)",
+                ["path", "median ms"],
+                [["publish -> /human_counter (gateway)", f"{through:.1f}"],
+                 ["direct Detect call (raw bgr8)", f"{direct:.1f}"],
+                 ["added by the gateway", f"{through - direct:.1f}"]])
+    onboard = gw_raw + det
+    rows = [["onboard (raw)", "gateway + detector", f"{onboard * 1e3:.2f}", "-"]]
+    for name, cpu in (("offloaded (raw frames)", gw_raw), ("offloaded (jpeg frames)", gw_jpeg)):
+        rows.append([name, "gateway", f"{cpu * 1e3:.2f}", f"{(1 - cpu / onboard) * 100:.1f}%"])
+    print_table(f"Robot-side CPU per processed frame at {args.fps:g} fps "
+                f"({processed[0]} and {processed[1]} frames processed)",
+                ["placement", "robot processes", "CPU ms/frame", "cut vs onboard"], rows)
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="oricf bench gateway", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=60, help="frames per phase")
+    parser.add_argument("--fps", type=float, default=10.0, help="camera rate for the CPU phase")
+    args = parser.parse_args(argv)
+    run(args)
+    return 0
