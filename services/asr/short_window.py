@@ -86,20 +86,21 @@ class ShortWindowDecoder:
         import ctranslate2
         from faster_whisper.audio import pad_or_trim
 
-        features = self.model.feature_extractor(samples)
-        window = self.window_frames(features.shape[-1])
+        extractor = self.model.feature_extractor
+        window = self.window_frames(len(samples) // extractor.hop_length + 1)
         if window is None:
             return None
+        features = extractor(samples)
         padded = np.ascontiguousarray(pad_or_trim(features, window)[np.newaxis])
-        duration_s = len(samples) / self.model.feature_extractor.sampling_rate
+        duration_s = len(samples) / extractor.sampling_rate
         budget = MIN_TOKENS + math.ceil(TOKENS_PER_SECOND * duration_s)
-        # CTranslate2 4.x stops Whisper at about half of max_length; twice the budget lets a
-        # loop run past the budget (and be seen) whichever way max_length is counted.
+        # CTranslate2 4.8 was seen stopping Whisper at about half of max_length; twice the
+        # budget lets a loop run past the budget (and be seen) however max_length counts.
         result = self.model.model.generate(
             ctranslate2.StorageView.from_array(padded), [self.prompt],
             beam_size=self.beam_size, max_length=len(self.prompt) + 2 * budget,
-            return_scores=True,
-            return_no_speech_prob=True, suppress_blank=True, suppress_tokens=self.suppress)[0]
+            return_scores=True, return_no_speech_prob=True, suppress_blank=True,
+            suppress_tokens=self.suppress)[0]
         tokens = result.sequences_ids[0]
         text = self.tokenizer.decode(tokens).strip()
         avg_log_prob = result.scores[0] * len(tokens) / (len(tokens) + 1)

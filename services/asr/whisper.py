@@ -41,7 +41,8 @@ class WhisperOptions(Schema):
     no_speech_threshold: float | None = Field(0.6, ge=0, le=1)
     initial_prompt: str | None = Field(None, description="words to bias towards, e.g. a robot's")
     short_window: bool = Field(
-        True, description="encode short audio in a window shorter than 30 s (short_window.py)")
+        True, description="encode short audio in a window shorter than 30 s (short_window.py); "
+                          "used with temperature 0 and without vad_filter")
     min_window_s: float = Field(10.0, ge=5, le=30, description="shortest such window")
 
 
@@ -102,7 +103,8 @@ class WhisperRecognizer:
                                f"{'...' if len(model.supported_languages) > 12 else ''})")
         started = time.perf_counter()
         text = None
-        if self.options.short_window and not self.options.vad_filter:
+        o = self.options
+        if o.short_window and o.temperature == 0 and not o.vad_filter:
             text = self._short_decoder(language).decode(samples)
         if text is None:
             text = self._full_window(samples, language)
