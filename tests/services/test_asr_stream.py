@@ -1,6 +1,8 @@
 """TranscribeStream: microphone-sized chunks in, one transcript per utterance out."""
 
+import time
 from collections.abc import Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 
 import grpc
 import numpy as np
@@ -142,3 +144,31 @@ def test_long_speech_is_cut_at_max_utterance() -> None:
     assert len(results) >= 3, [r.text for r in results]
     assert all(r.duration_s <= 2.0 + 1e-6 for r in results)
     assert sum("people" in words(r.text) for r in results) >= 2
+
+
+def test_concurrent_streams_keep_their_own_state(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    texts = {QUESTION: speech(QUESTION), COMMAND: speech(COMMAND, voice="en-gb")}
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {text: pool.submit(transcripts, stub, chunks(np.concatenate([a, silence(0.8)])))
+                   for text, a in texts.items()}
+        results = {text: future.result(timeout=120) for text, future in futures.items()}
+    assert [len(r) for r in results.values()] == [1, 1]
+    assert {"many", "people", "see"} <= set(words(results[QUESTION][0].text))
+    assert words(results[COMMAND][0].text) == ["stop", "moving", "and", "turn", "left"]
+
+
+def test_a_deadline_ends_a_stream_and_the_service_goes_on(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    def slow_microphone() -> Iterator[speech_pb2.TranscribeStreamRequest]:
+        for request in chunks(silence(5.0)):
+            time.sleep(CHUNK_MS / 1000)   # real time: 5 s of audio takes 5 s
+            yield request
+
+    started = time.monotonic()
+    with pytest.raises(grpc.RpcError) as error:
+        list(stub.TranscribeStream(slow_microphone(), timeout=0.5))
+    assert error.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
+    assert time.monotonic() - started < 3
+    good = transcripts(stub, chunks(np.concatenate([speech(QUESTION), silence(0.6)])))
+    assert len(good) == 1 and "people" in words(good[0].text)
