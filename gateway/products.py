@@ -3,6 +3,7 @@
 One route writes a product (`outputs: - {product: people_count, max_age_s: 5}`); others
 read it as context for a call, or run on each new value (`input: {product: ...}`). A value
 older than max_age_s is stale: readers see that, it is never passed off as current.
+As call context a product goes with its age, and stale values are left out or flagged.
 """
 
 from __future__ import annotations
@@ -14,6 +15,10 @@ from dataclasses import dataclass
 from typing import Any
 
 Listener = Callable[[Any], None]
+
+# Context keys the language service reads beside a fact (services/llm/prompt.py).
+AGE_SUFFIX = "_age_s"
+STALE_SUFFIX = "_stale"
 
 
 @dataclass(frozen=True)
@@ -65,16 +70,16 @@ class ProductStore:
             return Reading(name, value, self._clock() - stamp, self._max_age[name])
 
     def context(self, names: list[str], stale: str) -> dict[str, str]:
-        """Products as call context: missing ones left out; stale ones left out
-        (stale="omit") or sent as "unknown (last value V, N s old)" (stale="mark")."""
+        """Products as call context, in the language service's convention: `name` the value,
+        `name_age_s` its age in seconds; a stale value is left out (stale="omit") or sent
+        with `name_stale: "true"` (stale="mark"). A product never written is left out."""
         context: dict[str, str] = {}
         for name in names:
             reading = self.read(name)
             if reading is None or (reading.stale and stale == "omit"):
                 continue
+            context[name] = str(reading.value)
+            context[name + AGE_SUFFIX] = f"{reading.age_s:.1f}"
             if reading.stale:
-                context[name] = (f"unknown (last value {reading.value}, "
-                                 f"{reading.age_s:.0f} s old)")
-            else:
-                context[name] = str(reading.value)
+                context[name + STALE_SUFFIX] = "true"
         return context

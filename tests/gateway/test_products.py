@@ -43,11 +43,13 @@ def test_readings_age_and_go_stale(store: ProductStore, clock: Clock) -> None:
 def test_context_leaves_out_or_marks_stale_values(store: ProductStore, clock: Clock) -> None:
     assert store.context(["people_count"], "omit") == {}  # never written
     store.put("people_count", 3)
-    assert store.context(["people_count"], "omit") == {"people_count": "3"}
-    clock.now += 12.0
+    clock.now += 1.5
+    assert store.context(["people_count"], "omit") == {"people_count": "3",
+                                                        "people_count_age_s": "1.5"}
+    clock.now += 10.5
     assert store.context(["people_count"], "omit") == {}
     assert store.context(["people_count"], "mark") == {
-        "people_count": "unknown (last value 3, 12 s old)"}
+        "people_count": "3", "people_count_age_s": "12.0", "people_count_stale": "true"}
 
 
 def test_generate_request_carries_fresh_context_only(store: ProductStore, clock: Clock) -> None:
@@ -57,7 +59,7 @@ def test_generate_request_carries_fresh_context_only(store: ProductStore, clock:
     store.put("people_count", 4)
     fresh = generate_request({"text": " How many people? "}, call, store)
     assert (fresh.prompt, dict(fresh.context), fresh.max_tokens) == (
-        "How many people?", {"people_count": "4"}, 24)
+        "How many people?", {"people_count": "4", "people_count_age_s": "0.0"}, 24)
     assert fresh.HasField("temperature") and fresh.temperature == 0.0
     clock.now += 6.0
     assert dict(generate_request({"text": "How many?"}, call, store).context) == {}
