@@ -58,10 +58,6 @@ class Endpointer:
         self._silence = 0        # trailing samples scored as silence
         self._vad_ms = 0.0
 
-    @property
-    def in_speech(self) -> bool:
-        return self._speech is not None
-
     def push(self, samples: np.ndarray) -> list[Utterance]:
         audio = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
         whole = len(audio) - len(audio) % WINDOW
