@@ -31,7 +31,7 @@ FRAME_SIZE = (640, 480)
 
 def load_frames(count: int) -> list[np.ndarray]:
     capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
-    frames = []
+    frames: list[np.ndarray] = []
     while len(frames) < count:
         ok, frame = capture.read()
         if not ok:
