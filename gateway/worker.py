@@ -69,6 +69,12 @@ class RouteWorker(Generic[T]):
                 log.exception("route %s: unexpected error", self.name)
             self.stats.handled += 1
 
+    @property
+    def busy(self) -> bool:
+        """Whether an item is being handled right now."""
+        with self._cond:
+            return self._busy
+
     def idle(self, timeout: float) -> bool:
         """Waits until nothing is pending or running (for tests and benchmarks)."""
         with self._cond:

@@ -19,7 +19,7 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import PipelineConfig
@@ -53,14 +53,20 @@ class Probe:
         self.audio = self.node.create_publisher(Int16MultiArray, "/audio/utterance",
                                                 QoSProfile(depth=10))
         self.question = self.node.create_publisher(String, "/question", QoSProfile(depth=10))
+        self.compressed = self.node.create_publisher(CompressedImage, "camera/compressed",
+                                                     qos_profile_sensor_data)
 
     def _collector(self, topic: str) -> Any:
         return lambda msg: self.received[topic].put(msg)
 
-    def wait_connected(self, timeout: float = 10.0) -> None:
-        """Until the gateway's subscriptions and publishers have been discovered."""
+    def wait_connected(self, inputs: tuple[str, ...] = ("camera/image_raw",
+                                                        "/audio/utterance", "/question"),
+                       timeout: float = 10.0) -> None:
+        """Until the gateway's subscriptions to these inputs and its counts are discovered."""
+        by_topic = {"camera/image_raw": self.camera, "/audio/utterance": self.audio,
+                    "/question": self.question, "camera/compressed": self.compressed}
+        publishers = [by_topic[topic] for topic in inputs]
         deadline = time.monotonic() + timeout
-        publishers = (self.camera, self.audio, self.question)
         while time.monotonic() < deadline:
             if all(p.get_subscription_count() > 0 for p in publishers) and \
                     self.node.count_publishers("/human_counter") > 0:
@@ -136,7 +142,8 @@ def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[
     try:
         with spinning(context, gateway, probe.node):
             try:
-                probe.wait_connected()
+                probe.wait_connected(tuple(r.input.topic for r in config.routes.values()
+                                           if r.input.topic is not None))
                 yield gateway, probe
             finally:
                 gateway.shutdown()

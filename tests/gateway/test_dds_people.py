@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from rclpy.context import Context
 
 from oricf.gateway.values import Frame
@@ -47,3 +49,42 @@ def test_rgb8_and_mono8_frames_are_counted(ros_context: Context) -> None:
         mono = probe.next("/human_counter", timeout=10).data
     assert rgb == 4  # frame 0: three pedestrians and a post the model takes for one
     assert 2 <= mono <= 6
+
+
+def test_compressed_images_are_counted(ros_context: Context) -> None:
+    from sensor_msgs.msg import CompressedImage
+
+    from oricf.imaging import encode_image
+
+    compressed = {"routes": {"people": {"input": {"topic": "camera/compressed",
+                                                  "type": "sensor_msgs/CompressedImage"}}}}
+    frame = video_frames([0])[0]
+    with running_service("detector") as detector:
+        config = people_qa(compressed, detector=detector.address)
+        with running_gateway(config, ros_context) as (_, probe):
+            for fmt, encoding in (("jpeg", "jpeg"), ("bgr8; png compressed bgr8", "png")):
+                msg = CompressedImage(format=fmt)
+                msg.data = encode_image(frame, encoding)
+                probe.compressed.publish(msg)
+                assert probe.next("/human_counter", timeout=10).data == 4
+            annotated = probe.next("/camera/image_annotated", timeout=10)
+    assert (annotated.width, annotated.height) == (768, 576)
+
+
+def test_a_burst_of_frames_keeps_only_the_newest(ros_context: Context) -> None:
+    frames = video_frames([0, 80])  # 4 and 7 people found
+    with running_service("detector") as detector, \
+            running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
+        for _ in range(30):  # faster than the detector: frames arrive while it is busy
+            probe.publish_frame(frames[0])
+            time.sleep(0.005)
+        probe.publish_frame(frames[1])
+        time.sleep(1.0)  # every frame delivered
+        assert gw.pipeline.idle(10)
+        time.sleep(0.5)  # every count delivered
+        counts = probe.drain("/human_counter")
+        stats = gw.pipeline.workers["people"].stats
+    assert 1 <= len(counts) < 31
+    assert stats.dropped >= 1 and stats.handled == len(counts)
+    # the last frame published is the last one counted: never an old frame after a new one
+    assert counts[-1].data == 7 and stats.received == stats.dropped + stats.handled

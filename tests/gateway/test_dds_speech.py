@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 
@@ -104,3 +105,23 @@ def test_garbage_audio_is_logged_and_speech_keeps_working(
     stats = node.pipeline.routes["speech"].stats
     assert stats.bad_input == 1 and stats.errors.get("INVALID_ARGUMENT") == 1
     assert "how many people" in transcript.lower()
+
+
+def test_counts_keep_coming_while_the_language_model_works(
+        services: dict[str, str], ros_context: Context) -> None:
+    frame = video_frames([0])[0]
+    with gateway(services, ros_context) as (node, probe):
+        probe.publish_frame(frame)
+        assert probe.next("/human_counter", timeout=10).data == 4
+        asking = node.pipeline.workers["typed_question"]
+        probe.question.publish(String(data=QUESTION))
+        wait_for(lambda: asking.busy, timeout=10)
+        started = time.monotonic()
+        probe.publish_frame(frame)
+        during = probe.next("/human_counter", timeout=2).data
+        latency = time.monotonic() - started
+        still_generating = asking.busy
+        answer = probe.next("/answer", timeout=60).data
+    assert during == 4 and still_generating  # counted while the language model was generating
+    assert latency < 0.5
+    assert "4" in answer
