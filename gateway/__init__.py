@@ -1,0 +1,6 @@
+"""The ROS 2 gateway: topics -> model services -> topics, wired by a pipeline YAML.
+
+Pure core (no ROS import): config (the YAML schema), values, calls, post, products,
+endpoints (deadlines, failover), worker, route, pipeline. The ROS shell: node and convert
+(rclpy and message types), main (`oricf gateway`). Importing this package imports nothing.
+"""

@@ -30,35 +30,12 @@ from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema, deep_merge, read_yaml, validate
 from oricf.errors import ConfigError
+from oricf.gateway.methods import INPUT_FIELDS, METHOD_FIELDS, METHOD_KEYS, SERVICE_OF
 
-ImageInput = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage"]
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
 OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
 Method = Literal["Detect", "Transcribe", "Generate"]
-
-# method -> the gRPC service it belongs to (also the name its health check uses)
-SERVICE_OF: dict[str, str] = {
-    "Detect": "oricf.v1.Detector",
-    "Transcribe": "oricf.v1.SpeechRecognizer",
-    "Generate": "oricf.v1.LanguageModel",
-}
-# The record fields each input type and each method adds (checked against `from`, templates).
-INPUT_FIELDS: dict[str, str] = {
-    "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
-    "std_msgs/String": "text", "std_msgs/Int16MultiArray": "audio", "std_msgs/Int32": "value",
-}
-METHOD_FIELDS: dict[str, tuple[str, ...]] = {
-    "Detect": ("detections", "counts", "annotated"),
-    "Transcribe": ("transcript", "duration_s"),
-    "Generate": ("answer",),
-}
-# Call keys that belong to one method only.
-METHOD_KEYS: dict[str, tuple[str, ...]] = {
-    "Detect": ("labels", "min_score", "annotate"),
-    "Transcribe": ("language",),
-    "Generate": ("prompt", "max_tokens", "temperature", "stop", "context"),
-}
 
 
 def _check_address(value: str) -> str:
@@ -219,6 +196,7 @@ class RouteConfig(Schema):
 
 class PipelineConfig(Schema):
     node_name: str = Field("oricf_gateway", pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    stats_interval_s: float = Field(60.0, ge=0, description="log route statistics (0: never)")
     executor_threads: int = Field(
         1, ge=1, le=64, description="ROS executor threads; callbacks only hand off to the "
                                     "routes' worker threads, so 1 suffices")

@@ -51,6 +51,8 @@ class GatewayNode(Node):
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
         self.pipeline.start()
+        if config.stats_interval_s > 0:
+            self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
         log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
 
     def _publisher(self, output: OutputConfig) -> Publisher:

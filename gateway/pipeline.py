@@ -7,6 +7,7 @@ and publishes what `emit` receives. Tests and benchmarks drive this class direct
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from oricf.gateway.config import PipelineConfig
@@ -45,7 +46,7 @@ class Pipeline:
             if rc.input.product is not None:
                 self.products.subscribe(rc.input.product, self._feeder(name))
 
-    def _feeder(self, route: str) -> Any:
+    def _feeder(self, route: str) -> Callable[[Any], None]:
         def feed(value: Any) -> None:
             self.submit(route, lambda: {"value": value})
 
@@ -67,13 +68,16 @@ class Pipeline:
     def idle(self, timeout: float) -> bool:
         return all(worker.idle(timeout) for worker in self.workers.values())
 
-    def stop(self) -> None:
-        for worker in self.workers.values():
-            worker.stop()
-        for endpoint in self.endpoints.values():
-            endpoint.close()
+    def log_stats(self) -> None:
         for name, route in self.routes.items():
             stats = self.workers[name].stats
             log.info("route %s: %d received, %d dropped as stale, %d ok, %d skipped, "
                      "errors %s", name, stats.received, stats.dropped, route.stats.ok,
                      route.stats.skipped, route.stats.errors or "none")
+
+    def stop(self) -> None:
+        for worker in self.workers.values():
+            worker.stop()
+        for endpoint in self.endpoints.values():
+            endpoint.close()
+        self.log_stats()

@@ -6,15 +6,17 @@ parallel runs on one machine never see each other's topics.
 
 from __future__ import annotations
 
+import logging
 import queue
 import random
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
+import pytest
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
@@ -150,3 +152,16 @@ def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[
     finally:
         probe.node.destroy_node()
         gateway.destroy_node()
+
+
+def wait_for(condition: Callable[[], bool], timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise TimeoutError("condition not met in time")
+        time.sleep(0.02)
+
+
+def logged(caplog: pytest.LogCaptureFixture, text: str) -> Callable[[], bool]:
+    return lambda: any(text in r.getMessage() and r.levelno >= logging.WARNING
+                       for r in caplog.records)

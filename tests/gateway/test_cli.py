@@ -10,7 +10,7 @@ import yaml
 from rclpy.context import Context
 
 from tests.gateway.pipelines import PEOPLE_QA
-from tests.gateway.ros import running_probe
+from tests.gateway.ros import running_probe, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import oricf_process
 from tests.support.services import running_service
@@ -24,8 +24,10 @@ def test_gateway_process_counts_people_and_stops_on_sigterm(
         overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
             "address": detector.address}}}))
         with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay", str(overlay),
+                           "--ros-args", "-r", "__node:=gateway_under_test",
                            env=ros_env) as gateway, running_probe(ros_context) as probe:
             probe.wait_connected(timeout=30)
+            wait_for(lambda: "gateway_under_test" in probe.node.get_node_names())
             probe.warm_up(frames[1])
             counts = []
             for frame in frames:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import logging
-import time
-from collections.abc import Callable
 from contextlib import ExitStack
 
 import pytest
@@ -13,23 +11,10 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray
 
 from tests.gateway.pipelines import people_qa
-from tests.gateway.ros import Probe, running_gateway
+from tests.gateway.ros import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.services import running_service
-
-
-def wait_for(condition: Callable[[], bool], timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise TimeoutError("condition not met in time")
-        time.sleep(0.02)
-
-
-def logged(caplog: pytest.LogCaptureFixture, text: str) -> Callable[[], bool]:
-    return lambda: any(text in r.getMessage() and r.levelno >= logging.WARNING
-                       for r in caplog.records)
 
 
 def bad_image(encoding: str, width: int, height: int, size: int) -> Image:

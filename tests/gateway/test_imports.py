@@ -1,0 +1,27 @@
+"""The routing core imports without ROS; only the node and its converters need rclpy."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from oricf.gateway.main import split_ros_args
+
+CORE = ["config", "methods", "values", "calls", "post", "products", "endpoints", "worker",
+        "route", "pipeline", "throttle", "dds", "main"]
+
+
+def test_core_modules_do_not_import_ros() -> None:
+    imports = "; ".join(f"import oricf.gateway.{name}" for name in CORE)
+    check = ("import sys; bad = sorted(m for m in sys.modules if m.split('.')[0] in "
+             "('rclpy', 'sensor_msgs', 'std_msgs')); assert not bad, bad")
+    result = subprocess.run([sys.executable, "-c", f"{imports}; {check}"],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+def test_ros_arguments_go_to_rclpy() -> None:
+    ours, ros = split_ros_args(["--config", "p.yaml", "--ros-args", "-r", "__node:=gw"])
+    assert ours == ["--config", "p.yaml"]
+    assert ros == ["oricf_gateway", "--ros-args", "-r", "__node:=gw"]
+    assert split_ros_args(["--check"]) == (["--check"], [])
