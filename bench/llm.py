@@ -8,12 +8,14 @@ prefix kept (the default) and thrown away before every call.
 
     oricf bench llm                                   # both catalog models
     oricf bench llm --model gemma3-270m --show        # one model, print every answer
-    oricf bench llm --prompt my-prompt.yaml --threads 2
+    oricf bench llm --threads 1 --threads 2           # thread counts side by side
+    oricf bench llm --prompt my-prompt.yaml
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import statistics
 import time
@@ -60,14 +62,23 @@ NUMBER_WORDS = (
     "eleven", "twelve", "thirteen", "fourteen", "fifteen", "sixteen", "seventeen", "eighteen",
     "nineteen", "twenty")
 ZERO_PHRASES = re.compile(r"\b(no one|no-one|nobody|no people|no persons|no humans|zero)\b")
-REUSE_SAMPLE = 8
+SIDE_SAMPLE = 8        # questions with an unknown count; questions without prefix reuse
 DEADLINE_S = 30.0
 
 
 def questions(n: int) -> list[tuple[str, int]]:
-    """n (question, count) pairs; with n = 80 every phrasing meets every count at most once
-    and each count 0-15 is asked 5 different ways."""
-    return [(PHRASINGS[i % len(PHRASINGS)], i % (MAX_COUNT + 1)) for i in range(n)]
+    """n distinct (question, count) pairs, each count 0-15 asked in turn, phrasings rotating.
+
+    Every 80 questions the phrasings shift by one, so up to 320 (all pairs) never repeat.
+    The first 64 use every count 4 times and every phrasing 3 or 4 times.
+    """
+    counts = MAX_COUNT + 1
+    block = math.lcm(counts, len(PHRASINGS))  # distinct pairs before the phrasings repeat
+    pairs = []
+    for i in range(min(n, counts * len(PHRASINGS))):
+        shift = i // block
+        pairs.append((PHRASINGS[(i + shift) % len(PHRASINGS)], i % counts))
+    return pairs
 
 
 def stated_counts(answer: str) -> set[int]:
@@ -87,19 +98,23 @@ def is_right(answer: str, count: int) -> bool:
 @dataclass
 class Answer:
     question: str
-    count: int
+    count: int | None      # None: the count is unknown (absent or stale in the context)
     text: str
     first_s: float
     total_s: float
 
     @property
     def right(self) -> bool:
+        if self.count is None:
+            return not stated_counts(self.text)  # must not make a count up
         return is_right(self.text, self.count)
 
 
-def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int) -> Answer:
-    request = language_pb2.GenerateRequest(prompt=question,
-                                           context={"people_count": str(count)})
+def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int | None,
+        context: dict[str, str] | None = None) -> Answer:
+    if context is None:
+        context = {"people_count": str(count)}
+    request = language_pb2.GenerateRequest(prompt=question, context=context)
     started = time.perf_counter()
     first = None
     pieces = []
@@ -109,6 +124,12 @@ def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int) ->
         pieces.append(message.text)
     total = time.perf_counter() - started
     return Answer(question, count, "".join(pieces), total if first is None else first, total)
+
+
+def ask_unknown(stub: language_pb2_grpc.LanguageModelStub, n: int) -> list[Answer]:
+    """Questions whose count is absent or too old: the answer must state no count."""
+    contexts = [{}, {"people_count": "4", "people_count_age_s": "60"}]
+    return [ask(stub, PHRASINGS[i % len(PHRASINGS)], None, contexts[i % 2]) for i in range(n)]
 
 
 @contextmanager
@@ -127,31 +148,44 @@ def service(overrides: dict[str, Any], config_path: Path) -> Iterator[grpc.Chann
         host.stop(grace=1.0)
 
 
-def overrides_for(model: str, args: argparse.Namespace, reuse: bool) -> dict[str, Any]:
-    settings: dict[str, Any] = {"name": model, "reuse_prefix": reuse}
-    if args.threads:
-        settings["threads"] = args.threads
+@dataclass(frozen=True)
+class Setup:
+    model: str
+    threads: int | None    # None: the YAML's
+
+    @property
+    def label(self) -> str:
+        return self.model + ("" if self.threads is None else f" x{self.threads}")
+
+
+def overrides_for(setup: Setup, prompt: Path | None, reuse: bool) -> dict[str, Any]:
+    settings: dict[str, Any] = {"name": setup.model, "reuse_prefix": reuse}
+    if setup.threads is not None:
+        settings["threads"] = setup.threads
     data: dict[str, Any] = {"server": {"listen": "127.0.0.1:0"}, "model": settings}
-    if args.prompt:
-        data["prompts"] = {model: str(args.prompt.resolve())}
+    if prompt is not None:
+        data["prompts"] = {setup.model: str(prompt.resolve())}
     return data
 
 
-def run_model(model: str, args: argparse.Namespace) -> dict[str, Any]:
+def run_setup(setup: Setup, args: argparse.Namespace) -> dict[str, Any]:
     asked = questions(args.questions)
-    with service(overrides_for(model, args, reuse=True), args.config) as channel:
+    with service(overrides_for(setup, args.prompt, reuse=True), args.config) as channel:
         stub = language_pb2_grpc.LanguageModelStub(channel)
         answers = [ask(stub, q, c) for q, c in asked]
-    with service(overrides_for(model, args, reuse=False), args.config) as channel:
+        unknown = ask_unknown(stub, SIDE_SAMPLE)
+    with service(overrides_for(setup, args.prompt, reuse=False), args.config) as channel:
         stub = language_pb2_grpc.LanguageModelStub(channel)
-        cold = [ask(stub, q, c) for q, c in asked[:REUSE_SAMPLE]]
+        cold = [ask(stub, q, c) for q, c in asked[:SIDE_SAMPLE]]
     if args.show:
-        for a in answers:
-            print(f"  {'ok ' if a.right else 'BAD'} {a.count:2d} {a.question:40} -> {a.text}")
+        for a in answers + unknown:
+            count = "?" if a.count is None else a.count
+            print(f"  {'ok ' if a.right else 'BAD'} {count:>2} {a.question:46} -> {a.text}")
     return {
-        "model": model,
+        "label": setup.label,
         "right": sum(a.right for a in answers),
         "asked": len(answers),
+        "unknown_right": sum(a.right for a in unknown),
         "first": statistics.median(a.first_s for a in answers),
         "total": statistics.median(a.total_s for a in answers),
         "p90": sorted(a.total_s for a in answers)[int(0.9 * (len(answers) - 1))],
@@ -160,15 +194,17 @@ def run_model(model: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def print_table(rows: Sequence[dict[str, Any]]) -> None:
-    print(f"\n{'model':24} {'right':>9} {'share':>6} {'1st tok':>8} {'answer':>8} "
-          f"{'p90':>7} {'1st tok, no prefix reuse':>25}")
+    print(f"\n{'model':28} {'right':>9} {'share':>6} {'unknown':>7} {'1st tok':>8} "
+          f"{'answer':>8} {'p90':>7} {'1st tok, no prefix reuse':>25}")
     for r in rows:
         ratio = r["cold_first"] / r["first"] if r["first"] else float("nan")
-        print(f"{r['model']:24} {r['right']:>4}/{r['asked']:<4} {r['right'] / r['asked']:6.0%} "
+        print(f"{r['label']:28} {r['right']:>4}/{r['asked']:<4} {r['right'] / r['asked']:6.0%} "
+              f"{r['unknown_right']:>4}/{SIDE_SAMPLE:<2} "
               f"{r['first'] * 1e3:6.0f}ms {r['total'] * 1e3:6.0f}ms {r['p90'] * 1e3:5.0f}ms "
               f"{r['cold_first'] * 1e3:14.0f}ms ({ratio:.1f}x)")
-    print("medians over the questions, measured by the client over gRPC (GenerateStream); "
-          "right = the answer states the right count and no other")
+    print("medians over the questions, measured by the client over gRPC (GenerateStream).\n"
+          "right: the answer states the right count and no other; unknown: with the count "
+          "absent or stale, the answer states none; xN: llama.cpp threads")
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
@@ -179,12 +215,13 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--config", type=Path, default=config_dir() / "services" / "llm.yaml",
                         help="service YAML (default configs/services/llm.yaml)")
     parser.add_argument("--prompt", type=Path, help="prompt template for every model measured")
-    parser.add_argument("--threads", type=int, help="llama.cpp threads (default: the YAML's)")
+    parser.add_argument("--threads", type=int, action="append",
+                        help="llama.cpp threads (repeatable, to compare; default: the YAML's)")
     parser.add_argument("--questions", type=int, default=64, help="how many questions")
     parser.add_argument("--show", action="store_true", help="print every answer")
     args = parser.parse_args(argv)
-    if args.questions < REUSE_SAMPLE:
-        parser.error(f"--questions must be at least {REUSE_SAMPLE}")
+    if args.questions < SIDE_SAMPLE:
+        parser.error(f"--questions must be at least {SIDE_SAMPLE}")
     return args
 
 
@@ -192,7 +229,9 @@ def main(argv: Sequence[str]) -> int:
     args = parse_args(argv)
     rows = []
     for model in args.model or MODELS:
-        print(f"{model}: asking {args.questions} count questions...", flush=True)
-        rows.append(run_model(model, args))
+        for threads in args.threads or [None]:
+            setup = Setup(model, threads)
+            print(f"{setup.label}: asking {args.questions} count questions...", flush=True)
+            rows.append(run_setup(setup, args))
     print_table(rows)
     return 0

@@ -14,7 +14,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from oricf.errors import Overloaded
+from oricf.errors import NotReady, Overloaded
 
 # How often a waiting caller checks whether it is still wanted.
 POLL_S = 0.02
@@ -26,6 +26,7 @@ class GenerationGate:
         self.wait_timeout_s = wait_timeout_s
         self._cond = threading.Condition()
         self._busy = False
+        self._closed = False
         self._line: deque[object] = deque()
 
     @property
@@ -53,8 +54,16 @@ class GenerationGate:
                 self._busy = False
                 self._cond.notify_all()
 
+    def close(self, timeout_s: float) -> bool:
+        """Refuses new turns and waits for the running one; False if it is still running."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+            return self._cond.wait_for(lambda: not self._busy, timeout_s)
+
     def _acquire(self, check: Callable[[], None]) -> None:
         with self._cond:
+            self._refuse_if_closed()
             if not self._busy and not self._line:
                 self._busy = True
                 return
@@ -78,4 +87,9 @@ class GenerationGate:
                 raise Overloaded(f"waited {self.wait_timeout_s:g} s for the model without a "
                                  f"turn (queue wait timeout); retry later")
             self._cond.wait(min(POLL_S, remaining))
+            self._refuse_if_closed()
             check()
+
+    def _refuse_if_closed(self) -> None:
+        if self._closed:
+            raise NotReady("the language model is shutting down; retry on another instance")

@@ -10,7 +10,7 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,7 @@ log = logging.getLogger(__name__)
 
 # GenerationStats.last_finish_reason when the consumer stopped reading mid-way.
 ABANDONED = "abandoned"
+CLOSE_WAIT_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,12 @@ class LlamaModel:
         self.stats = GenerationStats()
 
     def close(self) -> None:
+        # Callers are cancelled by the server's shutdown, so a running generation ends
+        # within a token; freeing the weights under it would crash the process.
+        if not self.gate.close(CLOSE_WAIT_S):
+            log.warning("a generation is still running after %.0f s; weights left to the OS",
+                        CLOSE_WAIT_S)
+            return
         llm, self._llm = self._llm, None
         if llm is not None:
             llm.close()
@@ -136,8 +143,7 @@ class LlamaModel:
             llm.reset()
         cached = self._cached_prefix(llm, tokens)
         result = LoopResult()
-        sampling = Sampling(**{**self.settings.sampling.__dict__,
-                               "temperature": request.temperature})
+        sampling = replace(self.settings.sampling, temperature=request.temperature)
         stops = [*self.renderer.stop, *request.stop]
         # A consumer that stops reading (a streaming client gone between chunks) closes
         # this generator at its yield: nothing more is generated, and it is recorded.

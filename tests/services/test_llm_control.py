@@ -28,13 +28,16 @@ format:
 QUESTION = "Count from 1 to 500: 1, 2, 3, 4,"
 
 
+def counting_service(folder: Path) -> dict[str, object]:
+    prompt = folder / "counting.yaml"
+    prompt.write_text(COUNTING_PROMPT)
+    return {"prompts": {"gemma3-270m": str(prompt)},
+            "queue": {"max_waiting": 1, "wait_timeout_s": WAIT_TIMEOUT_S}}
+
+
 @pytest.fixture(scope="module")
 def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
-    prompt = Path(tmp_path_factory.mktemp("prompts")) / "counting.yaml"
-    prompt.write_text(COUNTING_PROMPT)
-    overrides = {"prompts": {"gemma3-270m": str(prompt)},
-                 "queue": {"max_waiting": 1, "wait_timeout_s": WAIT_TIMEOUT_S}}
-    with running_service("llm", overrides) as service:
+    with running_service("llm", counting_service(tmp_path_factory.mktemp("p"))) as service:
         yield service
 
 
@@ -168,3 +171,19 @@ def test_concurrent_callers_are_served_one_at_a_time(
     assert len(answers) == 2
     assert answers[0].text == answers[1].text
     assert max(a.timings.queue_ms for a in answers) > 0
+
+
+def test_shutdown_stops_a_running_generation(tmp_path: Path) -> None:
+    with running_service("llm", counting_service(tmp_path)) as service:
+        stub = language_pb2_grpc.LanguageModelStub(service.channel)
+        model: LlamaModel = service.host.slot.peek()
+        stream = start_long_stream(stub)
+        started = time.perf_counter()
+        service.host.stop(grace=0.2)
+        stopped_in = time.perf_counter() - started
+        with pytest.raises(grpc.RpcError) as caught:
+            list(stream)
+        assert caught.value.code() in (grpc.StatusCode.CANCELLED, grpc.StatusCode.UNAVAILABLE)
+        assert stopped_in < 3
+        assert model.stats.last_completion_tokens < LONG
+        assert not model.loaded  # the weights were freed after the generation ended

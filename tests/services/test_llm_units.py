@@ -6,7 +6,7 @@ import time
 import pytest
 
 from oricf.bench.llm import is_right, questions, stated_counts
-from oricf.errors import Cancelled, Overloaded
+from oricf.errors import Cancelled, NotReady, Overloaded
 from oricf.services.llm.decode import StopScanner
 from oricf.services.llm.gate import GenerationGate
 
@@ -116,3 +116,23 @@ def test_bench_grading_and_questions() -> None:
     asked = questions(64)
     assert len(set(asked)) == 64 and {c for _, c in asked} == set(range(16))
     assert len({q for q, _ in asked}) >= 12
+
+
+def test_gate_close_waits_for_the_running_turn_then_refuses() -> None:
+    gate = GenerationGate(max_waiting=1, wait_timeout_s=5)
+    released = threading.Event()
+
+    def hold() -> None:
+        with gate.turn(never_cancelled):
+            released.wait(5)
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    while not gate.busy:
+        time.sleep(0.005)
+    assert gate.close(timeout_s=0.05) is False  # still running
+    released.set()
+    assert gate.close(timeout_s=5) is True
+    holder.join(timeout=5)
+    with pytest.raises(NotReady, match="shutting down"), gate.turn(never_cancelled):
+        pass
