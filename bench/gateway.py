@@ -2,7 +2,8 @@
 
 Real processes on a private DDS domain: `oricf serve detector` and `oricf gateway` (the
 people_qa pipeline, its people route counting only), and this process as the camera,
-publishing 640x480 vtest.avi frames on camera/image_raw.
+publishing 640x480 vtest.avi frames on camera/image_raw (or, with --input compressed, as
+JPEG sensor_msgs/CompressedImage, which the gateway passes on without decoding).
 
 1. Latency, interleaved frame by frame: publish -> /human_counter through the gateway, and a
    direct Detect call with the same raw frame. Medians; the difference is what the gateway
@@ -39,10 +40,13 @@ from oricf.bench.common import median_ms, print_table, served
 from oricf.config import config_dir, deep_merge, read_yaml
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
+from oricf.imaging import encode_image
 from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 FRAME_SIZE = (640, 480)
+COMPRESSED_TOPIC = "camera/compressed"
+JPEG_QUALITY = 80
 PIPELINE = config_dir() / "pipelines" / "people_qa.yaml"
 TICKS = os.sysconf("SC_CLK_TCK")
 
@@ -66,11 +70,14 @@ def load_frames(count: int) -> list[np.ndarray]:
     return frames
 
 
-def overlay(detector: str, transport: str) -> dict[str, Any]:
+def overlay(detector: str, transport: str, compressed: bool) -> dict[str, Any]:
     """The people route counting only (no annotated image), at the given placement."""
+    source = ({"topic": COMPRESSED_TOPIC, "type": "sensor_msgs/CompressedImage"} if compressed
+              else {"topic": "camera/image_raw", "type": "sensor_msgs/Image"})
     return {"endpoints": {"detector": {"address": detector, "deadline_ms": 2000,
                                        "image": {"transport": transport, "jpeg_quality": 80}}},
             "routes": {"people": {
+                "input": source,
                 "post": [{"count": {"label": "person", "into": "count"}}],
                 "outputs": [{"topic": "/human_counter", "type": "std_msgs/Int32",
                              "from": "count"},
@@ -78,9 +85,10 @@ def overlay(detector: str, transport: str) -> dict[str, Any]:
 
 
 @contextmanager
-def gateway(detector: str, transport: str, folder: Path) -> Iterator[subprocess.Popen[bytes]]:
+def gateway(detector: str, transport: str, folder: Path, compressed: bool
+            ) -> Iterator[subprocess.Popen[bytes]]:
     path = folder / f"{transport}.yaml"
-    path.write_text(yaml.safe_dump(overlay(detector, transport)))
+    path.write_text(yaml.safe_dump(overlay(detector, transport, compressed)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
                str(PIPELINE), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
@@ -98,7 +106,7 @@ def gateway(detector: str, transport: str, folder: Path) -> Iterator[subprocess.
 class Camera:
     """This process's ROS side: publishes frames, receives counts."""
 
-    def __init__(self) -> None:
+    def __init__(self, compressed: bool) -> None:
         import threading
 
         import rclpy
@@ -106,15 +114,17 @@ class Camera:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.qos import qos_profile_sensor_data
-        from sensor_msgs.msg import Image
+        from sensor_msgs.msg import CompressedImage, Image
         from std_msgs.msg import Int32
 
         self.context = Context()
         rclpy.init(context=self.context)
         self.node = Node("bench_camera", context=self.context)
         self.counts: queue.Queue[int] = queue.Queue()
-        self.publisher = self.node.create_publisher(Image, "camera/image_raw",
-                                                    qos_profile_sensor_data)
+        self.compressed = compressed
+        self.publisher = self.node.create_publisher(
+            CompressedImage if compressed else Image,
+            COMPRESSED_TOPIC if compressed else "camera/image_raw", qos_profile_sensor_data)
         self.node.create_subscription(Int32, "/human_counter", self._on_count, 10)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -124,19 +134,29 @@ class Camera:
     def _on_count(self, msg: Any) -> None:
         self.counts.put(int(msg.data))
 
-    def publish(self, frame: np.ndarray) -> None:
+    def prepare(self, frame: np.ndarray) -> tuple[Any, detector_pb2.DetectRequest]:
+        """The message the camera publishes, and the same image as a direct Detect request."""
+        from sensor_msgs.msg import CompressedImage
+
         from oricf.gateway.convert import image_from_pixels
 
-        self.publisher.publish(image_from_pixels(frame))
+        if not self.compressed:
+            image = Frame.from_pixels(frame)
+            msg = image_from_pixels(frame)
+        else:
+            image = Frame(encode_image(frame, "jpeg", JPEG_QUALITY), "jpeg")
+            msg = CompressedImage(format="jpeg")
+            msg.data = image.data
+        return msg, detector_pb2.DetectRequest(image=image.to_proto(), labels=["person"])
 
-    def count_of(self, frame: np.ndarray, timeout: float = 5.0) -> int | None:
-        self.publish(frame)
+    def count_of(self, msg: Any, timeout: float = 5.0) -> int | None:
+        self.publisher.publish(msg)
         try:
             return self.counts.get(timeout=timeout)
         except queue.Empty:
             return None
 
-    def warm_up(self, frame: np.ndarray, process: subprocess.Popen[bytes]) -> None:
+    def warm_up(self, frame: Any, process: subprocess.Popen[bytes]) -> None:
         """Until the gateway answers (discovery done both ways), then forgets the extras."""
         deadline = time.monotonic() + 60
         while self.count_of(frame, timeout=0.5) is None:
@@ -155,12 +175,11 @@ class Camera:
         rclpy.try_shutdown(context=self.context)
 
 
-def latency(camera: Camera, stub: Any, frames: list[np.ndarray]) -> tuple[float, float, int]:
+def latency(camera: Camera, stub: Any, frames: list[tuple[Any, detector_pb2.DetectRequest]]
+            ) -> tuple[float, float, int]:
     """(median gateway ms, median direct ms, frames that got no count), interleaved."""
     through, direct, lost = [], [], 0
-    for i, frame in enumerate(frames):
-        request = detector_pb2.DetectRequest(image=Frame.from_pixels(frame).to_proto(),
-                                             labels=["person"])
+    for i, (frame, request) in enumerate(frames):
         order = ("gateway", "direct") if i % 2 == 0 else ("direct", "gateway")
         for path in order:
             started = time.perf_counter()
@@ -174,7 +193,7 @@ def latency(camera: Camera, stub: Any, frames: list[np.ndarray]) -> tuple[float,
     return median_ms(through), median_ms(direct), lost
 
 
-def cpu_per_frame(camera: Camera, frames: list[np.ndarray], fps: float,
+def cpu_per_frame(camera: Camera, frames: list[Any], fps: float,
                   pids: list[int]) -> list[float]:
     """CPU seconds per processed frame of each process, at a camera's pace."""
     before = [cpu_seconds(pid) for pid in pids]
@@ -202,30 +221,32 @@ def one_thread_detector(folder: Path) -> Path:
 
 
 def run(args: argparse.Namespace, folder: Path) -> None:
-    frames = load_frames(args.frames)
     os.environ.update({"ROS_DOMAIN_ID": str(random.randint(1, 100)),
                        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
                        "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)})
     import grpc
 
+    compressed = args.input == "compressed"
     cpu: dict[str, float] = {}
-    camera = Camera()
+    camera = Camera(compressed)
     try:
+        prepared = [camera.prepare(frame) for frame in load_frames(args.frames)]
+        messages = [msg for msg, _ in prepared]
         with served("detector") as (address, detector), \
                 grpc.insecure_channel(address) as channel:
-            with gateway(address, "raw", folder) as raw:
-                camera.warm_up(frames[0], raw)
+            with gateway(address, "raw", folder, compressed) as raw:
+                camera.warm_up(messages[0], raw)
                 through, direct, lost = latency(camera, detector_pb2_grpc.DetectorStub(channel),
-                                                frames)
-                cpu["gw raw 1"], cpu["det 2"] = cpu_per_frame(camera, frames, args.fps,
+                                                prepared)
+                cpu["gw raw 1"], cpu["det 2"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
-            with gateway(address, "jpeg", folder) as jpeg:
-                camera.warm_up(frames[0], jpeg)
-                (cpu["gw jpeg"],) = cpu_per_frame(camera, frames, args.fps, [jpeg.pid])
+            with gateway(address, "jpeg", folder, compressed) as jpeg:
+                camera.warm_up(messages[0], jpeg)
+                (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
         with served("detector", "--config", str(one_thread_detector(folder))) as (address, det1), \
-                gateway(address, "raw", folder) as raw:
-            camera.warm_up(frames[0], raw)
-            cpu["gw raw 2"], cpu["det 1"] = cpu_per_frame(camera, frames, args.fps,
+                gateway(address, "raw", folder, compressed) as raw:
+            camera.warm_up(messages[0], raw)
+            cpu["gw raw 2"], cpu["det 1"] = cpu_per_frame(camera, messages, args.fps,
                                                           [raw.pid, det1.pid])
     finally:
         camera.close()
@@ -235,16 +256,17 @@ def run(args: argparse.Namespace, folder: Path) -> None:
 def report(args: argparse.Namespace, latencies: tuple[float, float, int],
            cpu: dict[str, float]) -> None:
     through, direct, lost = latencies
-    print_table(f"Latency per {FRAME_SIZE[0]}x{FRAME_SIZE[1]} frame, median of {args.frames} "
-                f"(interleaved; {lost} frames without a count)",
+    kind = "raw bgr8" if args.input == "raw" else f"JPEG q{JPEG_QUALITY}"
+    print_table(f"Latency per {FRAME_SIZE[0]}x{FRAME_SIZE[1]} {kind} frame, median of "
+                f"{args.frames} (interleaved; {lost} frames without a count)",
                 ["path", "median ms"],
                 [["publish -> /human_counter (gateway)", f"{through:.1f}"],
-                 ["direct Detect call (raw bgr8)", f"{direct:.1f}"],
+                 [f"direct Detect call ({kind})", f"{direct:.1f}"],
                  ["added by the gateway", f"{through - direct:.1f}"]])
     onboard2 = cpu["gw raw 1"] + cpu["det 2"]
     onboard1 = cpu["gw raw 2"] + cpu["det 1"]
-    offloaded = {"offloaded, raw frames": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2,
-                 "offloaded, jpeg frames": cpu["gw jpeg"]}
+    offloaded = {"offloaded, transport raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2,
+                 "offloaded, transport jpeg": cpu["gw jpeg"]}
     rows = [["onboard, detector 2 threads (shipped)", "gateway + detector",
              f"{onboard2 * 1e3:.2f}", "-", "-"],
             ["onboard, detector 1 thread", "gateway + detector", f"{onboard1 * 1e3:.2f}",
@@ -264,6 +286,9 @@ def main(argv: list[str]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=60, help="frames per phase")
     parser.add_argument("--fps", type=float, default=10.0, help="camera rate for the CPU phase")
+    parser.add_argument("--input", choices=["raw", "compressed"], default="raw",
+                        help="the camera publishes sensor_msgs/Image (raw bgr8) or "
+                             "CompressedImage (JPEG, quality 80)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         run(args, Path(folder))
