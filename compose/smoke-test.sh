@@ -58,6 +58,10 @@ else
     die "neither docker compose (with a running engine) nor podman-compose is installed"
 fi
 COMPOSE+=(-p "$PROJECT" -f compose/edge.yaml)
+if ((ROBOT)) && [[ $ENGINE == podman ]] \
+        && "${COMPOSE[0]}" version 2>/dev/null | grep -q 'version  *1\.0\.[0-5]$'; then
+    die "--robot needs podman-compose 1.0.6 or later for network_mode: host (pip install podman-compose)"
+fi
 if ((ROBOT)); then
     COMPOSE+=(-f compose/robot.yaml)
     export ORICF_PLACEMENT=onboard ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST

@@ -78,6 +78,7 @@ def ros_check(timeout_s: float = 120.0) -> int:
     from std_msgs.msg import Int32, String
 
     from oricf.gateway.convert import image_from_pixels
+    from oricf.gateway.dds import use_large_data_profile
     from oricf.store import ModelStore
 
     capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
@@ -86,6 +87,7 @@ def ros_check(timeout_s: float = 120.0) -> int:
     if not ok:
         print("FAIL ros: cannot read vtest.avi")
         return 1
+    use_large_data_profile()  # raw frames between processes (see gateway/dds.py)
     context = Context()
     rclpy.init(context=context)
     node = Node("oricf_smoke_check", context=context)

@@ -26,6 +26,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.convert import image_from_pixels
+from oricf.gateway.dds import use_large_data_profile
 
 log = logging.getLogger(__name__)
 
@@ -151,6 +152,8 @@ class DemoNode:
 
 
 def ros_context() -> Context:
+    """An rclpy context with the Fast DDS profile that lets raw frames cross processes."""
+    use_large_data_profile()
     context = Context()
     rclpy.init(context=context)
     return context
