@@ -231,6 +231,13 @@ def _route_problems(name: str, route: RouteConfig) -> Iterator[str]:
 def _reference_problems(config: PipelineConfig) -> Iterator[str]:
     """Endpoints, data products and fields that routes name must exist."""
     produced = {o.product for r in config.routes.values() for o in r.outputs if o.product}
+    topic_types: dict[str, str] = {}
+    for name, route in config.routes.items():
+        for i, output in enumerate(route.outputs):
+            if output.topic and topic_types.setdefault(output.topic, str(output.type)) \
+                    != output.type:
+                yield (f"routes.{name}.outputs[{i}].type: {output.topic} is already "
+                       f"{topic_types[output.topic]} in another output")
     service_of: dict[str, str] = {}
     for name, route in config.routes.items():
         call = route.call
