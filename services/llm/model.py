@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -132,11 +132,14 @@ class LlamaModel:
         log.debug("prompt facts: %s", rendered.facts)
         prepared = time.perf_counter()
         with self.gate.turn(still_wanted) as waited_s:
-            yield from self._run(llm, tokens, request, still_wanted,
-                                 (started, prepared, waited_s))
+            finished = yield from self._run(llm, tokens, request, still_wanted,
+                                            (started, prepared, waited_s))
+        # The model is free before the last chunk goes out, whatever the consumer does next.
+        yield Chunk("", finished)
 
     def _run(self, llm: Any, tokens: list[int], request: GenerationRequest,
-             still_wanted: StillWanted, marks: tuple[float, float, float]) -> Iterator[Chunk]:
+             still_wanted: StillWanted, marks: tuple[float, float, float]
+             ) -> Generator[Chunk, None, Finished]:
         started, prepared, waited_s = marks
         acquired = time.perf_counter()
         if not self.settings.reuse_prefix:
@@ -161,12 +164,12 @@ class LlamaModel:
             self._record(len(tokens), cached, result, reason)
         ended = time.perf_counter()
         first = result.first_token_at if result.first_token_at is not None else ended
-        yield Chunk("", Finished(
+        return Finished(
             finish_reason=result.finish_reason, prompt_tokens=len(tokens),
             completion_tokens=result.completion_tokens, cached_tokens=cached,
             queue_ms=waited_s * 1e3, preprocess_ms=_ms(started, prepared),
             first_token_ms=_ms(started, first), inference_ms=_ms(acquired, ended),
-            total_ms=_ms(started, ended)))
+            total_ms=_ms(started, ended))
 
     def _record(self, prompt_tokens: int, cached: int, result: LoopResult, reason: str) -> None:
         stats = self.stats

@@ -108,6 +108,12 @@ def test_the_fixed_prompt_prefix_is_reused(llm: RunningService,
     assert model.stats.last_prompt_tokens - model.stats.last_cached_tokens < 30
 
 
+def test_the_model_is_free_as_soon_as_an_answer_returns(
+        llm: RunningService, stub: language_pb2_grpc.LanguageModelStub) -> None:
+    generate(stub, "Is anyone there?", context={"people_count": "1"})
+    assert not model_of(llm).gate.busy
+
+
 def test_max_tokens_cuts_the_answer(stub: language_pb2_grpc.LanguageModelStub) -> None:
     answer = generate(stub, "How many people do you see?", context={"people_count": "3"},
                       max_tokens=2)
