@@ -20,6 +20,9 @@ class DetectorModelSettings(Schema):
                     "CUDAExecutionProvider, OpenVINOExecutionProvider, CPUExecutionProvider")
     threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads")
     input_size: int = Field(416, ge=32, le=2048, description="square network input, pixels")
+    spin: bool = Field(
+        False, description="let idle onnxruntime threads busy-wait: slightly lower latency, "
+                           "but several times the CPU (and battery) per frame")
 
     @field_validator("input_size")
     @classmethod

@@ -21,6 +21,7 @@ def create_model(config: DetectorConfig, store: ModelStore) -> YoloxDetector:
     return YoloxDetector(YoloxSettings(
         path=path, catalog_name=name, sha256=entry.files[0].sha256, license=entry.license,
         providers=tuple(config.model.providers), threads=config.model.threads,
+        spin=config.model.spin,
         input_size=config.model.input_size, nms_iou=config.detection.nms_iou,
         max_detections=config.detection.max_detections))
 
