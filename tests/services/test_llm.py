@@ -2,6 +2,7 @@
 
 import json
 import subprocess
+import threading
 from collections.abc import Iterator
 
 import grpc
@@ -112,6 +113,25 @@ def test_the_model_is_free_as_soon_as_an_answer_returns(
         llm: RunningService, stub: language_pb2_grpc.LanguageModelStub) -> None:
     generate(stub, "Is anyone there?", context={"people_count": "1"})
     assert not model_of(llm).gate.busy
+
+
+def test_concurrent_callers_are_served_one_at_a_time(
+        stub: language_pb2_grpc.LanguageModelStub) -> None:
+    answers: list[language_pb2.GenerateResponse] = []
+
+    def call() -> None:
+        answers.append(generate(stub, "How many people do you see?",
+                                context={"people_count": "6"}))
+
+    threads = [threading.Thread(target=call) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=DEADLINE_S)
+    assert len(answers) == 3
+    assert all("6" in a.text for a in answers)
+    # One ran at once; the others waited their turn (the shipped queue holds 4).
+    assert sorted(a.timings.queue_ms > 20 for a in answers) == [False, True, True]
 
 
 def test_max_tokens_cuts_the_answer(stub: language_pb2_grpc.LanguageModelStub) -> None:
