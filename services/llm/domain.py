@@ -44,7 +44,7 @@ class Chunk:
 
 @dataclass
 class GenerationStats:
-    """Running totals, for GetModelInfo-style introspection, logs and tests."""
+    """Running totals of one model instance (logs, tests, introspection)."""
 
     generations: int = 0
     completion_tokens: int = 0
