@@ -65,6 +65,8 @@ fi
 if ((ROBOT)); then
     COMPOSE+=(-f compose/robot.yaml)
     export ORICF_PLACEMENT=onboard ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+    ORICF_ROS_USER="$(id -u):$(id -g)"    # the check's ROS node runs as this user
+    export ORICF_ROS_USER
     export ROS_DOMAIN_ID=$((RANDOM % 100 + 1))
 fi
 GRPCURL=$("$PY" -c 'from oricf.store import ModelStore; print(ModelStore().path("grpcurl"))')
@@ -185,4 +187,6 @@ STARTED=0
 cleanup
 left=$($ENGINE ps -a -q --filter "label=com.docker.compose.project=$PROJECT")
 [[ -z "$left" ]] || die "containers left after down: $left"
-echo "PASS: edge stack built, SERVING, answered correctly and torn down"
+what="edge stack"
+((ROBOT)) && what="edge stack and gateway"
+echo "PASS: $what built, SERVING, answered correctly and torn down"
