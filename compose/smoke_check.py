@@ -15,6 +15,7 @@ import base64
 import json
 import re
 import sys
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -65,66 +66,67 @@ CHECKS: dict[str, Callable[[dict[str, Any]], str | None]] = {
 
 
 def ros_check(timeout_s: float = 120.0) -> int:
-    import queue
-    import time
-
-    import cv2
+    """A vtest.avi frame -> /human_counter, then /question -> an /answer with that count."""
     import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from rclpy.qos import qos_profile_sensor_data
-    from sensor_msgs.msg import Image
-    from std_msgs.msg import Int32, String
 
-    from oricf.gateway.convert import image_from_pixels
-    from oricf.gateway.dds import use_large_data_profile
+    from oricf.launch.demo_node import DemoNode, ros_context
+
+    frame = first_video_frame()
+    context = ros_context()
+    node = DemoNode(context)
+    deadline = time.monotonic() + timeout_s
+    try:
+        count = first_count(node, frame, deadline)
+        answer = typed_answer(node, deadline) if count is not None else None
+    finally:
+        node.close()
+        rclpy.try_shutdown(context=context)
+    if count is None or answer is None or str(count) not in answer:
+        print(f"FAIL ros: /human_counter {count}, /answer {answer!r}")
+        return 1
+    print(f"ok   gateway: /human_counter {count}, /answer {answer!r}")
+    return 0
+
+
+def first_video_frame() -> Any:
+    import cv2
+
     from oricf.store import ModelStore
 
     capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
     ok, frame = capture.read()
     capture.release()
     if not ok:
-        print("FAIL ros: cannot read vtest.avi")
-        return 1
-    use_large_data_profile()  # raw frames between processes (see gateway/dds.py)
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("oricf_smoke_check", context=context)
-    counts: queue.Queue[int] = queue.Queue()
-    answers: queue.Queue[str] = queue.Queue()
-    node.create_subscription(Int32, "/human_counter", lambda m: counts.put(m.data), 10)
-    node.create_subscription(String, "/answer", lambda m: answers.put(m.data), 10)
-    camera = node.create_publisher(Image, "camera/image_raw", qos_profile_sensor_data)
-    question = node.create_publisher(String, "/question", 10)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    deadline = time.monotonic() + timeout_s
-    try:
-        count = None
-        while count is None and time.monotonic() < deadline:
-            camera.publish(image_from_pixels(frame, "bgr8"))
-            executor.spin_once(timeout_sec=0.5)
-            count = None if counts.empty() else counts.get()
-        if count is None:
-            print("FAIL ros: no /human_counter from the gateway")
-            return 1
-        answer = None
-        while answer is None and time.monotonic() < deadline:
-            if question.get_subscription_count() > 0 and answers.empty():
-                question.publish(String(data=QUESTION))
-            for _ in range(10):
-                executor.spin_once(timeout_sec=0.2)
-            answer = None if answers.empty() else answers.get()
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
-    if answer is None or str(count) not in answer:
-        print(f"FAIL ros: count {count}, answer {answer!r}")
-        return 1
-    print(f"ok   gateway: /human_counter {count}, /answer {answer!r}")
-    return 0
+        raise RuntimeError("cannot read vtest.avi")
+    return frame
+
+
+def first_count(node: Any, frame: Any, deadline: float) -> int | None:
+    """Publishes the frame twice a second until the gateway counts it."""
+    from oricf.gateway.convert import image_from_pixels
+    from oricf.launch.demo_node import COUNT
+
+    while time.monotonic() < deadline:
+        node.camera.publish(image_from_pixels(frame, "bgr8"))
+        received = node.next(COUNT, timeout=0.5)
+        if received is not None:
+            return int(received.value)
+    return None
+
+
+def typed_answer(node: Any, deadline: float) -> str | None:
+    """Asks once the gateway listens on /question; asks again every 5 s without an answer."""
+    from oricf.launch.demo_node import ANSWER
+
+    while time.monotonic() < deadline:
+        if node.question.get_subscription_count() > 0:
+            node.type(QUESTION)
+            received = node.next(ANSWER, timeout=5.0)
+            if received is not None:
+                return str(received.value)
+        else:
+            time.sleep(0.2)
+    return None
 
 
 def main(argv: list[str]) -> int:

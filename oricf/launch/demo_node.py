@@ -1,6 +1,6 @@
 """The demo's ROS 2 side: a node that replays a video on camera/image_raw at its frame rate,
-publishes spoken questions on /audio/utterance, and timestamps every output of the gateway
-(/human_counter, /speech/transcript, /answer) as it arrives.
+publishes spoken questions on /audio/utterance (typed ones on /question), and timestamps
+every output of the gateway (/human_counter, /speech/transcript, /answer) as it arrives.
 
 Imports rclpy: load this module only when ROS 2 is wanted.
 """
@@ -30,7 +30,7 @@ from oricf.gateway.dds import use_large_data_profile
 
 log = logging.getLogger(__name__)
 
-CAMERA, AUDIO = "camera/image_raw", "/audio/utterance"
+CAMERA, AUDIO, QUESTION = "camera/image_raw", "/audio/utterance", "/question"
 COUNT, TRANSCRIPT, ANSWER = "/human_counter", "/speech/transcript", "/answer"
 
 
@@ -107,6 +107,7 @@ class DemoNode:
             self.node.create_subscription(kind, topic, self._collector(topic), 10)
         self.camera = self.node.create_publisher(Image, CAMERA, qos_profile_sensor_data)
         self.audio = self.node.create_publisher(Int16MultiArray, AUDIO, QoSProfile(depth=10))
+        self.question = self.node.create_publisher(String, QUESTION, QoSProfile(depth=10))
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self._spinner = threading.Thread(target=self.executor.spin, name="demo-spin",
@@ -133,6 +134,12 @@ class DemoNode:
         msg.data = samples.astype(np.int16)
         sent = time.monotonic()
         self.audio.publish(msg)
+        return sent
+
+    def type(self, text: str) -> float:
+        """Publishes a typed question; returns when it left."""
+        sent = time.monotonic()
+        self.question.publish(String(data=text))
         return sent
 
     def next(self, topic: str, timeout: float) -> Received | None:
