@@ -36,6 +36,7 @@ from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.dds import use_large_data_profile
+from oricf.gateway.memory import keep_freed_memory
 from oricf.logs import setup_logging
 
 log = logging.getLogger(__name__)
@@ -72,6 +73,8 @@ def run(config: PipelineConfig, ros_args: list[str]) -> int:
                   "or pip install 'oricf[ros]' on x86-64", exc)
         return 2
     use_large_data_profile()
+    if not keep_freed_memory():
+        log.info("mallopt not available: large frame buffers come from fresh pages")
     rclpy.init(args=ros_args)
     node = GatewayNode(config)
     # Callbacks only hand messages to the routes' worker threads and never block, so one
