@@ -5,6 +5,7 @@ reported and restarted if the deployment says so); stops them all, gateway first
 from __future__ import annotations
 
 import logging
+import socket
 import tempfile
 import threading
 import time
@@ -71,6 +72,7 @@ class Launcher:
     def start(self, stop: threading.Event) -> None:
         """Starts everything; returns once services are SERVING and the gateway runs."""
         service_plans, gateway = self.plan()
+        _refuse_ports_in_use(service_plans)
         self.services = [ManagedProcess(plan, self.sink) for plan in service_plans]
         for process in self.services:
             process.start()
@@ -159,3 +161,22 @@ class Launcher:
     def _report_stop(process: ManagedProcess, code: int | None) -> None:
         if code is not None:
             log.info("%s stopped (%s)", process.name, describe_exit(code))
+
+
+def _refuse_ports_in_use(plans: list[ProcessPlan]) -> None:
+    """Fails before starting when a service's port already answers.
+
+    Otherwise the health check would find the other process SERVING and the deployment
+    would run against services it did not start (and cannot stop).
+    """
+    for plan in plans:
+        if not plan.health:
+            continue
+        host, _, port = plan.health.rpartition(":")
+        try:
+            with socket.create_connection((host.strip("[]"), int(port)), timeout=0.5):
+                pass
+        except OSError:
+            continue
+        raise LaunchFailed(f"{plan.name}: {plan.health} is already in use by another process "
+                           "(another deployment running?); stop it or change the address")

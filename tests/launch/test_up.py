@@ -84,10 +84,23 @@ def test_crashed_service_is_restarted_then_given_up(tmp_path: Path) -> None:
     assert_all_gone([first, second])
 
 
-def test_service_that_cannot_start_fails_the_launch(tmp_path: Path) -> None:
+def test_port_already_answering_is_refused_before_anything_starts(tmp_path: Path) -> None:
+    # Another deployment's service on the port would otherwise pass the health check.
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
+        port = taken.getsockname()[1]
+        path = write_deployment(tmp_path, {"services": {"detector": service_entry(port)}})
+        with oricf_up(path) as up:
+            code = up.finish(timeout=60)
+    assert code == 1
+    assert f"127.0.0.1:{port} is already in use by another process" in up.output
+    assert "started detector" not in up.output
+
+
+def test_service_that_cannot_start_fails_the_launch(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))  # bound, not listening: only the service's bind fails
         port = taken.getsockname()[1]
         path = write_deployment(tmp_path, {"services": {"detector": service_entry(
             port, restart={"policy": "no"})}})
