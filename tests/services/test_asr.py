@@ -1,31 +1,16 @@
 """The speech service: real Whisper tiny.en on real synthesized speech, over a real channel."""
 
 from collections.abc import Iterator
-from functools import cache
 
 import grpc
 import numpy as np
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
-from oricf.audio import encode_wav, synthesize
+from oricf.audio import encode_wav
 from oricf.v1 import common_pb2, speech_pb2, speech_pb2_grpc
 from tests.support.services import RunningService, running_service
-
-QUESTION = "How many people do you see"
-QUESTION_WORDS = ("how", "many", "people", "do", "you", "see")
-
-
-@cache
-def speech(text: str, voice: str = "en-us", rate: int = 16000) -> np.ndarray:
-    """Mono int16 speech with 200 ms of silence either side, as a microphone would catch it."""
-    samples = synthesize(text, voice=voice, sample_rate=rate)
-    silence = np.zeros(rate // 5, dtype=np.int16)
-    return np.concatenate([silence, samples, silence])
-
-
-def words(text: str) -> list[str]:
-    return "".join(c if c.isalnum() else " " for c in text.lower()).split()
+from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
 
 def pcm_request(samples: np.ndarray, rate: int = 16000, channels: int = 0,

@@ -7,9 +7,9 @@ from collections.abc import Iterator
 import pytest
 
 from oricf.audio import encode_wav
-from tests.services.test_asr import QUESTION, QUESTION_WORDS, speech, words
-from tests.services.test_grpcurl import grpcurl
+from tests.support.grpcurl import grpcurl
 from tests.support.services import RunningService, running_service
+from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from oricf.v1 import speech_pb2, speech_pb2_grpc
-from tests.services.test_asr import QUESTION, speech, words
 from tests.support.services import RunningService, running_service
+from tests.support.speech import QUESTION, speech, words
 
 COMMAND = "Stop moving and turn left"
 CHUNK_MS = 20   # a typical microphone buffer

@@ -11,7 +11,7 @@ from oricf.services.asr.config import AsrModelSettings
 from oricf.services.asr.short_window import ShortWindowDecoder, ends_in_a_loop
 from oricf.services.asr.whisper import WhisperRecognizer
 from oricf.store import ModelStore
-from tests.services.test_asr import QUESTION, QUESTION_WORDS, words
+from tests.support.speech import QUESTION, QUESTION_WORDS, words
 
 
 def recognizer(**options: object) -> WhisperRecognizer:

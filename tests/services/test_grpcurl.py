@@ -2,13 +2,12 @@
 
 import base64
 import json
-import subprocess
 from collections.abc import Iterator
 
 import pytest
 
-from oricf.store import ModelStore
 from tests.support.data import image
+from tests.support.grpcurl import grpcurl
 from tests.support.services import RunningService, running_service
 
 
@@ -17,14 +16,6 @@ def detector() -> Iterator[RunningService]:
     with running_service("detector") as service:
         yield service
 
-
-def grpcurl(*args: str, data: str | None = None) -> str:
-    binary = str(ModelStore().path("grpcurl"))
-    command = [binary, "-plaintext", *(["-d", "@"] if data is not None else []), *args]
-    result = subprocess.run(command, input=data, capture_output=True, text=True, timeout=60,
-                            check=False)
-    assert result.returncode == 0, result.stderr
-    return result.stdout
 
 
 def test_list_shows_the_services(detector: RunningService) -> None:

@@ -1,7 +1,6 @@
 """The language model service with its shipped config: real model, real gRPC, real grpcurl."""
 
 import json
-import subprocess
 import threading
 from collections.abc import Iterator
 
@@ -12,6 +11,7 @@ from grpc_health.v1 import health_pb2, health_pb2_grpc
 from oricf.services.llm.model import LlamaModel
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
+from tests.support.grpcurl import grpcurl, run_grpcurl
 from tests.support.services import RunningService, running_service
 
 DEADLINE_S = 30
@@ -177,13 +177,6 @@ def test_health_is_serving(llm: RunningService) -> None:
         assert answer.status == health_pb2.HealthCheckResponse.SERVING
 
 
-def grpcurl(*args: str, data: str | None = None) -> str:
-    binary = str(ModelStore().path("grpcurl"))
-    command = [binary, "-plaintext", *(["-d", data] if data is not None else []), *args]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=60, check=False)
-    assert result.returncode == 0, result.stderr
-    return result.stdout
-
 
 def test_grpcurl_lists_the_service(llm: RunningService) -> None:
     services = grpcurl(llm.address, "list").split()
@@ -202,11 +195,7 @@ def test_grpcurl_generate(llm: RunningService) -> None:
 
 
 def test_grpcurl_bad_input_is_invalid_argument(llm: RunningService) -> None:
-    binary = str(ModelStore().path("grpcurl"))
-    result = subprocess.run(
-        [binary, "-plaintext", "-d", '{"prompt": ""}', llm.address,
-         "oricf.v1.LanguageModel/Generate"],
-        capture_output=True, text=True, timeout=60, check=False)
+    result = run_grpcurl(llm.address, "oricf.v1.LanguageModel/Generate", data='{"prompt": ""}')
     assert result.returncode != 0
     assert "InvalidArgument" in result.stderr and "prompt is empty" in result.stderr
 
