@@ -31,7 +31,7 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.launch.demo",
 }
-BENCHMARKS = ("detector", "asr", "llm", "gateway", "energy")
+BENCHMARKS = ("detector", "asr", "llm", "gateway")
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
