@@ -1,20 +1,24 @@
-"""`oricf bench gateway`: what the gateway adds per frame, and robot CPU onboard vs offloaded.
+"""`oricf bench gateway`: what the gateway adds per frame, and robot CPU and energy onboard
+vs offloaded.
 
 Real processes on a private DDS domain: `oricf serve detector` and `oricf gateway` (the
 people_qa pipeline, its people route counting only), and this process as the camera,
-publishing 640x480 vtest.avi frames on camera/image_raw (or, with --input compressed, as
-JPEG sensor_msgs/CompressedImage, which the gateway passes on without decoding).
+publishing 640x480 vtest.avi frames as raw bgr8 sensor_msgs/Image on camera/image_raw and
+(--input both, the default) then as JPEG sensor_msgs/CompressedImage, which the gateway passes
+on without decoding. For each input:
 
 1. Latency, interleaved frame by frame: publish -> /human_counter through the gateway, and a
-   direct Detect call with the same raw frame. Medians; the difference is what the gateway
-   adds (DDS both ways, conversion, the worker hand-off).
+   direct Detect call with the same frame. Medians; the difference is what the gateway adds
+   (DDS both ways, conversion, the worker hand-off).
 2. Robot-side CPU per processed frame (utime + stime from /proc over --frames frames at
    --fps): onboard = gateway + detector processes; offloaded = the gateway process only (the
-   detector would run on the edge server). Offloaded is measured with raw frames and again with
-   a gateway sending JPEG (what a remote endpoint would use). The detector runs on this
-   machine in every case; it is simply not counted as robot CPU when offloaded. Onboard is
-   measured with the shipped detector (2 onnxruntime threads, whose idle workers spin) and
-   with a 1-thread detector (no spinning: the least CPU an onboard detector needs).
+   detector would run on the edge server). Offloaded is measured with raw transport and again
+   with a gateway sending JPEG (what a remote endpoint uses: the robot pays the encoding of raw
+   frames, CompressedImage input passes as is). The detector runs on this machine in every
+   case; it is simply not counted as robot CPU when offloaded. Onboard is measured with the
+   shipped detector config and with a 1-thread detector (the least CPU it needs).
+3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
+   watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import argparse
 import os
 import queue
 import random
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -36,7 +41,8 @@ import cv2
 import numpy as np
 import yaml
 
-from oricf.bench.common import median_ms, print_table, served
+from oricf.bench.common import median_ms, served
+from oricf.bench.gateway_report import InputResult, PowerModel, cost_table, latency_table
 from oricf.config import config_dir, deep_merge, read_yaml
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
@@ -175,22 +181,24 @@ class Camera:
         rclpy.try_shutdown(context=self.context)
 
 
-def latency(camera: Camera, stub: Any, frames: list[tuple[Any, detector_pb2.DetectRequest]]
-            ) -> tuple[float, float, int]:
-    """(median gateway ms, median direct ms, frames that got no count), interleaved."""
-    through, direct, lost = [], [], 0
+def latency(camera: Camera, stub: Any, frames: list[tuple[Any, detector_pb2.DetectRequest]],
+            result: InputResult) -> None:
+    """Median gateway and direct ms, frames that got no count, response size; interleaved."""
+    through, direct, sizes, lost = [], [], [], 0
     for i, (frame, request) in enumerate(frames):
         order = ("gateway", "direct") if i % 2 == 0 else ("direct", "gateway")
         for path in order:
             started = time.perf_counter()
             if path == "direct":
-                stub.Detect(request, timeout=5)
+                response = stub.Detect(request, timeout=5)
                 direct.append(time.perf_counter() - started)
+                sizes.append(response.ByteSize())
             elif camera.count_of(frame) is None:
                 lost += 1
             else:
                 through.append(time.perf_counter() - started)
-    return median_ms(through), median_ms(direct), lost
+    result.through_ms, result.direct_ms, result.lost = median_ms(through), median_ms(direct), lost
+    result.response_bytes = statistics.median(sizes)
 
 
 def cpu_per_frame(camera: Camera, frames: list[Any], fps: float,
@@ -220,24 +228,35 @@ def one_thread_detector(folder: Path) -> Path:
     return path
 
 
-def run(args: argparse.Namespace, folder: Path) -> None:
-    os.environ.update({"ROS_DOMAIN_ID": str(random.randint(1, 100)),
-                       "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-                       "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)})
+def request_sizes(prepared: list[tuple[Any, detector_pb2.DetectRequest]]) -> dict[str, float]:
+    """Median bytes of a Detect request per transport (what goes over the radio offloaded)."""
+    def size(transport: str, request: detector_pb2.DetectRequest) -> int:
+        image = request.image
+        frame = Frame(image.data, image.encoding, image.width, image.height)
+        copy = detector_pb2.DetectRequest()
+        copy.CopyFrom(request)
+        copy.image.CopyFrom(frame.to_proto(transport, JPEG_QUALITY))
+        return copy.ByteSize()
+
+    return {t: statistics.median(size(t, r) for _, r in prepared) for t in ("raw", "jpeg")}
+
+
+def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputResult:
+    """Every phase for one kind of camera input."""
     import grpc
 
-    compressed = args.input == "compressed"
-    cpu: dict[str, float] = {}
+    result = InputResult("raw bgr8" if not compressed else f"JPEG q{JPEG_QUALITY}")
+    cpu = result.cpu
     camera = Camera(compressed)
     try:
         prepared = [camera.prepare(frame) for frame in load_frames(args.frames)]
+        result.request_bytes = request_sizes(prepared)
         messages = [msg for msg, _ in prepared]
         with served("detector") as (address, detector), \
                 grpc.insecure_channel(address) as channel:
             with gateway(address, "raw", folder, compressed) as raw:
                 camera.warm_up(messages[0], raw)
-                through, direct, lost = latency(camera, detector_pb2_grpc.DetectorStub(channel),
-                                                prepared)
+                latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
                 cpu["gw raw 1"], cpu["det 2"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
             with gateway(address, "jpeg", folder, compressed) as jpeg:
@@ -250,35 +269,35 @@ def run(args: argparse.Namespace, folder: Path) -> None:
                                                           [raw.pid, det1.pid])
     finally:
         camera.close()
-    report(args, (through, direct, lost), cpu)
+    return result
 
 
-def report(args: argparse.Namespace, latencies: tuple[float, float, int],
-           cpu: dict[str, float]) -> None:
-    through, direct, lost = latencies
-    kind = "raw bgr8" if args.input == "raw" else f"JPEG q{JPEG_QUALITY}"
-    print_table(f"Latency per {FRAME_SIZE[0]}x{FRAME_SIZE[1]} {kind} frame, median of "
-                f"{args.frames} (interleaved; {lost} frames without a count)",
-                ["path", "median ms"],
-                [["publish -> /human_counter (gateway)", f"{through:.1f}"],
-                 [f"direct Detect call ({kind})", f"{direct:.1f}"],
-                 ["added by the gateway", f"{through - direct:.1f}"]])
-    onboard2 = cpu["gw raw 1"] + cpu["det 2"]
-    onboard1 = cpu["gw raw 2"] + cpu["det 1"]
-    offloaded = {"offloaded, transport raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2,
-                 "offloaded, transport jpeg": cpu["gw jpeg"]}
-    rows = [["onboard, detector 2 threads (shipped)", "gateway + detector",
-             f"{onboard2 * 1e3:.2f}", "-", "-"],
-            ["onboard, detector 1 thread", "gateway + detector", f"{onboard1 * 1e3:.2f}",
-             "-", "-"]]
-    for name, value in offloaded.items():
-        cuts = [f"{(1 - value / onboard) * 100:.1f}%" for onboard in (onboard2, onboard1)]
-        rows.append([name, "gateway", f"{value * 1e3:.2f}", *cuts])
-    print_table(f"Robot-side CPU per processed frame at {args.fps:g} fps, {args.frames} frames "
-                f"per phase (the detector alone: {cpu['det 2'] * 1e3:.1f} ms with 2 threads, "
-                f"{cpu['det 1'] * 1e3:.1f} ms with 1)",
-                ["placement", "robot processes", "CPU ms/frame", "cut vs 2 threads",
-                 "cut vs 1 thread"], rows)
+def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
+    detector = read_yaml(config_dir() / "services" / "detector.yaml")["model"]
+    pipeline = read_yaml(PIPELINE)
+    print(f"Configuration: {FRAME_SIZE[0]}x{FRAME_SIZE[1]} vtest.avi frames at {args.fps:g} fps, "
+          f"{args.frames} frames per phase; camera input: {args.input}; gateway: {PIPELINE.name} "
+          f"people route (count only), executor threads "
+          f"{pipeline.get('executor_threads', 1)}, JPEG transport quality {JPEG_QUALITY}; "
+          f"onboard detector: configs/services/detector.yaml (model {detector['name']}, "
+          f"{detector['threads']} threads, spin {detector['spin']}, input "
+          f"{detector['input_size']}) and the same with 1 thread; offloaded: the detector runs "
+          f"on this machine but is not counted as robot CPU.")
+    print(f"Power model: {power.describe()}.")
+
+
+def run(args: argparse.Namespace, folder: Path) -> None:
+    os.environ.update({"ROS_DOMAIN_ID": str(random.randint(1, 100)),
+                       "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+                       "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)})
+    power = PowerModel(args.watts_per_core, args.nj_per_bit)
+    inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
+    results = [measure(args, folder, kind == "compressed") for kind in inputs]
+    print_configuration(args, power)
+    for result in results:
+        latency_table(result, args.frames)
+    for result in results:
+        cost_table(result, power, args.fps, args.frames)
 
 
 def main(argv: list[str]) -> int:
@@ -286,9 +305,15 @@ def main(argv: list[str]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=60, help="frames per phase")
     parser.add_argument("--fps", type=float, default=10.0, help="camera rate for the CPU phase")
-    parser.add_argument("--input", choices=["raw", "compressed"], default="raw",
+    parser.add_argument("--input", choices=["raw", "compressed", "both"], default="both",
                         help="the camera publishes sensor_msgs/Image (raw bgr8) or "
-                             "CompressedImage (JPEG, quality 80)")
+                             "CompressedImage (JPEG, quality 80), or each in turn")
+    parser.add_argument("--watts-per-core", type=float, default=2.5,
+                        help="power of one busy core of the robot computer (default 2.5 W, "
+                             "a typical ARM SoC)")
+    parser.add_argument("--nj-per-bit", type=float, default=7.5,
+                        help="radio energy per bit sent or received when offloaded (default "
+                             "7.5 nJ/bit, Wi-Fi is about 5-10)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         run(args, Path(folder))

@@ -1,0 +1,74 @@
+"""Tables of `oricf bench gateway`: latency, robot-side CPU and estimated energy per frame.
+
+Power model (printed with the figures; both constants are flags):
+    energy per frame = robot CPU-seconds x watts per busy core
+                       + bytes over the radio x 8 x joules per bit (offloaded only)
+The radio bytes are the Detect request (the image as the endpoint's transport sends it) and
+the response, both at the same cost per bit; onboard calls never leave the robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from oricf.bench.common import print_table
+
+
+@dataclass
+class PowerModel:
+    watts_per_core: float
+    nj_per_bit: float
+
+    def joules(self, cpu_s: float, radio_bytes: float = 0.0) -> float:
+        return cpu_s * self.watts_per_core + radio_bytes * 8 * self.nj_per_bit * 1e-9
+
+    def describe(self) -> str:
+        return (f"energy = CPU-seconds x {self.watts_per_core:g} W per busy core + radio bytes "
+                f"(request + response) x 8 x {self.nj_per_bit:g} nJ/bit when offloaded")
+
+
+@dataclass
+class InputResult:
+    """Everything measured for one kind of camera input (raw bgr8 or JPEG)."""
+
+    kind: str
+    through_ms: float = 0.0
+    direct_ms: float = 0.0
+    lost: int = 0
+    cpu: dict[str, float] = field(default_factory=dict)  # phase -> CPU s per frame
+    request_bytes: dict[str, float] = field(default_factory=dict)  # transport -> median
+    response_bytes: float = 0.0
+
+
+def latency_table(result: InputResult, frames: int) -> None:
+    print_table(f"Latency per frame, {result.kind} input, median of {frames} (interleaved; "
+                f"{result.lost} frames without a count)", ["path", "median ms"],
+                [["publish -> /human_counter (gateway)", f"{result.through_ms:.1f}"],
+                 [f"direct Detect call ({result.kind})", f"{result.direct_ms:.1f}"],
+                 ["added by the gateway", f"{result.through_ms - result.direct_ms:.1f}"]])
+
+
+def cost_table(result: InputResult, power: PowerModel, fps: float, frames: int) -> None:
+    cpu = result.cpu
+    onboard = {"2 threads": cpu["gw raw 1"] + cpu["det 2"],
+               "1 thread": cpu["gw raw 2"] + cpu["det 1"]}
+    rows: list[list[str]] = []
+    for threads, value in onboard.items():
+        rows.append([f"onboard, detector {threads}", "gateway + detector",
+                     f"{value * 1e3:.2f}", "-", "-", f"{power.joules(value) * 1e3:.1f}", "0",
+                     "-", "-"])
+    offloaded = {"raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2, "jpeg": cpu["gw jpeg"]}
+    for transport, value in offloaded.items():
+        radio = result.request_bytes[transport] + result.response_bytes
+        energy = power.joules(value, radio)
+        cuts = [f"{(1 - value / on) * 100:.1f}%" for on in onboard.values()]
+        energy_cuts = [f"{(1 - energy / power.joules(on)) * 100:.1f}%"
+                       for on in onboard.values()]
+        rows.append([f"offloaded, transport {transport}", "gateway", f"{value * 1e3:.2f}",
+                     *cuts, f"{energy * 1e3:.1f}", f"{radio / 1e3:.1f}", *energy_cuts])
+    print_table(f"Robot side per processed frame, {result.kind} input at {fps:g} fps, {frames} "
+                f"frames per phase (detector alone: {cpu['det 2'] * 1e3:.1f} ms CPU with 2 "
+                f"threads, {cpu['det 1'] * 1e3:.1f} ms with 1)",
+                ["placement", "robot processes", "CPU ms", "CPU cut vs 2 thr",
+                 "CPU cut vs 1 thr", "energy mJ", "radio kB", "energy cut vs 2 thr",
+                 "energy cut vs 1 thr"], rows)
