@@ -15,8 +15,14 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
+import cv2
 import grpc
+import numpy as np
 from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+from oricf.store import ModelStore
+
+FRAME_SIZE = (640, 480)
 
 
 def median_ms(seconds: Sequence[float]) -> float:
@@ -57,12 +63,31 @@ def served(service: str, *args: str) -> Iterator[tuple[str, subprocess.Popen[byt
         wait_serving(address, process)
         yield address, process
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
+
+
+def stop(process: subprocess.Popen[bytes], timeout: float = 30) -> None:
+    """SIGTERM (the process drains), SIGKILL if it takes longer than timeout."""
+    process.terminate()
+    try:
+        process.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+def load_frames(count: int, size: tuple[int, int] = FRAME_SIZE) -> list[np.ndarray]:
+    """count BGR frames of the pedestrian video resized to size, looping if needed."""
+    capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
+    frames: list[np.ndarray] = []
+    while len(frames) < count:
+        ok, frame = capture.read()
+        if not ok:
+            capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            continue
+        frames.append(cv2.resize(frame, size))
+    capture.release()
+    return frames
 
 
 def print_table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -> None:

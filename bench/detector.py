@@ -19,27 +19,12 @@ import cv2
 import grpc
 import numpy as np
 
-from oricf.bench.common import median_ms, print_table, served
+from oricf.bench.common import load_frames, median_ms, print_table, served
 from oricf.config import config_dir, load_config
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.service import create_model
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
-
-FRAME_SIZE = (640, 480)
-
-
-def load_frames(count: int) -> list[np.ndarray]:
-    capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
-    frames: list[np.ndarray] = []
-    while len(frames) < count:
-        ok, frame = capture.read()
-        if not ok:
-            capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-            continue
-        frames.append(cv2.resize(frame, FRAME_SIZE))
-    capture.release()
-    return frames
 
 
 def request_for(frame: np.ndarray, encoding: str, frame_id: int = 0

@@ -37,20 +37,17 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import yaml
 
-from oricf.bench.common import median_ms, served
+from oricf.bench.common import FRAME_SIZE, load_frames, median_ms, served, stop
 from oricf.bench.gateway_report import InputResult, PowerModel, cost_table, latency_table
 from oricf.config import config_dir, deep_merge, read_yaml
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
-from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
-FRAME_SIZE = (640, 480)
 COMPRESSED_TOPIC = "camera/compressed"
 JPEG_QUALITY = 80
 PIPELINE = config_dir() / "pipelines" / "people_qa.yaml"
@@ -62,18 +59,6 @@ def cpu_seconds(pid: int) -> float:
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / TICKS
 
-
-def load_frames(count: int) -> list[np.ndarray]:
-    capture = cv2.VideoCapture(str(ModelStore().path("vtest-video", "vtest.avi")))
-    frames: list[np.ndarray] = []
-    while len(frames) < count:
-        ok, frame = capture.read()
-        if not ok:
-            capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-            continue
-        frames.append(cv2.resize(frame, FRAME_SIZE))
-    capture.release()
-    return frames
 
 
 def overlay(detector: str, transport: str, compressed: bool) -> dict[str, Any]:
@@ -101,12 +86,7 @@ def gateway(detector: str, transport: str, folder: Path, compressed: bool
     try:
         yield process
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process, timeout=15)
 
 
 class Camera:

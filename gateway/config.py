@@ -28,7 +28,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from oricf.config import Schema, deep_merge, read_yaml, validate
+from oricf.config import Schema, check_address, deep_merge, read_yaml, validate
 from oricf.errors import ConfigError
 from oricf.gateway.methods import INPUT_FIELDS, METHOD_FIELDS, METHOD_KEYS, SERVICE_OF
 
@@ -37,12 +37,6 @@ InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msg
 OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
 Method = Literal["Detect", "Transcribe", "Generate"]
 
-
-def _check_address(value: str) -> str:
-    host, sep, port = value.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"'{value}' is not host:port")
-    return value
 
 
 class ImageTransport(Schema):
@@ -62,7 +56,7 @@ class EndpointConfig(Schema):
     @field_validator("address", "fallback")
     @classmethod
     def _host_port(cls, value: str | None) -> str | None:
-        return None if value is None else _check_address(value)
+        return None if value is None else check_address(value)
 
 
 class InputConfig(Schema):

@@ -40,6 +40,14 @@ FilePath = Annotated[Path, AfterValidator(_resolve_against_file)]
 T = TypeVar("T", bound=BaseModel)
 
 
+def check_address(value: str) -> str:
+    """A host:port network address (host may be a name, an IPv4 or a [bracketed] IPv6)."""
+    host, sep, port = value.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"'{value}' is not host:port with a port 1-65535")
+    return value
+
+
 def config_dir() -> Path:
     """Where the default configs live: $ORICF_CONFIG_DIR, else the repository's configs/."""
     return Path(os.environ.get("ORICF_CONFIG_DIR") or REPO_ROOT / "configs")

@@ -15,18 +15,12 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from oricf.config import FilePath, Schema, config_dir, load_config
+from oricf.config import FilePath, Schema, check_address, config_dir, load_config
 from oricf.errors import ConfigError
 
 # the keys of oricf.services.REGISTRY (a test keeps the two in step)
 ServiceName = Literal["detector", "asr", "llm"]
 
-
-def _check_address(value: str) -> str:
-    host, sep, port = value.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"'{value}' is not host:port with a port 1-65535")
-    return value
 
 
 class Restart(Schema):
@@ -45,7 +39,7 @@ class LocalService(Schema):
     @field_validator("listen")
     @classmethod
     def _listen(cls, value: str | None) -> str | None:
-        return value if value is None else _check_address(value)
+        return value if value is None else check_address(value)
 
 
 class RemoteService(Schema):
@@ -55,7 +49,7 @@ class RemoteService(Schema):
     @field_validator("address")
     @classmethod
     def _address(cls, value: str) -> str:
-        return _check_address(value)
+        return check_address(value)
 
 
 class Gateway(Schema):
