@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import cv2
 import grpc
@@ -48,9 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="oricf bench detector", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=200, help="frames per measurement")
+    parser.add_argument("--config", type=Path, default=config_dir() / "services" / "detector.yaml",
+                        help="detector YAML for both the in-process model and the service")
     args = parser.parse_args(argv)
 
-    config = load_config(config_dir() / "services" / "detector.yaml", DetectorConfig)
+    config = load_config(args.config, DetectorConfig)
     model = create_model(config, ModelStore())
     model.load()
     frames = load_frames(args.frames)
@@ -59,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     rgb = [request_for(f, "rgb8", i) for i, f in enumerate(frames)]
     jpeg = [request_for(f, "jpeg", i) for i, f in enumerate(frames)]
 
-    with served("detector") as (address, _):
+    with served("detector", "--config", str(args.config)) as (address, _):
         channel = grpc.insecure_channel(address, options=[
             ("grpc.max_send_message_length", 64 << 20)])
         stub = detector_pb2_grpc.DetectorStub(channel)

@@ -18,7 +18,7 @@ class DetectorModelSettings(Schema):
         default_factory=lambda: ["CPUExecutionProvider"],
         description="onnxruntime execution providers in order of preference, e.g. "
                     "CUDAExecutionProvider, OpenVINOExecutionProvider, CPUExecutionProvider")
-    threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads")
+    threads: int = Field(1, ge=1, le=64, description="onnxruntime intra-op threads")
     input_size: int = Field(416, ge=32, le=2048, description="square network input, pixels")
     spin: bool = Field(
         False, description="let idle onnxruntime threads busy-wait: slightly lower latency, "

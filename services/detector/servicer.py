@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import logging
 import math
+import queue
+import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import TypeAlias
 
 import grpc
+import numpy as np
 
 from oricf.errors import InvalidInput
 from oricf.imaging import Detection, decode_image, draw_detections, encode_image
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
-from oricf.services.detector.yolox import YoloxDetector
+from oricf.services.detector.yolox import PreparedImage, YoloxDetector
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import status_for
 from oricf.services.runtime.info import model_info_response
@@ -21,6 +26,27 @@ from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
 ANNOTATE_ENCODINGS = ("jpeg", "png", "rgb8", "bgr8")
+PREFETCH = 2  # frames of a stream prepared ahead of the one in the network
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A request checked, decoded and letterboxed: ready for the network."""
+
+    frame_id: int
+    image: np.ndarray
+    prepared: PreparedImage
+    labels: list[str]
+    class_ids: np.ndarray | None
+    min_score: float
+    annotate_encoding: str
+    started: float
+    decode_ms: float
+
+
+# What the stream reader hands over: a frame to run, a refusal, an error that ends the call,
+# or None at the end of the stream.
+StreamItem: TypeAlias = Frame | detector_pb2.DetectResponse | BaseException | None
 
 
 class DetectorServicer(detector_pb2_grpc.DetectorServicer):
@@ -36,15 +62,51 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
 
     def DetectStream(self, request_iterator: Iterator[detector_pb2.DetectRequest],
                      context: grpc.ServicerContext) -> Iterator[detector_pb2.DetectResponse]:
-        for request in request_iterator:
-            try:
-                yield self.detect(request)
-            except InvalidInput as exc:  # one bad frame must not end the stream
-                code, message = status_for(exc)
-                log.debug("frame %d refused: %s", request.frame_id, message)
-                yield detector_pb2.DetectResponse(
-                    frame_id=request.frame_id,
-                    error=common_pb2.Error(code=code.value[0], message=message))
+        # A reader thread takes frames off the wire and prepares them while the previous
+        # frame is in the network; at most PREFETCH prepared frames wait, so a slow model
+        # pushes back on the client (gRPC flow control) instead of queueing without bound.
+        ready: queue.Queue[StreamItem] = queue.Queue(maxsize=PREFETCH)
+        done = threading.Event()
+        reader = threading.Thread(target=self._read_stream, args=(request_iterator, ready, done),
+                                  name="detect-stream-reader", daemon=True)
+        reader.start()
+        try:
+            while (item := ready.get()) is not None:
+                if isinstance(item, BaseException):
+                    raise item
+                yield item if isinstance(item, detector_pb2.DetectResponse) else self.respond(item)
+        finally:
+            done.set()  # the call is over: the reader must not wait for room in the queue
+
+    def _read_stream(self, requests: Iterator[detector_pb2.DetectRequest],
+                     ready: queue.Queue[StreamItem], done: threading.Event) -> None:
+        def put(item: StreamItem) -> bool:
+            while not done.is_set():
+                try:
+                    ready.put(item, timeout=0.1)
+                    return True
+                except queue.Full:
+                    continue
+            return False
+
+        try:
+            for request in requests:
+                if not put(self._prepare_or_refuse(request)):
+                    return
+        except Exception as exc:  # the stream broke or the model is not ready: end the call
+            put(exc)
+        put(None)
+
+    def _prepare_or_refuse(self, request: detector_pb2.DetectRequest
+                           ) -> Frame | detector_pb2.DetectResponse:
+        try:
+            return self.prepare(request)
+        except InvalidInput as exc:  # one bad frame must not end the stream
+            code, message = status_for(exc)
+            log.debug("frame %d refused: %s", request.frame_id, message)
+            return detector_pb2.DetectResponse(
+                frame_id=request.frame_id,
+                error=common_pb2.Error(code=code.value[0], message=message))
 
     def GetModelInfo(self, request: common_pb2.GetModelInfoRequest,
                      context: grpc.ServicerContext) -> common_pb2.GetModelInfoResponse:
@@ -53,6 +115,10 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         return response
 
     def detect(self, request: detector_pb2.DetectRequest) -> detector_pb2.DetectResponse:
+        return self.respond(self.prepare(request))
+
+    def prepare(self, request: detector_pb2.DetectRequest) -> Frame:
+        """Everything before the network: checks, image decoding, letterboxing."""
         started = time.perf_counter()
         model = self.slot.get()
         min_score = self._min_score(request.min_score)
@@ -60,28 +126,34 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         annotate_encoding = self._annotate_encoding(request)
         image = decode_image(request.image.data, request.image.encoding, request.image.width,
                              request.image.height, self.config.images.max_pixels)
-        decoded = time.perf_counter()
-        raw = model.infer(image, min_score, class_ids)
+        decode_ms = (time.perf_counter() - started) * 1e3
+        return Frame(request.frame_id, image, model.prepare(image), labels, class_ids,
+                     min_score, annotate_encoding, started, decode_ms)
+
+    def respond(self, frame: Frame) -> detector_pb2.DetectResponse:
+        """The network, decoding its output, and the response."""
+        raw = self.slot.get().detect(frame.prepared, frame.min_score, frame.class_ids)
         detections = self.labels.detections(raw)
+        image = frame.image
         response = detector_pb2.DetectResponse(
             detections=[_detection_pb(d) for d in detections],
-            counts=LabelSpace.counts(detections, labels),
-            frame_id=request.frame_id,
+            counts=LabelSpace.counts(detections, frame.labels),
+            frame_id=frame.frame_id,
             image_width=image.shape[1],
             image_height=image.shape[0],
         )
-        if annotate_encoding:
+        if frame.annotate_encoding:
             canvas = draw_detections(image, detections)
             quality = self.config.images.annotate_jpeg_quality
             response.annotated.CopyFrom(common_pb2.Image(
-                data=encode_image(canvas, annotate_encoding, quality),
-                encoding=annotate_encoding, width=canvas.shape[1], height=canvas.shape[0]))
+                data=encode_image(canvas, frame.annotate_encoding, quality),
+                encoding=frame.annotate_encoding, width=canvas.shape[1], height=canvas.shape[0]))
         timings = response.timings
-        timings.decode_ms = (decoded - started) * 1e3
+        timings.decode_ms = frame.decode_ms
         timings.preprocess_ms = raw.timings_ms["preprocess_ms"]
         timings.inference_ms = raw.timings_ms["inference_ms"]
         timings.postprocess_ms = raw.timings_ms["postprocess_ms"]
-        timings.total_ms = (time.perf_counter() - started) * 1e3
+        timings.total_ms = (time.perf_counter() - frame.started) * 1e3
         return response
 
     def _min_score(self, requested: float) -> float:

@@ -37,6 +37,17 @@ class RawDetections:
 
 
 @dataclass(frozen=True)
+class PreparedImage:
+    """A letterboxed network input and what it takes to map boxes back."""
+
+    blob: np.ndarray
+    scale: float
+    width: int
+    height: int
+    preprocess_ms: float
+
+
+@dataclass(frozen=True)
 class YoloxSettings:
     path: Path
     catalog_name: str
@@ -146,18 +157,29 @@ class YoloxDetector:
     def infer(self, image: np.ndarray, min_score: float,
               class_ids: np.ndarray | None = None) -> RawDetections:
         """Detects objects in a BGR image; class_ids restricts the classes considered."""
+        return self.detect(self.prepare(image), min_score, class_ids)
+
+    def prepare(self, image: np.ndarray) -> PreparedImage:
+        """The network input for a BGR image. Separate from detect() so that a stream can
+        prepare the next frame while this one is in the network."""
+        started = time.perf_counter()
+        blob, scale = letterbox(image, self.settings.input_size)
+        return PreparedImage(blob, scale, image.shape[1], image.shape[0],
+                             (time.perf_counter() - started) * 1e3)
+
+    def detect(self, prepared: PreparedImage, min_score: float,
+               class_ids: np.ndarray | None = None) -> RawDetections:
         session = self._session
         if session is None:
             raise NotReady("the detector model is not loaded")
         t0 = time.perf_counter()
-        blob, scale = letterbox(image, self.settings.input_size)
+        rows = session.run(None, {self._input_name: prepared.blob})[0][0]
         t1 = time.perf_counter()
-        rows = session.run(None, {self._input_name: blob})[0][0]
-        t2 = time.perf_counter()
-        result = self._decode(rows, scale, image.shape[1], image.shape[0], min_score, class_ids)
-        t3 = time.perf_counter()
-        result.timings_ms = {"preprocess_ms": (t1 - t0) * 1e3, "inference_ms": (t2 - t1) * 1e3,
-                             "postprocess_ms": (t3 - t2) * 1e3}
+        result = self._decode(rows, prepared.scale, prepared.width, prepared.height, min_score,
+                              class_ids)
+        result.timings_ms = {"preprocess_ms": prepared.preprocess_ms,
+                             "inference_ms": (t1 - t0) * 1e3,
+                             "postprocess_ms": (time.perf_counter() - t1) * 1e3}
         return result
 
     def _decode(self, rows: np.ndarray, scale: float, width: int, height: int,

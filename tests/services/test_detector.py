@@ -1,5 +1,8 @@
 """The detector service: the real YOLOX-Nano on real photos and video, over a real channel."""
 
+import queue
+import threading
+import time
 from collections.abc import Iterator
 
 import cv2
@@ -128,3 +131,30 @@ def test_model_info(stub: detector_pb2_grpc.DetectorStub) -> None:
     assert len(info.labels) == 80 and info.labels[0] == "person"
     assert info.sha256.startswith("615e2661") and info.license.startswith("Apache-2.0")
     assert info.load_seconds > 0
+
+
+def test_detect_stream_answers_each_frame_before_the_next_arrives(
+        stub: detector_pb2_grpc.DetectorStub) -> None:
+    # A camera sends one frame at a time: each answer must come without waiting for the next.
+    outgoing: queue.Queue[detector_pb2.DetectRequest | None] = queue.Queue()
+    responses = stub.DetectStream(iter(outgoing.get, None), timeout=30)
+    for frame_id, frame in enumerate(video_frames([0, 50, 100]), start=1):
+        outgoing.put(raw_request(frame, labels=["person"], frame_id=frame_id))
+        assert next(responses).frame_id == frame_id
+    outgoing.put(None)
+    assert list(responses) == []
+
+
+def test_cancelled_stream_leaves_no_reader_behind(stub: detector_pb2_grpc.DetectorStub) -> None:
+    outgoing: queue.Queue[detector_pb2.DetectRequest | None] = queue.Queue()
+    responses = stub.DetectStream(iter(outgoing.get, None), timeout=30)
+    (frame,) = video_frames([0])
+    outgoing.put(raw_request(frame, labels=["person"], frame_id=1))
+    assert next(responses).frame_id == 1
+    responses.cancel()
+    outgoing.put(None)
+    deadline = time.monotonic() + 5
+    while any(t.name == "detect-stream-reader" for t in threading.enumerate()):
+        assert time.monotonic() < deadline, "the stream's reader thread is still running"
+        time.sleep(0.05)
+    assert stub.Detect(raw_request(frame, labels=["person"]), timeout=10).counts["person"] >= 2
