@@ -199,11 +199,20 @@ def cpu_per_frame(camera: Camera, frames: list[Any], fps: float,
     return [u / max(processed, 1) for u in used]
 
 
-def one_thread_detector(folder: Path) -> Path:
-    """The shipped detector config with one onnxruntime thread (no idle worker spinning)."""
+def shipped_threads() -> int:
+    return int(read_yaml(config_dir() / "services" / "detector.yaml")["model"]["threads"])
+
+
+def other_threads() -> int:
+    """The onboard detector is also measured with this other thread count (1 or 2)."""
+    return 2 if shipped_threads() == 1 else 1
+
+
+def other_thread_detector(folder: Path) -> Path:
+    """The shipped detector config with the other thread count."""
     data = deep_merge(read_yaml(config_dir() / "services" / "detector.yaml"),
-                      {"model": {"threads": 1}})
-    path = folder / "detector-1-thread.yaml"
+                      {"model": {"threads": other_threads()}})
+    path = folder / "detector-other-threads.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
 
@@ -237,15 +246,16 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
             with gateway(address, "raw", folder, compressed) as raw:
                 camera.warm_up(messages[0], raw)
                 latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
-                cpu["gw raw 1"], cpu["det 2"] = cpu_per_frame(camera, messages, args.fps,
+                cpu["gw raw 1"], cpu["det shipped"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
             with gateway(address, "jpeg", folder, compressed) as jpeg:
                 camera.warm_up(messages[0], jpeg)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
-        with served("detector", "--config", str(one_thread_detector(folder))) as (address, det1), \
+        other = str(other_thread_detector(folder))
+        with served("detector", "--config", other) as (address, det1), \
                 gateway(address, "raw", folder, compressed) as raw:
             camera.warm_up(messages[0], raw)
-            cpu["gw raw 2"], cpu["det 1"] = cpu_per_frame(camera, messages, args.fps,
+            cpu["gw raw 2"], cpu["det other"] = cpu_per_frame(camera, messages, args.fps,
                                                           [raw.pid, det1.pid])
     finally:
         camera.close()
@@ -261,8 +271,8 @@ def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
           f"{pipeline.get('executor_threads', 1)}, JPEG transport quality {JPEG_QUALITY}; "
           f"onboard detector: configs/services/detector.yaml (model {detector['name']}, "
           f"{detector['threads']} threads, spin {detector['spin']}, input "
-          f"{detector['input_size']}) and the same with 1 thread; offloaded: the detector runs "
-          f"on this machine but is not counted as robot CPU.")
+          f"{detector['input_size']}) and the same with {other_threads()} thread(s); "
+          f"offloaded: the detector runs on this machine but is not counted as robot CPU.")
     print(f"Power model: {power.describe()}.")
 
 
@@ -277,7 +287,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     for result in results:
         latency_table(result, args.frames)
     for result in results:
-        cost_table(result, power, args.fps, args.frames)
+        cost_table(result, power, args.fps, args.frames, (shipped_threads(), other_threads()))
 
 
 def main(argv: list[str]) -> int:

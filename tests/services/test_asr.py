@@ -131,7 +131,7 @@ def test_model_info(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
     assert list(info.providers) == ["cpu"]
     params = info.parameters
     assert (params["backend"], params["beam_size"], params["compute_type"]) == \
-        ("faster-whisper", "1", "int8")
+        ("faster-whisper", "5", "int8")
     assert params["threads"] == "2" and params["language"] == "en"
     assert params["vad"].startswith("silero_vad_v6.onnx (onnxruntime ")
     assert info.load_seconds > 0

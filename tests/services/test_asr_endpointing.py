@@ -100,7 +100,7 @@ def test_silence_gives_nothing(vad: SileroVad) -> None:
 def test_the_shipped_config_is_valid() -> None:
     config = service_config("asr")
     assert config.model.backend == "faster-whisper"
-    assert config.model.options.beam_size == 1 and config.model.options.compute_type == "int8"
+    assert config.model.options.beam_size == 5 and config.model.options.compute_type == "int8"
     assert config.endpointing.min_silence_ms == 400
 
 
