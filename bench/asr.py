@@ -16,19 +16,16 @@ import re
 import statistics
 import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import grpc
 import numpy as np
-import yaml
 
 from oricf.audio import MODEL_RATE, synthesize
-from oricf.bench.common import median_ms, print_table, served
-from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.bench.common import median_ms, print_table, served, variant_config
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 
 QUERIES = [
@@ -116,16 +113,6 @@ def make_queries(voices: list[str]) -> list[Query]:
             for voice in voices for text in QUERIES]
 
 
-@contextmanager
-def variant_config(overrides: dict[str, Any]) -> Iterator[Path]:
-    """The shipped asr.yaml with overrides, as a temporary file for `oricf serve --config`."""
-    data = deep_merge(read_yaml(config_dir() / "services" / "asr.yaml"), overrides)
-    with tempfile.TemporaryDirectory(prefix="oricf-bench-asr-") as folder:
-        path = Path(folder) / "asr.yaml"
-        path.write_text(yaml.safe_dump(data))
-        yield path
-
-
 def transcribe(stub: speech_pb2_grpc.SpeechRecognizerStub, query: Query,
                results: Results) -> str:
     request = speech_pb2.TranscribeRequest(audio=speech_pb2.Audio(
@@ -152,8 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     queries = make_queries(args.voices)
     with ExitStack() as stack:
         addresses = {"shipped": args.target or stack.enter_context(served("asr"))[0]}
-        for name, overrides in ({} if args.target else VARIANTS).items():
-            path = stack.enter_context(variant_config(overrides))
+        folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="oricf-bench-")))
+        for i, (name, overrides) in enumerate(({} if args.target else VARIANTS).items()):
+            path = variant_config("asr", overrides, folder, f"variant{i}")
             addresses[name] = stack.enter_context(served("asr", "--config", str(path)))[0]
         channels = [stack.enter_context(grpc.insecure_channel(a)) for a in addresses.values()]
         stubs = {name: speech_pb2_grpc.SpeechRecognizerStub(c)

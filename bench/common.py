@@ -7,19 +7,20 @@ round, because the machines they run on are shared and noisy; they report median
 from __future__ import annotations
 
 import os
-import socket
 import statistics
 import subprocess
 import sys
-import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
 
 import cv2
-import grpc
 import numpy as np
-from grpc_health.v1 import health_pb2, health_pb2_grpc
+import yaml
 
+from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.launch.health import free_port, wait_serving
 from oricf.store import ModelStore
 
 FRAME_SIZE = (640, 480)
@@ -27,29 +28,6 @@ FRAME_SIZE = (640, 480)
 
 def median_ms(seconds: Sequence[float]) -> float:
     return statistics.median(seconds) * 1e3
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def wait_serving(address: str, process: subprocess.Popen[bytes], timeout: float = 300) -> None:
-    deadline = time.monotonic() + timeout
-    with grpc.insecure_channel(address) as channel:
-        stub = health_pb2_grpc.HealthStub(channel)
-        while time.monotonic() < deadline:
-            if process.poll() is not None:
-                raise RuntimeError(f"the service exited with {process.returncode}")
-            try:
-                status = stub.Check(health_pb2.HealthCheckRequest(), timeout=1).status
-                if status == health_pb2.HealthCheckResponse.SERVING:
-                    return
-            except grpc.RpcError:
-                pass
-            time.sleep(0.1)
-    raise TimeoutError(f"{address} was not SERVING after {timeout} s")
 
 
 @contextmanager
@@ -60,7 +38,7 @@ def served(service: str, *args: str) -> Iterator[tuple[str, subprocess.Popen[byt
                "--listen", address, *args]
     process = subprocess.Popen(command, env=os.environ.copy())
     try:
-        wait_serving(address, process)
+        wait_serving(address, process=process)
         yield address, process
     finally:
         stop(process)
@@ -88,6 +66,15 @@ def load_frames(count: int, size: tuple[int, int] = FRAME_SIZE) -> list[np.ndarr
         frames.append(cv2.resize(frame, size))
     capture.release()
     return frames
+
+
+def variant_config(service: str, overrides: dict[str, Any], folder: Path, tag: str) -> Path:
+    """The shipped service YAML with overrides, written into folder for `oricf serve --config`
+    (a variant measured beside the shipped config)."""
+    data = deep_merge(read_yaml(config_dir() / "services" / f"{service}.yaml"), overrides)
+    path = folder / f"{service}-{tag}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
 
 
 def print_table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -> None:

@@ -40,9 +40,16 @@ from typing import Any
 import numpy as np
 import yaml
 
-from oricf.bench.common import FRAME_SIZE, load_frames, median_ms, served, stop
+from oricf.bench.common import (
+    FRAME_SIZE,
+    load_frames,
+    median_ms,
+    served,
+    stop,
+    variant_config,
+)
 from oricf.bench.gateway_report import InputResult, PowerModel, cost_table, latency_table
-from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.config import config_dir, read_yaml
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
@@ -208,15 +215,6 @@ def other_threads() -> int:
     return 2 if shipped_threads() == 1 else 1
 
 
-def other_thread_detector(folder: Path) -> Path:
-    """The shipped detector config with the other thread count."""
-    data = deep_merge(read_yaml(config_dir() / "services" / "detector.yaml"),
-                      {"model": {"threads": other_threads()}})
-    path = folder / "detector-other-threads.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return path
-
-
 def request_sizes(prepared: list[tuple[Any, detector_pb2.DetectRequest]]) -> dict[str, float]:
     """Median bytes of a Detect request per transport (what goes over the radio offloaded)."""
     def size(transport: str, request: detector_pb2.DetectRequest) -> int:
@@ -251,7 +249,8 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
             with gateway(address, "jpeg", folder, compressed) as jpeg:
                 camera.warm_up(messages[0], jpeg)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
-        other = str(other_thread_detector(folder))
+        other = str(variant_config("detector", {"model": {"threads": other_threads()}},
+                                   folder, "other-threads"))
         with served("detector", "--config", other) as (address, det1), \
                 gateway(address, "raw", folder, compressed) as raw:
             camera.warm_up(messages[0], raw)

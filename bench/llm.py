@@ -27,10 +27,8 @@ from typing import Any
 
 import grpc
 
-from oricf.config import config_dir, deep_merge, read_yaml, validate
-from oricf.services import load_spec
-from oricf.services.runtime import ServiceHost
-from oricf.store import ModelStore
+from oricf.config import config_dir
+from oricf.services.runtime.local import local_service, service_config
 from oricf.v1 import language_pb2, language_pb2_grpc
 
 MODELS = ("gemma3-270m", "smollm2-135m-instruct")
@@ -134,18 +132,10 @@ def ask_unknown(stub: language_pb2_grpc.LanguageModelStub, n: int) -> list[Answe
 
 @contextmanager
 def service(overrides: dict[str, Any], config_path: Path) -> Iterator[grpc.Channel]:
-    spec = load_spec("llm")
-    data = deep_merge(read_yaml(config_path), overrides)
-    config = validate(data, spec.config_schema, str(config_path), base_dir=config_path.parent)
-    host = ServiceHost(spec, config, spec.create_model(config, ModelStore()))
-    host.start()
-    host.load_model()
-    channel = grpc.insecure_channel(f"127.0.0.1:{host.port}")
-    try:
+    config = service_config("llm", overrides, config_path)
+    with local_service("llm", config) as host, \
+            grpc.insecure_channel(f"127.0.0.1:{host.port}") as channel:
         yield channel
-    finally:
-        channel.close()
-        host.stop(grace=1.0)
 
 
 @dataclass(frozen=True)

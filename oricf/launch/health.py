@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import socket
+import subprocess
 import sys
+import time
+from typing import Any
 
 import grpc
 from grpc_health.v1 import health_pb2, health_pb2_grpc
@@ -28,6 +32,26 @@ def status(address: str, service: str = "", timeout: float = 2.0) -> str:
         except grpc.RpcError:
             return "UNREACHABLE"
     return str(health_pb2.HealthCheckResponse.ServingStatus.Name(reply.status))
+
+
+def wait_serving(address: str, timeout: float = 300.0,
+                 process: subprocess.Popen[Any] | None = None) -> None:
+    """Blocks until address answers SERVING; fails early if `process` (the server) exits."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if process is not None and process.poll() is not None:
+            raise RuntimeError(f"the service exited with {process.returncode} before SERVING")
+        if status(address, timeout=1.0) == "SERVING":
+            return
+        time.sleep(0.1)
+    raise TimeoutError(f"{address} was not SERVING after {timeout} s")
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
 
 
 def main(argv: list[str] | None = None) -> int:

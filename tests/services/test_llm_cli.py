@@ -15,7 +15,7 @@ from tests.support.processes import free_port, oricf_process, wait_serving
 def test_serve_answers_and_sigterm_lets_the_answer_finish() -> None:
     address = f"127.0.0.1:{free_port()}"
     with oricf_process("serve", "llm", "--listen", address) as process:
-        wait_serving(address, process=process)
+        wait_serving(address, timeout=120, process=process)
         with grpc.insecure_channel(address) as channel:
             stub = language_pb2_grpc.LanguageModelStub(channel)
             request = language_pb2.GenerateRequest(prompt="How many people do you see?",

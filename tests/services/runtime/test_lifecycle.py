@@ -73,7 +73,7 @@ def test_sigterm_drains_in_flight_calls_and_exits_zero() -> None:
     port = free_port()
     address = f"127.0.0.1:{port}"
     with oricf_process("serve", "detector", "--listen", address) as process:
-        wait_serving(address, process=process)
+        wait_serving(address, timeout=120, process=process)
         channel = grpc.insecure_channel(address)
         watch = health_pb2_grpc.HealthStub(channel).Watch(
             health_pb2.HealthCheckRequest(service=""), timeout=30)
