@@ -28,15 +28,20 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from oricf.config import Schema, check_address, deep_merge, read_yaml, validate
+from oricf.config import Schema, check_address, deep_merge, read_with_overlays, validate
 from oricf.errors import ConfigError
-from oricf.gateway.methods import INPUT_FIELDS, METHOD_FIELDS, METHOD_KEYS, SERVICE_OF
+from oricf.gateway.methods import (
+    IMAGE_INPUTS,
+    INPUT_FIELDS,
+    METHOD_FIELDS,
+    METHOD_KEYS,
+    SERVICE_OF,
+)
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
 OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
 Method = Literal["Detect", "Transcribe", "Generate"]
-
 
 
 class ImageTransport(Schema):
@@ -88,8 +93,7 @@ class InputConfig(Schema):
     def mode(self) -> Literal["latest", "queue"]:
         if self.keep is not None:
             return self.keep
-        return "latest" if self.type in ("sensor_msgs/Image", "sensor_msgs/CompressedImage") \
-            else "queue"
+        return "latest" if self.type in IMAGE_INPUTS else "queue"
 
 
 class ContextConfig(Schema):
@@ -263,11 +267,7 @@ def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
                   profile: str | None = None) -> PipelineConfig:
     """The pipeline file, overlays merged on top in order, then the named profile."""
     path = Path(path)
-    data = read_yaml(path)
-    sources = [str(path)]
-    for overlay in overlays:
-        data = deep_merge(data, read_yaml(Path(overlay)))
-        sources.append(str(overlay))
+    data, sources = read_with_overlays(path, overlays)
     if profile is not None:
         profiles = (data or {}).get("profiles") or {}
         if profile not in profiles:

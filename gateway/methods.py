@@ -14,6 +14,8 @@ INPUT_FIELDS: dict[str, str] = {
     "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
     "std_msgs/String": "text", "std_msgs/Int16MultiArray": "audio", "std_msgs/Int32": "value",
 }
+# Camera inputs: newest frame only, sensor_data QoS.
+IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
 METHOD_FIELDS: dict[str, tuple[str, ...]] = {
     "Detect": ("detections", "counts", "annotated"),
     "Transcribe": ("transcript", "duration_s"),

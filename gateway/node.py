@@ -18,17 +18,15 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from oricf.gateway import convert
 from oricf.gateway.config import InputConfig, OutputConfig, PipelineConfig
+from oricf.gateway.methods import IMAGE_INPUTS
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
 
-IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
-
-
 def input_qos(config: InputConfig) -> QoSProfile:
-    if config.type in IMAGE_TYPES:
+    if config.type in IMAGE_INPUTS:
         qos = QoSProfile(depth=1)
         qos.reliability = qos_profile_sensor_data.reliability
         qos.durability = qos_profile_sensor_data.durability

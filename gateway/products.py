@@ -14,11 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from oricf.context import AGE_SUFFIX, STALE_SUFFIX
+
 Listener = Callable[[Any], None]
 
-# Context keys the language service reads beside a fact (services/llm/prompt.py).
-AGE_SUFFIX = "_age_s"
-STALE_SUFFIX = "_stale"
 
 
 @dataclass(frozen=True)

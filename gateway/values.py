@@ -15,7 +15,7 @@ import numpy as np
 
 from oricf.audio import check_format
 from oricf.errors import InvalidInput
-from oricf.imaging import ENCODED, MAX_PIXELS, RAW_CHANNELS, decode_image, encode_image
+from oricf.imaging import ENCODED, RAW_CHANNELS, check_size, decode_image, encode_image
 from oricf.v1 import common_pb2, speech_pb2
 
 Record = dict[str, Any]
@@ -56,10 +56,7 @@ def raw_frame(data: bytes | memoryview, encoding: str, width: int, height: int,
     if encoding not in RAW_CHANNELS:
         raise InvalidInput(f"unsupported image encoding '{encoding}'; "
                            f"use one of: {', '.join(RAW_CHANNELS)}")
-    if width <= 0 or height <= 0:
-        raise InvalidInput(f"image size {width}x{height}: width and height must be > 0")
-    if width * height > MAX_PIXELS:
-        raise InvalidInput(f"image size {width}x{height} is over {MAX_PIXELS:,} pixels")
+    check_size(width, height)
     row = width * RAW_CHANNELS[encoding]
     step = step or row
     if step < row:

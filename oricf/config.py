@@ -107,13 +107,19 @@ def _message(error: Mapping[str, Any]) -> str:
     return message.removeprefix("Value error, ")
 
 
-def load_config(path: Path | str, schema: type[T], overlays: Iterable[Path | str] = ()) -> T:
-    """Reads a YAML file (plus overlay files merged on top) and validates it against schema."""
-    path = Path(path)
+def read_with_overlays(path: Path, overlays: Iterable[Path | str] = ()
+                       ) -> tuple[Any, list[str]]:
+    """A YAML file with overlay files merged on top in order, and the names of all of them."""
     data = read_yaml(path)
     sources = [str(path)]
     for overlay in overlays:
-        overlay = Path(overlay)
-        data = deep_merge(data, read_yaml(overlay))
+        data = deep_merge(data, read_yaml(Path(overlay)))
         sources.append(str(overlay))
+    return data, sources
+
+
+def load_config(path: Path | str, schema: type[T], overlays: Iterable[Path | str] = ()) -> T:
+    """Reads a YAML file (plus overlay files merged on top) and validates it against schema."""
+    path = Path(path)
+    data, sources = read_with_overlays(path, overlays)
     return validate(data, schema, " + ".join(sources), base_dir=path.parent)

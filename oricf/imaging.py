@@ -39,7 +39,8 @@ class Detection:
     box: Box
 
 
-def _check_size(width: int, height: int, max_pixels: int) -> None:
+def check_size(width: int, height: int, max_pixels: int = MAX_PIXELS) -> None:
+    """Refuses zero, negative and absurd image sizes before anything is allocated."""
     if width <= 0 or height <= 0:
         raise InvalidInput(f"image size {width}x{height}: width and height must be > 0")
     if width * height > max_pixels:
@@ -65,7 +66,7 @@ def decode_image(data: bytes, encoding: str, width: int = 0, height: int = 0,
 
 def _decode_raw(data: bytes, encoding: str, width: int, height: int,
                 max_pixels: int) -> np.ndarray:
-    _check_size(width, height, max_pixels)
+    check_size(width, height, max_pixels)
     channels = RAW_CHANNELS[encoding]
     expected = width * height * channels
     if len(data) != expected:
@@ -84,7 +85,7 @@ def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
                     max_pixels: int) -> np.ndarray:
     header = _encoded_size(data, encoding)
     if header is not None:  # refuse decompression bombs before decoding
-        _check_size(header[0], header[1], max_pixels)
+        check_size(header[0], header[1], max_pixels)
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
     if image is None:
         raise InvalidInput(f"image data is not a valid {encoding.upper()} file")

@@ -21,10 +21,9 @@ from dataclasses import dataclass
 from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema
+from oricf.context import AGE_SUFFIX, STALE_SUFFIX
 from oricf.errors import InvalidInput
 
-AGE_SUFFIX = "_age_s"
-STALE_SUFFIX = "_stale"
 UNKNOWN_VALUES = frozenset({"", "unknown", "none", "null", "n/a"})
 TRUE_VALUES = frozenset({"1", "true", "yes"})
 

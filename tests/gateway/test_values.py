@@ -30,7 +30,7 @@ def test_row_padding_is_removed(frame: np.ndarray) -> None:
     ("bgr8", 0, 0, 0, 0, "width and height must be > 0"),
     ("bgr8", 10, 10, 30, 299, "needs 300 bytes, got 299"),
     ("rgb8", 10, 10, 20, 200, "needs step >= 30, got 20"),
-    ("mono8", 100_000, 100_000, 100_000, 0, "over 40,000,000 pixels"),
+    ("mono8", 100_000, 100_000, 100_000, 0, "over the limit of 40,000,000 pixels"),
 ])
 def test_invalid_raw_images_are_refused(encoding: str, width: int, height: int, step: int,
                                         size: int, message: str) -> None:
