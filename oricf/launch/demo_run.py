@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import logging
 import statistics
+import sys
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from oricf.launch.deployment import Deployment
 from oricf.launch.launcher import Launcher, LaunchFailed
+from oricf.launch.process import PrefixedLines
 from oricf.launch.progress import ProgressLine
 
 log = logging.getLogger(__name__)
@@ -48,27 +50,12 @@ class Result:
         return None not in (self.transcript, self.count, self.answer)
 
 
-class LogFile:
-    """The processes' output, `name | line`, into a file (and the terminal if verbose)."""
-
-    def __init__(self, handle: IO[str], verbose: bool) -> None:
-        self.handle = handle
-        self.verbose = verbose
-        self._lock = threading.Lock()
-
-    def __call__(self, name: str, line: str) -> None:
-        with self._lock:
-            self.handle.write(f"{name:<8} | {line}\n")
-            self.handle.flush()
-            if self.verbose:
-                print(f"{name:<8} | {line}", flush=True)
-
-
 @contextmanager
 def launched(deployment: Deployment, options: DemoOptions,
              progress: ProgressLine) -> Iterator[Launcher]:
     with options.log_path.open("w", encoding="utf-8") as handle:
-        launcher = Launcher(deployment, LogFile(handle, options.verbose), progress)
+        terminal = [sys.stdout] if options.verbose else []
+        launcher = Launcher(deployment, PrefixedLines(handle, *terminal), progress)
         try:
             launcher.start(threading.Event())
             yield launcher

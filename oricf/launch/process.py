@@ -12,6 +12,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import IO
 
 from oricf.launch.deployment import ProcessPlan
 
@@ -20,6 +21,22 @@ log = logging.getLogger(__name__)
 # (process name, line without the newline)
 LineSink = Callable[[str, str], None]
 TAIL_LINES = 40
+
+
+class PrefixedLines:
+    """A LineSink that writes `name | line` to every stream, one whole line at a time."""
+
+    def __init__(self, *streams: IO[str], width: int = 8) -> None:
+        self.streams = streams
+        self.width = width
+        self._lock = threading.Lock()
+
+    def __call__(self, name: str, line: str) -> None:
+        text = f"{name:<{self.width}} | {line}\n"
+        with self._lock:
+            for stream in self.streams:
+                stream.write(text)
+                stream.flush()
 
 
 class ManagedProcess:

@@ -12,52 +12,20 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
-import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 from oricf.launch.deployment import load_deployment
 from oricf.launch.launcher import Launcher, LaunchFailed, Stopped
+from oricf.launch.process import PrefixedLines
+from oricf.signals import stop_on_signals
 
 log = logging.getLogger(__name__)
 
 
-class PrefixedOutput:
-    """Writes each process's lines as `name | line`, one whole line at a time."""
-
-    def __init__(self, width: int = 8) -> None:
-        self.width = width
-        self._lock = threading.Lock()
-
-    def __call__(self, name: str, line: str) -> None:
-        with self._lock:
-            sys.stdout.write(f"{name:<{self.width}} | {line}\n")
-            sys.stdout.flush()
-
-
-@contextmanager
-def stop_on_signals() -> Iterator[threading.Event]:
-    """An event set by SIGINT or SIGTERM; the previous handlers come back afterwards."""
-    stop = threading.Event()
-
-    def on_signal(signum: int, _frame: object) -> None:
-        log.info("%s: stopping the deployment", signal.Signals(signum).name)
-        stop.set()
-
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-
-
 def run(path: Path) -> int:
     deployment = load_deployment(path)
-    launcher = Launcher(deployment, PrefixedOutput())
+    launcher = Launcher(deployment, PrefixedLines(sys.stdout))
     with stop_on_signals() as stop:
         try:
             launcher.start(stop)

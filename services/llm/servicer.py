@@ -7,12 +7,13 @@ from collections.abc import Iterator
 
 import grpc
 
-from oricf.errors import Cancelled, DeadlineExceeded
+from oricf.errors import Cancelled
 from oricf.services.llm.config import LlmConfig
 from oricf.services.llm.domain import Chunk, Finished, GenerationRequest, StillWanted
 from oricf.services.llm.model import LlamaModel
 from oricf.services.llm.request import to_generation_request
 from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.errors import check_deadline
 from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
@@ -23,9 +24,7 @@ def still_wanted(context: grpc.ServicerContext) -> StillWanted:
     """The model's between-tokens check: stop as soon as the caller cannot use the answer."""
 
     def check() -> None:
-        remaining = context.time_remaining()
-        if remaining is not None and remaining <= 0:
-            raise DeadlineExceeded("the deadline passed while generating; generation stopped")
+        check_deadline(context, "while generating; generation stopped")
         if not context.is_active():
             raise Cancelled("the caller went away; generation stopped")
 

@@ -37,11 +37,12 @@ def status_for(exc: BaseException, method: str = "") -> tuple[grpc.StatusCode, s
     return grpc.StatusCode.INTERNAL, INTERNAL_MESSAGE
 
 
-def check_deadline(context: grpc.ServicerContext) -> None:
+def check_deadline(context: grpc.ServicerContext,
+                   when: str = "before the call could start") -> None:
     """Refuses work whose caller has already given up."""
     remaining = context.time_remaining()
     if remaining is not None and remaining <= 0:
-        raise DeadlineExceeded("the deadline passed before the call could start")
+        raise DeadlineExceeded(f"the deadline passed {when}")
 
 
 def _already_aborted(context: grpc.ServicerContext) -> bool:

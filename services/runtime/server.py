@@ -8,8 +8,6 @@ drain in-flight calls within the grace period, close the model, exit 0.
 from __future__ import annotations
 
 import logging
-import signal
-import threading
 from concurrent import futures
 from typing import Any
 
@@ -22,6 +20,7 @@ from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.spec import ServiceSpec
+from oricf.signals import stop_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -89,30 +88,17 @@ class ServiceHost:
         log.info("%s stopped", self.spec.name)
 
 
-def install_stop_handlers() -> threading.Event:
-    """An event set by SIGTERM or SIGINT (call from the main thread)."""
-    stop = threading.Event()
-
-    def on_signal(signum: int, _frame: object) -> None:
-        log.info("received %s", signal.Signals(signum).name)
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
-    return stop
-
-
 def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | None) -> int:
     """Runs a service until SIGTERM/SIGINT; returns the process exit code."""
-    stop = install_stop_handlers()
-    host = ServiceHost(spec, config, model, listen)
-    host.start()
-    try:
-        host.load_model()
-    except Exception:
-        host.server.stop(0)
-        raise
-    while not stop.wait(0.5):
-        pass
-    host.stop()
+    with stop_on_signals() as stop:
+        host = ServiceHost(spec, config, model, listen)
+        host.start()
+        try:
+            host.load_model()
+        except Exception:
+            host.server.stop(0)
+            raise
+        while not stop.wait(0.5):
+            pass
+        host.stop()
     return 0
