@@ -1,7 +1,8 @@
 """ROS messages <-> route values. The only module besides node.py that imports ROS types.
 
 Incoming messages become loaders (conversion runs in the route's worker, so a frame that is
-dropped as stale is never converted). Audio convention: std_msgs/Int16MultiArray, one
+dropped as stale is never converted). Camera frames arrive serialized and are read by
+oricf.gateway.cdr; the other inputs arrive as rclpy messages. Audio convention: std_msgs/Int16MultiArray, one
 complete utterance per message, int16 PCM samples interleaved by channel; the sample rate
 and channel count come from the route's YAML (16000 Hz mono by default), `layout` is ignored.
 """
@@ -12,9 +13,11 @@ from typing import Any
 
 import numpy as np
 from sensor_msgs.msg import CompressedImage, Image
+from builtin_interfaces.msg import Time
 from std_msgs.msg import Header, Int16MultiArray, Int32, String
 
 from oricf.errors import InvalidInput
+from oricf.gateway import cdr
 from oricf.gateway.config import InputConfig
 from oricf.gateway.route import Loader
 from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
@@ -29,13 +32,23 @@ MESSAGE_TYPES: dict[str, Any] = {
 }
 
 
+def image_record(type_: str, serialized: bytes) -> Record:
+    """One serialized camera message -> the route's input record (raises InvalidInput)."""
+    if type_ == "sensor_msgs/Image":
+        image = cdr.image(serialized)
+        frame = raw_frame(image.data, image.encoding, image.width, image.height, image.step)
+        return {"image": frame, "header": image.header}
+    compressed = cdr.compressed_image(serialized)
+    return {"image": compressed_frame(compressed.data, compressed.format),
+            "header": compressed.header}
+
+
+def image_loader(type_: str, serialized: bytes) -> Loader:
+    return lambda: image_record(type_, serialized)
+
+
 def to_record(config: InputConfig, msg: Any) -> Record:
-    """One incoming message -> the route's input record (raises InvalidInput)."""
-    if isinstance(msg, Image):
-        frame = raw_frame(memoryview(msg.data), msg.encoding, msg.width, msg.height, msg.step)
-        return {"image": frame, "header": msg.header}
-    if isinstance(msg, CompressedImage):
-        return {"image": compressed_frame(memoryview(msg.data), msg.format), "header": msg.header}
+    """One incoming message (not a camera frame) -> the route's input record."""
     if isinstance(msg, Int16MultiArray):
         return {"audio": audio_clip(np.asarray(msg.data, dtype=np.int16), config.sample_rate,
                                     config.channels)}
@@ -50,7 +63,7 @@ def loader(config: InputConfig, msg: Any) -> Loader:
     return lambda: to_record(config, msg)
 
 
-def to_message(type_: str, value: Any, header: Header | None = None) -> Any:
+def to_message(type_: str, value: Any, header: cdr.Stamp | None = None) -> Any:
     """A route value -> the output message of the given type."""
     if type_ == "std_msgs/Int32":
         return Int32(data=int(value))
@@ -61,13 +74,14 @@ def to_message(type_: str, value: Any, header: Header | None = None) -> Any:
     raise InvalidInput(f"unsupported output type {type_}")
 
 
-def image_message(frame: Frame, header: Header | None = None) -> Image:
+def image_message(frame: Frame, header: cdr.Stamp | None = None) -> Image:
     if frame.encoding not in RAW_CHANNELS:  # an encoded annotation from the service
         frame = Frame.from_pixels(frame.pixels())
     msg = Image(height=frame.height, width=frame.width, encoding=frame.encoding,
                 is_bigendian=0, step=frame.width * RAW_CHANNELS[frame.encoding])
-    if header is not None:
-        msg.header = header
+    if header is not None:  # the input frame's, so the annotation lines up with it
+        msg.header = Header(stamp=Time(sec=header.sec, nanosec=header.nanosec),
+                            frame_id=header.frame_id)
     msg.data = frame.data
     return msg
 

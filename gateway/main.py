@@ -36,6 +36,7 @@ from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.dds import use_large_data_profile
+from oricf.gateway.grpc_client import poll_in_calling_thread
 from oricf.gateway.memory import keep_freed_memory
 from oricf.logs import setup_logging
 
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def run(config: PipelineConfig, ros_args: list[str]) -> int:
     """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
+    poll_in_calling_thread()  # before the node's imports load grpc
     try:
         import rclpy
         from rclpy.executors import (

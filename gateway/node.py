@@ -1,8 +1,9 @@
 """The ROS 2 node: input topics -> Pipeline routes -> output topics.
 
-One callback group and one worker thread per route, so a slow language-model call never
-delays the camera route. Camera inputs use the sensor_data QoS with depth 1 (best effort,
-newest frame only); text and audio inputs are reliable, queued up to the route's queue_size.
+One worker thread per route, so a slow language-model call never delays the camera route.
+Camera inputs have a receive thread of their own (oricf.gateway.camera) and the sensor_data
+QoS with depth 1 (best effort, newest frame only); text and audio inputs run on the executor,
+one callback group per route, reliable, queued up to the route's queue_size.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from oricf.gateway import convert
+from oricf.gateway.camera import CameraReceiver
 from oricf.gateway.config import InputConfig, OutputConfig, PipelineConfig
 from oricf.gateway.methods import IMAGE_INPUTS
 from oricf.gateway.pipeline import Pipeline
@@ -40,6 +42,7 @@ class GatewayNode(Node):
         super().__init__(config.node_name, context=context)
         self._publishers_by_topic: dict[str, Publisher] = {}
         self._throttle = ThrottledLog(log)
+        self._cameras: list[CameraReceiver] = []
         self.pipeline = Pipeline(config, self._emit)
         for route in config.routes.values():
             for output in route.outputs:
@@ -49,6 +52,8 @@ class GatewayNode(Node):
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
         self.pipeline.start()
+        for camera in self._cameras:
+            camera.start()
         if config.stats_interval_s > 0:
             self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
         log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
@@ -67,13 +72,21 @@ class GatewayNode(Node):
     def _subscribe(self, route: str, config: InputConfig) -> None:
         assert config.topic is not None and config.type is not None
         submit = self.pipeline.submit
+        msg_type = convert.MESSAGE_TYPES[config.type]
+        if config.type in IMAGE_INPUTS:
+            type_ = config.type
 
-        def on_message(msg: Any) -> None:
-            submit(route, convert.loader(config, msg))
+            def on_frame(serialized: bytes) -> None:
+                submit(route, convert.image_loader(type_, serialized))
 
-        self.create_subscription(convert.MESSAGE_TYPES[config.type], config.topic, on_message,
-                                 input_qos(config),
-                                 callback_group=MutuallyExclusiveCallbackGroup())
+            self._cameras.append(CameraReceiver(self, route, msg_type, config.topic,
+                                                input_qos(config), on_frame))
+        else:
+            def on_message(msg: Any) -> None:
+                submit(route, convert.loader(config, msg))
+
+            self.create_subscription(msg_type, config.topic, on_message, input_qos(config),
+                                     callback_group=MutuallyExclusiveCallbackGroup())
         log.info("route %s: %s (%s) -> %s", route, config.topic, config.type,
                  self.pipeline.config.routes[route].call.method)
 
@@ -88,4 +101,6 @@ class GatewayNode(Node):
         self._publishers_by_topic[output.topic].publish(msg)
 
     def shutdown(self) -> None:
+        for camera in self._cameras:
+            camera.stop()
         self.pipeline.stop()

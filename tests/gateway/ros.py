@@ -91,8 +91,11 @@ class Probe:
             return
         raise TimeoutError("no count came back from the gateway")
 
-    def publish_frame(self, pixels: np.ndarray, encoding: str = "bgr8") -> None:
-        self.camera.publish(image_from_pixels(pixels, encoding))
+    def publish_frame(self, pixels: np.ndarray, encoding: str = "bgr8", frame_id: str = "",
+                      stamp_s: int = 0) -> None:
+        msg = image_from_pixels(pixels, encoding)
+        msg.header.frame_id, msg.header.stamp.sec = frame_id, stamp_s
+        self.camera.publish(msg)
 
     def publish_audio(self, samples: np.ndarray) -> None:
         msg = Int16MultiArray()

@@ -21,11 +21,11 @@ def test_vtest_frames_give_plausible_counts(ros_context: Context) -> None:
     frames = video_frames(FRAMES)
     with running_service("detector") as detector, \
             running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
-        counts = []
-        for frame in frames:
-            probe.publish_frame(frame)
+        counts, annotated = [], []
+        for i, frame in enumerate(frames):
+            probe.publish_frame(frame, frame_id="front_camera", stamp_s=1000 + i)
             counts.append(probe.next("/human_counter", timeout=10).data)
-        annotated = probe.next("/camera/image_annotated", timeout=10)
+            annotated.append(probe.next("/camera/image_annotated", timeout=10))
         stub = detector_pb2_grpc.DetectorStub(detector.channel)
         direct = [stub.Detect(detector_pb2.DetectRequest(
             image=Frame.from_pixels(f).to_proto(), labels=["person"]), timeout=10).counts["person"]
@@ -33,8 +33,11 @@ def test_vtest_frames_give_plausible_counts(ros_context: Context) -> None:
     # vtest.avi: a street with a handful of pedestrians; YOLOX-Nano finds 4-9 per frame.
     assert all(3 <= count <= 12 for count in counts), counts
     assert counts == direct  # the gateway passes frames on unchanged and counts every person
-    assert (annotated.width, annotated.height, annotated.encoding) == (768, 576, "bgr8")
-    assert len(annotated.data) == 768 * 576 * 3
+    assert [a.header.stamp.sec for a in annotated] == [1000 + i for i in range(len(frames))]
+    last = annotated[-1]  # stamped and framed like its input, so it can be matched to it
+    assert last.header.frame_id == "front_camera"
+    assert (last.width, last.height, last.encoding) == (768, 576, "bgr8")
+    assert len(last.data) == 768 * 576 * 3
     assert gw.pipeline.products.read("people_count").value == counts[-1]
 
 
