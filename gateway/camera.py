@@ -13,6 +13,7 @@ so no executor ever takes from it; text and audio routes stay on the executor.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 from collections.abc import Callable
@@ -81,10 +82,8 @@ class CameraReceiver:
 
     def stop(self, timeout: float = 5.0) -> None:
         self._stopping.set()
-        try:
+        with contextlib.suppress(Exception):  # gone with its context: the thread ends anyway
             self._wake.trigger()
-        except Exception:  # already destroyed with its context: the thread ends on its own
-            pass
         if self._thread.is_alive():
             self._thread.join(timeout)
         self._wake.destroy()

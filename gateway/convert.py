@@ -2,9 +2,11 @@
 
 Incoming messages become loaders (conversion runs in the route's worker, so a frame that is
 dropped as stale is never converted). Camera frames arrive serialized and are read by
-oricf.gateway.cdr; the other inputs arrive as rclpy messages. Audio convention: std_msgs/Int16MultiArray, one
-complete utterance per message, int16 PCM samples interleaved by channel; the sample rate
-and channel count come from the route's YAML (16000 Hz mono by default), `layout` is ignored.
+oricf.gateway.cdr; the other inputs arrive as rclpy messages.
+
+Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
+samples interleaved by channel; the sample rate and channel count come from the route's YAML
+(16000 Hz mono by default), `layout` is ignored.
 """
 
 from __future__ import annotations
@@ -12,8 +14,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from sensor_msgs.msg import CompressedImage, Image
 from builtin_interfaces.msg import Time
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header, Int16MultiArray, Int32, String
 
 from oricf.errors import InvalidInput
