@@ -4,8 +4,11 @@ Per wake-up, rclpy's executors rebuild a wait set of every entity of the node in
 run each callback as a task: about 0.5 ms of the robot's CPU per camera frame, as much as
 the gRPC call that sends the frame away. A camera route instead gets a thread that waits on
 a wait set holding only its subscription and a stop signal (the pattern of rclpy's own
-wait_for_message), takes each frame serialized (oricf.gateway.cdr reads it) and hands it to
-the route's worker, which keeps only the newest one.
+wait_for_message), takes each frame serialized (oricf.gateway.cdr reads it) and runs the
+route on it. While the route is busy, DDS keeps only the newest frame (history depth 1);
+the frames it replaced are counted from the gaps in the publisher's sequence numbers (exact
+with one publisher per camera topic, the usual case; with several the gaps mean nothing and
+are not counted).
 
 The subscription belongs to an `OwnThreadGroup`, a callback group that executors never run,
 so no executor ever takes from it; text and audio routes stay on the executor.
@@ -45,10 +48,12 @@ class OwnThreadGroup(CallbackGroup):
 
 
 class CameraReceiver:
-    """Takes serialized frames from one topic and passes them to `receive`."""
+    """Takes serialized frames from one topic and passes them to `receive` with the number of
+    frames missed since the previous one."""
 
-    def __init__(self, node: Node, name: str, msg_type: Any, topic: str, qos: QoSProfile,
-                 receive: Callable[[bytes], None]) -> None:
+    def __init__(self, node: Node, route: str, msg_type: Any, topic: str, qos: QoSProfile,
+                 receive: Callable[[bytes, int], None]) -> None:
+        self.route = route
         self._msg_type = msg_type
         self._receive = receive
         self._context = node.context
@@ -56,7 +61,8 @@ class CameraReceiver:
             msg_type, topic, _never_called, qos, callback_group=OwnThreadGroup(), raw=True)
         self._wake = GuardCondition(None, None, context=node.context)
         self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"camera-{name}", daemon=True)
+        self._last_sequence = 0
+        self._thread = threading.Thread(target=self._run, name=f"camera-{route}", daemon=True)
 
     def start(self) -> None:
         self._thread.start()
@@ -73,12 +79,18 @@ class CameraReceiver:
                     wait_set.wait(WAIT_TIMEOUT_NS)
                     taken = subscription.take_message(self._msg_type, True)
                 if taken is not None:
-                    self._receive(taken[0])
+                    serialized, info = taken
+                    self._receive(serialized, self._missed(info))
         except Exception as exc:  # the context or node went away under the thread
             if not self._stopping.is_set() and self._context.ok():
                 log.exception("camera receiver %s stopped", self._thread.name)
             else:
                 log.debug("camera receiver %s: %s while stopping", self._thread.name, exc)
+
+    def _missed(self, info: dict[str, Any]) -> int:
+        sequence = info.get("publication_sequence_number") or 0
+        last, self._last_sequence = self._last_sequence, sequence
+        return sequence - last - 1 if 0 < last < sequence else 0
 
     def stop(self, timeout: float = 5.0) -> None:
         self._stopping.set()

@@ -1,9 +1,10 @@
 """The ROS 2 node: input topics -> Pipeline routes -> output topics.
 
-One worker thread per route, so a slow language-model call never delays the camera route.
-Camera inputs have a receive thread of their own (oricf.gateway.camera) and the sensor_data
-QoS with depth 1 (best effort, newest frame only); text and audio inputs run on the executor,
-one callback group per route, reliable, queued up to the route's queue_size.
+A thread per route, so a slow language-model call never delays the camera route. Camera
+inputs have a receive thread of their own (oricf.gateway.camera) that also runs the route,
+with the sensor_data QoS at depth 1 (best effort, newest frame only); text and audio inputs
+run on the executor, one callback group per route, reliable, queued up to the route's
+queue_size, and are handed to the route's worker thread.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ class GatewayNode(Node):
         for name, route in config.routes.items():
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
-        self.pipeline.start()
+        self.pipeline.start(inline=[camera.route for camera in self._cameras])
         for camera in self._cameras:
             camera.start()
         if config.stats_interval_s > 0:
@@ -74,10 +75,10 @@ class GatewayNode(Node):
         submit = self.pipeline.submit
         msg_type = convert.MESSAGE_TYPES[config.type]
         if config.type in IMAGE_INPUTS:
-            type_ = config.type
+            type_, handle_here = config.type, self.pipeline.handle_here
 
-            def on_frame(serialized: bytes) -> None:
-                submit(route, convert.image_loader(type_, serialized))
+            def on_frame(serialized: bytes, missed: int) -> None:
+                handle_here(route, convert.image_loader(type_, serialized), missed)
 
             self._cameras.append(CameraReceiver(self, route, msg_type, config.topic,
                                                 input_qos(config), on_frame))

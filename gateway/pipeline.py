@@ -7,7 +7,7 @@ and publishes what `emit` receives. Tests and benchmarks drive this class direct
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import Any
 
 from oricf.gateway.config import PipelineConfig
@@ -55,9 +55,16 @@ class Pipeline:
     def submit(self, route: str, load: Loader) -> None:
         self.workers[route].submit(load)
 
-    def start(self) -> None:
-        for worker in self.workers.values():
-            worker.start()
+    def handle_here(self, route: str, load: Loader, missed: int = 0) -> None:
+        """Runs one item in the caller's thread (a route started `inline`)."""
+        self.workers[route].handle_here(load, missed)
+
+    def start(self, inline: Collection[str] = ()) -> None:
+        """Starts the worker threads, except those of `inline` routes: the caller feeds
+        those through handle_here from threads of its own."""
+        for name, worker in self.workers.items():
+            if name not in inline:
+                worker.start()
         for name, endpoint in self.endpoints.items():
             fallback = f", fallback {endpoint.fallback.address}" if endpoint.fallback else ""
             images = (f", images {endpoint.config.image.transport}"

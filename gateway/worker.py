@@ -4,6 +4,10 @@
 the route always works on the newest frame. `queue` (text, audio): up to queue_size items
 in order; when full the oldest is dropped (and counted). Items are loaders (callables that
 build the record), so a dropped message is never even converted.
+
+A camera route runs its items in its receive thread instead (`handle_here`): there DDS keeps
+the newest frame (history depth 1) while the route is busy, so the hand-off to another thread,
+and its wake-up, buys nothing. The worker still keeps the route's counts then.
 """
 
 from __future__ import annotations
@@ -50,6 +54,17 @@ class RouteWorker(Generic[T]):
             self._pending.append(item)
             self._cond.notify()
 
+    def handle_here(self, item: T, missed: int = 0) -> None:
+        """Handles item in the calling thread; `missed` newer-replaced items never arrived."""
+        with self._cond:
+            self.stats.received += 1 + missed
+            self.stats.dropped += missed
+            self._busy = True
+        self._handle_one(item)
+        with self._cond:
+            self._busy = False
+            self._cond.notify_all()
+
     def _next(self) -> T | None:
         with self._cond:
             self._busy = False
@@ -63,11 +78,14 @@ class RouteWorker(Generic[T]):
 
     def _run(self) -> None:
         while (item := self._next()) is not None:
-            try:
-                self._handle(item)
-            except Exception:  # the route logs its own errors; this is the last guard
-                log.exception("route %s: unexpected error", self.name)
-            self.stats.handled += 1
+            self._handle_one(item)
+
+    def _handle_one(self, item: T) -> None:
+        try:
+            self._handle(item)
+        except Exception:  # the route logs its own errors; this is the last guard
+            log.exception("route %s: unexpected error", self.name)
+        self.stats.handled += 1
 
     @property
     def busy(self) -> bool:

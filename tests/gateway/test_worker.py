@@ -38,6 +38,17 @@ def test_latest_keeps_only_the_newest_frame_while_busy() -> None:
     assert (worker.stats.received, worker.stats.dropped, worker.stats.handled) == (6, 4, 2)
 
 
+def test_items_handled_in_the_callers_thread_are_counted_with_the_missed_ones() -> None:
+    threads: list[str] = []
+    worker: RouteWorker[int] = RouteWorker(
+        "camera", lambda item: threads.append(threading.current_thread().name))
+    worker.handle_here(0)
+    worker.handle_here(1, missed=3)  # a camera thread: DDS replaced three frames meanwhile
+    assert threads == [threading.current_thread().name] * 2
+    assert (worker.stats.received, worker.stats.dropped, worker.stats.handled) == (5, 3, 2)
+    assert worker.idle(0)
+
+
 def test_queue_keeps_order_and_drops_the_oldest_when_full() -> None:
     worker, handled, release = blocked_worker("queue", size=3)
     worker.submit(0)
