@@ -71,7 +71,7 @@ class InputConfig(Schema):
     sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
     channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
     keep: Literal["latest", "queue"] | None = Field(
-        None, description="latest: newest only, older ones dropped (default for images); "
+        None, description="latest: newest only, older ones dropped (always for images); "
                           "queue: keep up to queue_size in order (default otherwise)")
     queue_size: int = Field(8, ge=1, le=1000)
 
@@ -83,6 +83,8 @@ class InputConfig(Schema):
             raise ValueError("type: required with topic")
         if self.product is not None and self.type is not None:
             raise ValueError("type: only with topic (a product carries its own value)")
+        if self.type in IMAGE_INPUTS and self.keep == "queue":
+            raise ValueError("keep: camera inputs keep only the newest frame (latest)")
         return self
 
     @property

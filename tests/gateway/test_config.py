@@ -89,6 +89,8 @@ BAD = [
      "routes.people.input.type"),
     ({"routes": {"people": {"input": {"product": "frames"}}}},
      "give exactly one of topic or product"),
+    ({"routes": {"people": {"input": {"keep": "queue"}}}},
+     "routes.people.input: keep: camera inputs keep only the newest frame"),
     ({"routes": {"people": {"post": [{"count": {}, "annotate": {}}]}}},
      "routes.people.post[0]: give exactly one of"),
     ({"routes": {"people": {"outputs": [{"topic": "/n", "type": "std_msgs/Int32",
