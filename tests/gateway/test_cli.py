@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import signal
+import threading
 from pathlib import Path
 
 import yaml
@@ -40,6 +41,41 @@ def test_gateway_process_counts_people_and_stops_on_sigterm(
     assert counts == [4, 4]
     assert f"endpoint detector: {detector.address}" in log
     assert re.search(r"route people: (\d+) received, 0 dropped as stale, \1 ok", log)
+
+
+def test_gateway_process_stops_cleanly_while_frames_stream(
+        ros_context: Context, ros_env: dict[str, str], tmp_path: Path) -> None:
+    """SIGTERM lands while the camera thread is mid-frame and the executor is spinning."""
+    overlay = tmp_path / "here.yaml"
+    frame = video_frames([0])[0]
+    with running_service("detector") as detector:
+        overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
+            "address": detector.address}}}))
+        with running_probe(ros_context) as probe:
+            for _ in range(2):
+                with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay",
+                                   str(overlay), env=ros_env) as gateway:
+                    probe.wait_connected(timeout=30)
+                    probe.warm_up(frame)
+                    stop_publishing = threading.Event()
+
+                    def stream(stop: threading.Event) -> None:
+                        while not stop.wait(0.03):
+                            probe.publish_frame(frame)
+
+                    publisher = threading.Thread(target=stream, args=(stop_publishing,),
+                                                 daemon=True)
+                    publisher.start()
+                    wait_for(lambda: probe.next("/human_counter", timeout=5).data == 4)
+                    gateway.send_signal(signal.SIGTERM)
+                    code = gateway.wait(timeout=15)
+                    stop_publishing.set()
+                    publisher.join()
+                    assert gateway.stdout is not None
+                    log = gateway.stdout.read()
+                assert code == 0, log
+                assert "Traceback" not in log
+                assert re.search(r"route people: \d+ received, \d+ dropped as stale", log)
 
 
 def test_gateway_process_refuses_a_bad_config(tmp_path: Path) -> None:
