@@ -37,7 +37,8 @@ class SpeechRecognizerServicer(speech_pb2_grpc.SpeechRecognizerServicer):
                            self.config.audio.max_audio_s)
         samples = to_model_input(pcm, model.sample_rate)
         decode_ms = (time.perf_counter() - started) * 1e3
-        check_deadline(context)  # decoding may have used up the caller's time
+        # decoding may have used up the caller's time
+        check_deadline(context, "while the audio was decoded, before recognition")
         result = model.infer(samples, request.language)
         transcript = _transcript(result, started)
         transcript.timings.decode_ms = decode_ms
@@ -78,7 +79,7 @@ class SpeechRecognizerServicer(speech_pb2_grpc.SpeechRecognizerServicer):
         total_ms counts from the arrival of the chunk that completed the utterance: the
         delay a robot sees after the speaker's pause has been heard.
         """
-        check_deadline(context)
+        check_deadline(context, "before this utterance could be recognised")
         result = model.infer(utterance.samples)
         transcript = _transcript(result, received)
         transcript.utterance = index
