@@ -48,9 +48,10 @@ def latency_table(result: InputResult, frames: int) -> None:
                  ["added by the gateway", f"{result.through_ms - result.direct_ms:.1f}"]])
 
 
-def cost_table(result: InputResult, power: PowerModel, fps: float, frames: int,
+def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple[int, int],
                threads: tuple[int, int]) -> None:
-    """threads: the shipped detector's thread count and the other one measured."""
+    """frames: per phase, and the number of parts whose median is shown; threads: the
+    shipped detector's thread count and the other one measured."""
     cpu = result.cpu
     shipped, other = threads
     onboard = {f"{shipped} thr (shipped)": cpu["gw raw 1"] + cpu["det shipped"],
@@ -69,8 +70,9 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: int,
                        for on in onboard.values()]
         rows.append([f"offloaded, transport {transport}", "gateway", f"{value * 1e3:.2f}",
                      *cuts, f"{energy * 1e3:.1f}", f"{radio / 1e3:.1f}", *energy_cuts])
-    print_table(f"Robot side per processed frame, {result.kind} input at {fps:g} fps, {frames} "
-                f"frames per phase (detector alone: {cpu['det shipped'] * 1e3:.1f} ms CPU with "
+    print_table(f"Robot side per processed frame, {result.kind} input at {fps:g} fps, "
+                f"{frames[0]} frames per phase, median of {frames[1]} parts (detector alone: "
+                f"{cpu['det shipped'] * 1e3:.1f} ms CPU with "
                 f"{shipped} thread(s), {cpu['det other'] * 1e3:.1f} ms with {other})",
                 ["placement", "robot processes", "CPU ms", *(f"CPU cut vs {k}" for k in onboard),
                  "energy mJ", "radio kB", *(f"energy cut vs {k}" for k in onboard)], rows)
