@@ -72,7 +72,6 @@ class GatewayNode(Node):
 
     def _subscribe(self, route: str, config: InputConfig) -> None:
         assert config.topic is not None and config.type is not None
-        submit = self.pipeline.submit
         msg_type = convert.MESSAGE_TYPES[config.type]
         if config.type in IMAGE_INPUTS:
             type_, handle_here = config.type, self.pipeline.handle_here
@@ -83,6 +82,8 @@ class GatewayNode(Node):
             self._cameras.append(CameraReceiver(self, route, msg_type, config.topic,
                                                 input_qos(config), on_frame))
         else:
+            submit = self.pipeline.submit
+
             def on_message(msg: Any) -> None:
                 submit(route, convert.loader(config, msg))
 
