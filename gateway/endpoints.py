@@ -32,12 +32,20 @@ STUBS: dict[str, Any] = {
 # Short reconnect backoff: a restarted service is found within about a second, not the
 # default of up to two minutes. gRPC also uses the minimum as the connect timeout, so a host
 # that accepts connections but never completes the handshake fails within a second too.
+#
+# No BDP probing: gRPC pings the server after every response it reads to size its receive
+# window, which woke about two of grpcio's threads per call. Replies are small (detections,
+# text) or at most an annotated frame, so a fixed 8 MB window serves as well: an annotated
+# 640x480 frame (0.9 MB) arrives without waiting for window updates. Requests are governed
+# by the server's window, which is unaffected.
 CHANNEL_OPTIONS = [
     ("grpc.max_send_message_length", 64 * 1024 * 1024),
     ("grpc.max_receive_message_length", 64 * 1024 * 1024),
     ("grpc.initial_reconnect_backoff_ms", 250),
     ("grpc.min_reconnect_backoff_ms", 1000),
     ("grpc.max_reconnect_backoff_ms", 1000),
+    ("grpc.http2.bdp_probe", 0),
+    ("grpc.http2.lookahead_bytes", 8 * 1024 * 1024),
 ]
 PROBE_TIMEOUT_S = 1.0
 

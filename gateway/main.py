@@ -35,7 +35,7 @@ from pathlib import Path
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, load_pipeline
-from oricf.gateway.dds import use_large_data_profile
+from oricf.gateway.dds import use_dds_profile
 from oricf.gateway.grpc_client import poll_in_calling_thread
 from oricf.gateway.memory import keep_freed_memory
 from oricf.logs import setup_logging
@@ -77,7 +77,7 @@ def run(config: PipelineConfig, ros_args: list[str]) -> int:
         log.error("ROS 2 Python packages not found (%s): source /opt/ros/jazzy/setup.bash, "
                   "or pip install 'oricf[ros]' on x86-64", exc)
         return 2
-    use_large_data_profile()
+    use_dds_profile()
     if not keep_freed_memory():
         log.info("mallopt not available: large frame buffers come from fresh pages")
     rclpy.init(args=ros_args)

@@ -26,7 +26,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.convert import image_from_pixels
-from oricf.gateway.dds import use_large_data_profile
+from oricf.gateway.dds import use_dds_profile
 
 log = logging.getLogger(__name__)
 
@@ -160,7 +160,7 @@ class DemoNode:
 
 def ros_context() -> Context:
     """An rclpy context with the Fast DDS profile that lets raw frames cross processes."""
-    use_large_data_profile()
+    use_dds_profile()
     context = Context()
     rclpy.init(context=context)
     return context

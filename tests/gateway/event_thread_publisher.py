@@ -1,0 +1,64 @@
+"""A reliable Int32 publisher that reports how often Fast DDS's event thread woke up.
+
+Run as `python -m tests.gateway.event_thread_publisher TOPIC COUNT` with the environment
+of the DDS profile under test: waits for a subscriber, publishes COUNT messages at 50 Hz
+and prints {"wakeups": N, "published": COUNT} as JSON. Fast DDS names that thread
+`dds.ev.<participant>`; Linux counts its sleeps in /proc (voluntary_ctxt_switches).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+import rclpy
+from rclpy.node import Node
+from std_msgs.msg import Int32
+
+MATCH_TIMEOUT_S = 30.0
+RATE_HZ = 50.0
+
+
+def event_thread_switches() -> int:
+    total = 0
+    for task in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{task}/comm") as comm:
+                if not comm.read().startswith("dds.ev."):
+                    continue
+            with open(f"/proc/self/task/{task}/status") as status:
+                for line in status:
+                    if line.startswith("voluntary_ctxt_switches:"):
+                        total += int(line.split()[1])
+        except OSError:  # a thread that ended meanwhile
+            continue
+    return total
+
+
+def main(topic: str, count: int) -> int:
+    rclpy.init()
+    node = Node("event_thread_publisher")
+    publisher = node.create_publisher(Int32, topic, 10)
+    deadline = time.monotonic() + MATCH_TIMEOUT_S
+    while publisher.get_subscription_count() == 0:
+        if time.monotonic() > deadline:
+            print(json.dumps({"error": "no subscriber matched"}))
+            return 1
+        time.sleep(0.05)
+    time.sleep(1.0)  # discovery traffic settles
+    before = event_thread_switches()
+    for i in range(count):
+        publisher.publish(Int32(data=i))
+        time.sleep(1.0 / RATE_HZ)
+    wakeups = event_thread_switches() - before
+    time.sleep(0.5)  # the subscriber gets the last samples before this participant leaves
+    print(json.dumps({"wakeups": wakeups, "published": count}))
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1], int(sys.argv[2])))
