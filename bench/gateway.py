@@ -75,10 +75,11 @@ def cpu_seconds(pid: int) -> float:
 
 
 def overlay(detector: str, transport: str, compressed: bool) -> dict[str, Any]:
-    """The people route counting only (no annotated image), at the given placement."""
+    """The people route counting only (no annotated image), at the given placement; the
+    detector's deadline stays the pipeline's (it sets how often gRPC's timer threads wake)."""
     source = ({"topic": COMPRESSED_TOPIC, "type": "sensor_msgs/CompressedImage"} if compressed
               else {"topic": "camera/image_raw", "type": "sensor_msgs/Image"})
-    return {"endpoints": {"detector": {"address": detector, "deadline_ms": 2000,
+    return {"endpoints": {"detector": {"address": detector,
                                        "image": {"transport": transport, "jpeg_quality": 80}}},
             "routes": {"people": {
                 "input": source,
@@ -280,7 +281,9 @@ def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
     print(f"Configuration: {FRAME_SIZE[0]}x{FRAME_SIZE[1]} vtest.avi frames at {args.fps:g} fps, "
           f"{args.frames} frames per phase; camera input: {args.input}; gateway: {PIPELINE.name} "
           f"people route (count only), executor threads "
-          f"{pipeline.get('executor_threads', 1)}, JPEG transport quality {JPEG_QUALITY}; "
+          f"{pipeline.get('executor_threads', 1)}, detector deadline "
+          f"{pipeline['endpoints']['detector']['deadline_ms']} ms, JPEG transport quality "
+          f"{JPEG_QUALITY}; "
           f"onboard detector: configs/services/detector.yaml (model {detector['name']}, "
           f"{detector['threads']} threads, spin {detector['spin']}, input "
           f"{detector['input_size']}) and the same with {other_threads()} thread(s); "
