@@ -1,8 +1,8 @@
 """ROS messages <-> route values. The only module besides node.py that imports ROS types.
 
-Incoming messages become loaders (conversion runs in the route's worker, so a frame that is
-dropped as stale is never converted). Camera frames arrive serialized and are read by
-oricf.gateway.cdr; the other inputs arrive as rclpy messages.
+Incoming messages become loaders: conversion runs when the route takes the message, so a
+queued message that is dropped is never converted. Camera frames arrive serialized and are
+read by oricf.gateway.cdr; the other inputs arrive as rclpy messages.
 
 Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
 samples interleaved by channel; the sample rate and channel count come from the route's YAML

@@ -28,6 +28,7 @@ from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
 
+
 def input_qos(config: InputConfig) -> QoSProfile:
     if config.type in IMAGE_INPUTS:
         qos = QoSProfile(depth=1)

@@ -19,7 +19,6 @@ from oricf.context import AGE_SUFFIX, STALE_SUFFIX
 Listener = Callable[[Any], None]
 
 
-
 @dataclass(frozen=True)
 class Reading:
     name: str

@@ -50,8 +50,7 @@ class Frame:
         return cls(np.ascontiguousarray(pixels).tobytes(), "bgr8", width, height)
 
 
-def raw_frame(data: bytes | memoryview, encoding: str, width: int, height: int,
-              step: int) -> Frame:
+def raw_frame(data: bytes, encoding: str, width: int, height: int, step: int) -> Frame:
     """A sensor_msgs/Image's fields -> Frame, refusing anything that cannot be a valid image."""
     if encoding not in RAW_CHANNELS:
         raise InvalidInput(f"unsupported image encoding '{encoding}'; "
@@ -67,10 +66,10 @@ def raw_frame(data: bytes | memoryview, encoding: str, width: int, height: int,
     if step != row:  # drop the row padding: the wire format has none
         rows = np.frombuffer(data, np.uint8).reshape(height, step)[:, :row]
         return Frame(rows.tobytes(), encoding, width, height)
-    return Frame(bytes(data), encoding, width, height)
+    return Frame(data, encoding, width, height)
 
 
-def compressed_frame(data: bytes | memoryview, format_: str) -> Frame:
+def compressed_frame(data: bytes, format_: str) -> Frame:
     """A sensor_msgs/CompressedImage -> Frame; format as image_transport writes it
     ("jpeg", "png", or "bgr8; jpeg compressed bgr8")."""
     text = format_.lower()
@@ -80,7 +79,7 @@ def compressed_frame(data: bytes | memoryview, format_: str) -> Frame:
                            f"use jpeg or png")
     if not len(data):
         raise InvalidInput("compressed image data is empty")
-    return Frame(bytes(data), encoding)
+    return Frame(data, encoding)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,6 @@ from oricf.errors import ConfigError
 ServiceName = Literal["detector", "asr", "llm"]
 
 
-
 class Restart(Schema):
     policy: Literal["no", "on-failure", "always"] = Field(
         "on-failure", description="restart after a crash (non-zero exit) or after any exit")

@@ -17,7 +17,6 @@ def detector() -> Iterator[RunningService]:
         yield service
 
 
-
 def test_list_shows_the_services(detector: RunningService) -> None:
     services = grpcurl(detector.address, "list").split()
     assert {"oricf.v1.Detector", "grpc.health.v1.Health"} <= set(services)

@@ -177,7 +177,6 @@ def test_health_is_serving(llm: RunningService) -> None:
         assert answer.status == health_pb2.HealthCheckResponse.SERVING
 
 
-
 def test_grpcurl_lists_the_service(llm: RunningService) -> None:
     services = grpcurl(llm.address, "list").split()
     assert {"oricf.v1.LanguageModel", "grpc.health.v1.Health"} <= set(services)
