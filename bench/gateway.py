@@ -13,13 +13,18 @@ on without decoding. For each input:
 2. Robot-side CPU per processed frame (each process's CPU-time clock over --frames frames
    at --fps; the median of 5 consecutive parts): onboard = gateway + detector processes;
    offloaded = the gateway process only (the detector would run on the edge server).
-   Offloaded is measured with raw transport and again with a gateway sending JPEG (what a
-   remote endpoint uses: the robot pays the encoding of raw frames, CompressedImage input
-   passes as is). The detector runs on this machine in every case; it is simply not counted
-   as robot CPU when offloaded. Onboard is measured with the shipped detector config and
-   with the other thread count (1 or 2).
+   Each gateway runs the shipped placement overlay, with only the detector's address
+   changed: configs/pipelines/placement/onboard.yaml (raw transport) and edge.yaml (JPEG
+   transport and the edge deadline: the robot pays the encoding of raw frames,
+   CompressedImage input passes as is). Offloaded is also shown with raw transport (the
+   onboard gateway's figure). The detector runs on this machine in every case; it is simply
+   not counted as robot CPU when offloaded. Onboard is measured with the shipped detector
+   config and with the other thread count (1 or 2).
 3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
    watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
+4. The offloaded gateway's thread wake-ups per frame, and what one wake-up costs a process
+   on this machine (oricf.bench.wakeups): a large share of the offloaded CPU, and the part
+   that differs most between machines (virtual ones charge far more per wake-up).
 """
 
 from __future__ import annotations
@@ -51,8 +56,16 @@ from oricf.bench.common import (
     stop,
     variant_config,
 )
-from oricf.bench.gateway_report import InputResult, PowerModel, cost_table, latency_table
+from oricf.bench.gateway_report import (
+    InputResult,
+    PowerModel,
+    cost_table,
+    latency_table,
+    wakeup_note,
+)
+from oricf.bench.wakeups import wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
+from oricf.gateway.config import EndpointConfig, load_pipeline
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
@@ -74,13 +87,22 @@ def cpu_seconds(pid: int) -> float:
     return time.clock_gettime(clock.value)
 
 
-def overlay(detector: str, transport: str, compressed: bool) -> dict[str, Any]:
-    """The people route counting only (no annotated image), at the given placement; the
-    detector's deadline stays the pipeline's (it sets how often gRPC's timer threads wake)."""
+def placement(name: str) -> Path:
+    """A shipped placement overlay: onboard or edge."""
+    return PIPELINE.parent / "placement" / f"{name}.yaml"
+
+
+def placement_detector(name: str) -> EndpointConfig:
+    """The detector endpoint as a placement leaves it (transport, deadline)."""
+    return load_pipeline(PIPELINE, [placement(name)], None).endpoints["detector"]
+
+
+def overlay(detector: str, compressed: bool) -> dict[str, Any]:
+    """Applied after the placement: the detector's address here, and the people route
+    counting only (no annotated image)."""
     source = ({"topic": COMPRESSED_TOPIC, "type": "sensor_msgs/CompressedImage"} if compressed
               else {"topic": "camera/image_raw", "type": "sensor_msgs/Image"})
-    return {"endpoints": {"detector": {"address": detector,
-                                       "image": {"transport": transport, "jpeg_quality": 80}}},
+    return {"endpoints": {"detector": {"address": detector}},
             "routes": {"people": {
                 "input": source,
                 "post": [{"count": {"label": "person", "into": "count"}}],
@@ -90,12 +112,13 @@ def overlay(detector: str, transport: str, compressed: bool) -> dict[str, Any]:
 
 
 @contextmanager
-def gateway(detector: str, transport: str, folder: Path, compressed: bool
+def gateway(detector: str, where: str, folder: Path, compressed: bool
             ) -> Iterator[subprocess.Popen[bytes]]:
-    path = folder / f"{transport}.yaml"
-    path.write_text(yaml.safe_dump(overlay(detector, transport, compressed)))
+    """`oricf gateway` at placement `where` (onboard or edge), sending to detector."""
+    path = folder / f"{where}-here.yaml"
+    path.write_text(yaml.safe_dump(overlay(detector, compressed)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
-               str(PIPELINE), "--overlay", str(path)]
+               str(PIPELINE), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
     try:
         yield process
@@ -229,14 +252,22 @@ def other_threads() -> int:
     return 2 if shipped_threads() == 1 else 1
 
 
+def describe_transport(endpoint: EndpointConfig) -> str:
+    image = endpoint.image
+    return f"jpeg q{image.jpeg_quality}" if image.transport == "jpeg" else image.transport
+
+
 def request_sizes(prepared: list[tuple[Any, detector_pb2.DetectRequest]]) -> dict[str, float]:
-    """Median bytes of a Detect request per transport (what goes over the radio offloaded)."""
+    """Median bytes of a Detect request per transport (what goes over the radio offloaded),
+    JPEG at the edge placement's quality."""
+    quality = placement_detector("edge").image.jpeg_quality
+
     def size(transport: str, request: detector_pb2.DetectRequest) -> int:
         image = request.image
         frame = Frame(image.data, image.encoding, image.width, image.height)
         copy = detector_pb2.DetectRequest()
         copy.CopyFrom(request)
-        copy.image.CopyFrom(frame.to_proto(transport, JPEG_QUALITY))
+        copy.image.CopyFrom(frame.to_proto(transport, quality))
         return copy.ByteSize()
 
     return {t: statistics.median(size(t, r) for _, r in prepared) for t in ("raw", "jpeg")}
@@ -255,18 +286,20 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
         messages = [msg for msg, _ in prepared]
         with served("detector") as (address, detector), \
                 grpc.insecure_channel(address) as channel:
-            with gateway(address, "raw", folder, compressed) as raw:
+            with gateway(address, "onboard", folder, compressed) as raw:
                 camera.warm_up(messages[0], raw)
                 latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
                 cpu["gw raw 1"], cpu["det shipped"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
-            with gateway(address, "jpeg", folder, compressed) as jpeg:
+            with gateway(address, "edge", folder, compressed) as jpeg:
                 camera.warm_up(messages[0], jpeg)
+                woken = wakeups(jpeg.pid)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
+                result.edge_wakeups = (wakeups(jpeg.pid) - woken) / len(messages)
         other = str(variant_config("detector", {"model": {"threads": other_threads()}},
                                    folder, "other-threads"))
         with served("detector", "--config", other) as (address, det1), \
-                gateway(address, "raw", folder, compressed) as raw:
+                gateway(address, "onboard", folder, compressed) as raw:
             camera.warm_up(messages[0], raw)
             cpu["gw raw 2"], cpu["det other"] = cpu_per_frame(camera, messages, args.fps,
                                                           [raw.pid, det1.pid])
@@ -278,12 +311,14 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
 def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
     detector = read_yaml(config_dir() / "services" / "detector.yaml")["model"]
     pipeline = read_yaml(PIPELINE)
+    placements = ", ".join(
+        f"{where} (detector transport {describe_transport(endpoint)}, deadline "
+        f"{endpoint.deadline_ms} ms)"
+        for where, endpoint in ((w, placement_detector(w)) for w in ("onboard", "edge")))
     print(f"Configuration: {FRAME_SIZE[0]}x{FRAME_SIZE[1]} vtest.avi frames at {args.fps:g} fps, "
           f"{args.frames} frames per phase; camera input: {args.input}; gateway: {PIPELINE.name} "
           f"people route (count only), executor threads "
-          f"{pipeline.get('executor_threads', 1)}, detector deadline "
-          f"{pipeline['endpoints']['detector']['deadline_ms']} ms, JPEG transport quality "
-          f"{JPEG_QUALITY}; "
+          f"{pipeline.get('executor_threads', 1)}; placements: {placements}; "
           f"onboard detector: configs/services/detector.yaml (model {detector['name']}, "
           f"{detector['threads']} threads, spin {detector['spin']}, input "
           f"{detector['input_size']}) and the same with {other_threads()} thread(s); "
@@ -298,12 +333,14 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     power = PowerModel(args.watts_per_core, args.nj_per_bit)
     inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
     results = [measure(args, folder, kind == "compressed") for kind in inputs]
+    wakeup_s = wakeup_cost(args.fps)
     print_configuration(args, power)
     for result in results:
         latency_table(result, args.frames)
     for result in results:
         cost_table(result, power, args.fps, (args.frames, CHUNKS),
                    (shipped_threads(), other_threads()))
+        wakeup_note(result, wakeup_s)
 
 
 def main(argv: list[str]) -> int:

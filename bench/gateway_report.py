@@ -38,6 +38,7 @@ class InputResult:
     cpu: dict[str, float] = field(default_factory=dict)  # phase -> CPU s per frame
     request_bytes: dict[str, float] = field(default_factory=dict)  # transport -> median
     response_bytes: float = 0.0
+    edge_wakeups: float = 0.0  # the offloaded (edge) gateway's thread wake-ups per frame
 
 
 def latency_table(result: InputResult, frames: int) -> None:
@@ -76,3 +77,11 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple
                 f"{shipped} thread(s), {cpu['det other'] * 1e3:.1f} ms with {other})",
                 ["placement", "robot processes", "CPU ms", *(f"CPU cut vs {k}" for k in onboard),
                  "energy mJ", "radio kB", *(f"energy cut vs {k}" for k in onboard)], rows)
+
+
+def wakeup_note(result: InputResult, wakeup_s: float) -> None:
+    """How much of the offloaded gateway's CPU is the price of waking its threads."""
+    share = result.edge_wakeups * wakeup_s / result.cpu["gw jpeg"]
+    print(f"Offloaded gateway (transport jpeg): {result.edge_wakeups:.1f} thread wake-ups per "
+          f"frame; one costs {wakeup_s * 1e6:.0f} us of CPU on this machine (a thread blocked "
+          f"on a socket, woken at the camera rate), about {share:.0%} of its CPU per frame.")
