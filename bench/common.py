@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import yaml
 
-from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.config import deep_merge, read_yaml, shipped_service_config
 from oricf.launch.health import free_port, wait_serving
 from oricf.store import ModelStore
 
@@ -71,7 +71,7 @@ def load_frames(count: int, size: tuple[int, int] = FRAME_SIZE) -> list[np.ndarr
 def variant_config(service: str, overrides: dict[str, Any], folder: Path, tag: str) -> Path:
     """The shipped service YAML with overrides, written into folder for `oricf serve --config`
     (a variant measured beside the shipped config)."""
-    data = deep_merge(read_yaml(config_dir() / "services" / f"{service}.yaml"), overrides)
+    data = deep_merge(read_yaml(shipped_service_config(service)), overrides)
     path = folder / f"{service}-{tag}.yaml"
     path.write_text(yaml.safe_dump(data))
     return path

@@ -21,7 +21,7 @@ import grpc
 import numpy as np
 
 from oricf.bench.common import load_frames, median_ms, print_table, served
-from oricf.config import config_dir, load_config
+from oricf.config import load_config, shipped_service_config
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.service import create_model
 from oricf.store import ModelStore
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="oricf bench detector", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=200, help="frames per measurement")
-    parser.add_argument("--config", type=Path, default=config_dir() / "services" / "detector.yaml",
+    parser.add_argument("--config", type=Path, default=shipped_service_config("detector"),
                         help="detector YAML for both the in-process model and the service")
     args = parser.parse_args(argv)
 

@@ -64,7 +64,7 @@ from oricf.bench.gateway_report import (
     wakeup_note,
 )
 from oricf.bench.wakeups import wakeup_cost, wakeups
-from oricf.config import config_dir, read_yaml
+from oricf.config import config_dir, read_yaml, shipped_service_config
 from oricf.gateway.config import EndpointConfig, load_pipeline
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
@@ -244,7 +244,7 @@ def cpu_per_frame(camera: Camera, frames: list[Any], fps: float,
 
 
 def shipped_threads() -> int:
-    return int(read_yaml(config_dir() / "services" / "detector.yaml")["model"]["threads"])
+    return int(read_yaml(shipped_service_config("detector"))["model"]["threads"])
 
 
 def other_threads() -> int:
@@ -309,7 +309,7 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
 
 
 def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
-    detector = read_yaml(config_dir() / "services" / "detector.yaml")["model"]
+    detector = read_yaml(shipped_service_config("detector"))["model"]
     pipeline = read_yaml(PIPELINE)
     placements = ", ".join(
         f"{where} (detector transport {describe_transport(endpoint)}, deadline "

@@ -27,7 +27,7 @@ from typing import Any
 
 import grpc
 
-from oricf.config import config_dir
+from oricf.config import shipped_service_config
 from oricf.services.runtime.local import local_service, service_config
 from oricf.v1 import language_pb2, language_pb2_grpc
 
@@ -202,7 +202,7 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", action="append", choices=MODELS,
                         help="catalog model to measure (repeatable; default: both)")
-    parser.add_argument("--config", type=Path, default=config_dir() / "services" / "llm.yaml",
+    parser.add_argument("--config", type=Path, default=shipped_service_config("llm"),
                         help="service YAML (default configs/services/llm.yaml)")
     parser.add_argument("--prompt", type=Path, help="prompt template for every model measured")
     parser.add_argument("--threads", type=int, action="append",

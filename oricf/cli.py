@@ -19,7 +19,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from oricf.config import config_dir, load_config
+from oricf.config import load_config, shipped_service_config
 from oricf.errors import ConfigError, ModelMissing
 from oricf.logs import setup_logging
 
@@ -40,7 +40,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from oricf.store import ModelStore
 
     spec = load_spec(args.service)
-    path = args.config or config_dir() / "services" / f"{args.service}.yaml"
+    path = args.config or shipped_service_config(args.service)
     config = load_config(path, spec.config_schema)
     model = spec.create_model(config, ModelStore())
     return serve(spec, config, model, args.listen)

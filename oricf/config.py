@@ -53,6 +53,11 @@ def config_dir() -> Path:
     return Path(os.environ.get("ORICF_CONFIG_DIR") or REPO_ROOT / "configs")
 
 
+def shipped_service_config(service: str) -> Path:
+    """A service's default YAML (`oricf serve SERVICE` without --config)."""
+    return config_dir() / "services" / f"{service}.yaml"
+
+
 def format_location(loc: Iterable[Any]) -> str:
     text = ""
     for part in loc:

@@ -15,7 +15,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from oricf.config import FilePath, Schema, check_address, config_dir, load_config
+from oricf.config import FilePath, Schema, check_address, load_config, shipped_service_config
 from oricf.errors import ConfigError
 
 # the keys of oricf.services.REGISTRY (a test keeps the two in step)
@@ -103,7 +103,7 @@ def connect_address(listen: str) -> str:
 
 
 def service_config_path(name: str, entry: LocalService) -> Path:
-    return entry.config or config_dir() / "services" / f"{name}.yaml"
+    return entry.config or shipped_service_config(name)
 
 
 def service_plan(name: str, entry: LocalService, deployment: Deployment) -> ProcessPlan:

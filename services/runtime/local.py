@@ -8,7 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from oricf.config import config_dir, deep_merge, read_yaml, validate
+from oricf.config import deep_merge, read_yaml, shipped_service_config, validate
 from oricf.services import load_spec
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.server import ServiceHost
@@ -21,7 +21,7 @@ def service_config(name: str, overrides: dict[str, Any] | None = None,
                    path: Path | None = None) -> Any:
     """A service's YAML (the shipped one by default) with overrides merged on top, listening
     on a free local port; validated, errors naming the file."""
-    path = path or config_dir() / "services" / f"{name}.yaml"
+    path = path or shipped_service_config(name)
     data = deep_merge(read_yaml(path), {"server": {"listen": LOCAL_LISTEN}})
     data = deep_merge(data, overrides or {})
     return validate(data, load_spec(name).config_schema, str(path), base_dir=path.parent)
