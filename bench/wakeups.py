@@ -10,6 +10,7 @@ machine, so its figures can be read against another machine's.
 from __future__ import annotations
 
 import socket
+import statistics
 import subprocess
 import sys
 import time
@@ -27,12 +28,15 @@ for _ in range(count):
 """
 
 
-def wakeups(pid: int) -> int:
+def wakeups(pid: int, threads: str = "") -> int:
     """Times the threads of a process have blocked so far (each block ends in a wake-up):
-    the sum of their voluntary context switches."""
+    the sum of their voluntary context switches. `threads`: only those whose name starts
+    so (e.g. "dds.ev." for Fast DDS's event threads)."""
     total = 0
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
+            if not (task / "comm").read_text().startswith(threads):
+                continue
             status = (task / "status").read_text()
         except OSError:  # the thread ended meanwhile
             continue
@@ -57,4 +61,4 @@ def wakeup_cost(rate_hz: float, count: int = 50) -> float:
     finally:
         mine.close()
         waker.wait()
-    return sorted(costs)[len(costs) // 2]
+    return statistics.median(costs)

@@ -17,24 +17,11 @@ import rclpy
 from rclpy.node import Node
 from std_msgs.msg import Int32
 
+from oricf.bench.wakeups import wakeups
+
 MATCH_TIMEOUT_S = 30.0
 RATE_HZ = 50.0
-
-
-def event_thread_switches() -> int:
-    total = 0
-    for task in os.listdir("/proc/self/task"):
-        try:
-            with open(f"/proc/self/task/{task}/comm") as comm:
-                if not comm.read().startswith("dds.ev."):
-                    continue
-            with open(f"/proc/self/task/{task}/status") as status:
-                for line in status:
-                    if line.startswith("voluntary_ctxt_switches:"):
-                        total += int(line.split()[1])
-        except OSError:  # a thread that ended meanwhile
-            continue
-    return total
+EVENT_THREADS = "dds.ev."  # Fast DDS names its event thread dds.ev.<participant>
 
 
 def main(topic: str, count: int) -> int:
@@ -48,13 +35,13 @@ def main(topic: str, count: int) -> int:
             return 1
         time.sleep(0.05)
     time.sleep(1.0)  # discovery traffic settles
-    before = event_thread_switches()
+    before = wakeups(os.getpid(), EVENT_THREADS)
     for i in range(count):
         publisher.publish(Int32(data=i))
         time.sleep(1.0 / RATE_HZ)
-    wakeups = event_thread_switches() - before
+    woken = wakeups(os.getpid(), EVENT_THREADS) - before
     time.sleep(0.5)  # the subscriber gets the last samples before this participant leaves
-    print(json.dumps({"wakeups": wakeups, "published": count}))
+    print(json.dumps({"wakeups": woken, "published": count}))
     node.destroy_node()
     rclpy.shutdown()
     return 0
