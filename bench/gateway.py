@@ -22,9 +22,10 @@ on without decoding. For each input:
    config and with the other thread count (1 or 2).
 3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
    watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
-4. The offloaded gateway's thread wake-ups per frame, and what one wake-up costs a process
-   on this machine (oricf.bench.wakeups): a large share of the offloaded CPU, and the part
-   that differs most between machines (virtual ones charge far more per wake-up).
+4. The offloaded gateway's thread wake-ups per frame, what one wake-up costs a process on
+   this machine, and how much slower a short burst of work runs after the camera's period
+   of idleness than back to back (oricf.bench.wakeups): most of the offloaded CPU, and the
+   part that differs most between machines (virtual ones charge far more for both).
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ from oricf.bench.gateway_report import (
     latency_table,
     wakeup_note,
 )
-from oricf.bench.wakeups import wakeup_cost, wakeups
+from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml, shipped_service_config
 from oricf.gateway.config import EndpointConfig, load_pipeline
 from oricf.gateway.dds import DDS_PROFILE
@@ -334,13 +335,14 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
     results = [measure(args, folder, kind == "compressed") for kind in inputs]
     wakeup_s = wakeup_cost(args.fps)
+    burst_s = idle_slowdown(1.0 / args.fps)
     print_configuration(args, power)
     for result in results:
         latency_table(result, args.frames)
     for result in results:
         cost_table(result, power, args.fps, (args.frames, CHUNKS),
                    (shipped_threads(), other_threads()))
-        wakeup_note(result, wakeup_s)
+        wakeup_note(result, wakeup_s, burst_s, 1.0 / args.fps)
 
 
 def main(argv: list[str]) -> int:

@@ -1,14 +1,19 @@
-"""Thread wake-ups: how often a process's threads wake, and what one wake-up costs here.
+"""Thread wake-ups: how often a process's threads wake, and what waking costs here.
 
 Much of an offloaded gateway's CPU per frame is not work but waking up: every time one of
 its threads blocks (on a socket, a condition, a timer) and is woken again, the kernel, and
-on a virtual machine the hypervisor, charges the process for it. The gateway benchmark
-counts the offloaded gateway's wake-ups per frame and measures the price of one on this
-machine, so its figures can be read against another machine's.
+on a virtual machine the hypervisor, charges the process for it. And the work that follows
+a wake-up runs slower than the same work back to back: the caches and TLBs it needs were
+filled by something else while the thread slept. The gateway works in short bursts (a frame
+arrives, a reply arrives) with the camera's period in between, so both weigh far more on its
+CPU per frame than on the detector's long bursts of inference. The gateway benchmark counts
+the offloaded gateway's wake-ups per frame and measures both prices on this machine, so its
+figures can be read against another machine's.
 """
 
 from __future__ import annotations
 
+import json
 import socket
 import statistics
 import subprocess
@@ -62,3 +67,28 @@ def wakeup_cost(rate_hz: float, count: int = 50) -> float:
         mine.close()
         waker.wait()
     return statistics.median(costs)
+
+
+def _burst() -> int:
+    """A fixed short piece of Python work (tens of microseconds), like one step of the
+    gateway's work per frame."""
+    return len(json.dumps({str(i): i for i in range(100)}))
+
+
+def _timed_burst() -> float:
+    started = time.thread_time()
+    _burst()
+    return time.thread_time() - started
+
+
+def idle_slowdown(idle_s: float, count: int = 30) -> tuple[float, float]:
+    """Thread CPU seconds of one short burst of Python work back to back, and right after
+    sleeping idle_s (the camera's period): medians over `count` bursts each."""
+    for _ in range(5):
+        _burst()
+    back_to_back = statistics.median(_timed_burst() for _ in range(count))
+    after_idle = []
+    for _ in range(count):
+        time.sleep(idle_s)
+        after_idle.append(_timed_burst())
+    return back_to_back, statistics.median(after_idle)
