@@ -3,8 +3,9 @@
 Much of an offloaded gateway's CPU per frame is not work but waking up: every time one of
 its threads blocks (on a socket, a condition, a timer) and is woken again, the kernel, and
 on a virtual machine the hypervisor, charges the process for it. And the work that follows
-a wake-up runs slower than the same work back to back: the caches and TLBs it needs were
-filled by something else while the thread slept. The gateway works in short bursts (a frame
+a wake-up runs slower than the same work back to back, most likely because the caches and
+TLBs it needs were refilled by other work (on a virtual machine, the host's too) while the
+thread slept. The gateway works in short bursts (a frame
 arrives, a reply arrives) with the camera's period in between, so both weigh far more on its
 CPU per frame than on the detector's long bursts of inference. The gateway benchmark counts
 the offloaded gateway's wake-ups per frame and measures both prices on this machine, so its
