@@ -61,6 +61,7 @@ from oricf.bench.gateway_report import (
     InputResult,
     PowerModel,
     cost_table,
+    idle_note,
     latency_table,
     wakeup_note,
 )
@@ -334,15 +335,17 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     power = PowerModel(args.watts_per_core, args.nj_per_bit)
     inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
     results = [measure(args, folder, kind == "compressed") for kind in inputs]
+    period_s = 1.0 / args.fps
     wakeup_s = wakeup_cost(args.fps)
-    burst_s = idle_slowdown(1.0 / args.fps)
+    burst_s = idle_slowdown(period_s)
     print_configuration(args, power)
     for result in results:
         latency_table(result, args.frames)
     for result in results:
         cost_table(result, power, args.fps, (args.frames, CHUNKS),
                    (shipped_threads(), other_threads()))
-        wakeup_note(result, wakeup_s, burst_s, 1.0 / args.fps)
+        wakeup_note(result, wakeup_s)
+    idle_note(burst_s, period_s)
 
 
 def main(argv: list[str]) -> int:

@@ -79,15 +79,18 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple
                  "energy mJ", "radio kB", *(f"energy cut vs {k}" for k in onboard)], rows)
 
 
-def wakeup_note(result: InputResult, wakeup_s: float, burst_s: tuple[float, float],
-                period_s: float) -> None:
-    """How much of the offloaded gateway's CPU is the price of waking its threads, and how
-    much slower this machine runs short work after the camera's period of idleness."""
+def wakeup_note(result: InputResult, wakeup_s: float) -> None:
+    """How much of the offloaded gateway's CPU is the price of waking its threads."""
     share = result.edge_wakeups * wakeup_s / result.cpu["gw jpeg"]
-    back_to_back, after_idle = burst_s
     print(f"Offloaded gateway (transport jpeg): {result.edge_wakeups:.1f} thread wake-ups per "
           f"frame; one costs {wakeup_s * 1e6:.0f} us of CPU on this machine (a thread blocked "
-          f"on a socket, woken at the camera rate), about {share:.0%} of its CPU per frame. "
-          f"A short burst of Python work takes {back_to_back * 1e6:.0f} us back to back and "
+          f"on a socket, woken at the camera rate), about {share:.0%} of its CPU per frame.")
+
+
+def idle_note(burst_s: tuple[float, float], period_s: float) -> None:
+    """How much slower this machine runs short work after the camera's period of idleness."""
+    back_to_back, after_idle = burst_s
+    print(f"A short burst of Python work takes {back_to_back * 1e6:.0f} us back to back and "
           f"{after_idle * 1e6:.0f} us after {period_s * 1e3:.0f} ms idle "
-          f"({after_idle / back_to_back:.0f}x): the gateway's work per frame is such bursts.")
+          f"({after_idle / back_to_back:.0f}x) on this machine: the gateway's work per frame "
+          f"is such bursts.")
