@@ -23,9 +23,10 @@ on without decoding. For each input:
 3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
    watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
 4. The offloaded gateway's thread wake-ups per frame, what one wake-up costs a process on
-   this machine, and how much slower a short burst of work runs after the camera's period
-   of idleness than back to back (oricf.bench.wakeups): most of the offloaded CPU, and the
-   part that differs most between machines (virtual ones charge far more for both).
+   this machine, and how much slower a short burst of work runs after a pause of the
+   camera's period (asleep, and busy-waiting) than back to back (oricf.bench.wakeups): most
+   of the offloaded CPU, and the part that differs most between machines (shared virtual
+   ones charge far more for both).
 """
 
 from __future__ import annotations
@@ -337,7 +338,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
     results = [measure(args, folder, kind == "compressed") for kind in inputs]
     period_s = 1.0 / args.fps
     wakeup_s = wakeup_cost(args.fps)
-    burst_s = idle_slowdown(period_s)
+    burst = idle_slowdown(period_s)
     print_configuration(args, power)
     for result in results:
         latency_table(result, args.frames)
@@ -345,7 +346,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
         cost_table(result, power, args.fps, (args.frames, CHUNKS),
                    (shipped_threads(), other_threads()))
         wakeup_note(result, wakeup_s)
-    idle_note(burst_s, period_s)
+    idle_note(burst, period_s)
 
 
 def main(argv: list[str]) -> int:

@@ -2,14 +2,16 @@
 
 Much of an offloaded gateway's CPU per frame is not work but waking up: every time one of
 its threads blocks (on a socket, a condition, a timer) and is woken again, the kernel, and
-on a virtual machine the hypervisor, charges the process for it. And the work that follows
-a wake-up runs slower than the same work back to back, most likely because the caches and
-TLBs it needs were refilled by other work (on a virtual machine, the host's too) while the
-thread slept. The gateway works in short bursts (a frame
-arrives, a reply arrives) with the camera's period in between, so both weigh far more on its
-CPU per frame than on the detector's long bursts of inference. The gateway benchmark counts
-the offloaded gateway's wake-ups per frame and measures both prices on this machine, so its
-figures can be read against another machine's.
+on a virtual machine the hypervisor, charges the process for it. And short work that follows
+a pause runs slower than the same work back to back, most likely because the caches and TLBs
+it needs were refilled by other work (on a virtual machine, the host's too) in the meantime:
+`idle_slowdown` times it after sleeping and after busy-waiting as long, and on a shared
+virtual machine the two are about equally slow, so the price is the pause, not the wake-up.
+The gateway works in short bursts (a frame arrives, a reply arrives) with the camera's
+period in between, so both prices weigh far more on its CPU per frame than on the detector's
+long bursts of inference. The gateway benchmark counts the offloaded gateway's wake-ups per
+frame and measures both prices on this machine, so its figures can be read against another
+machine's.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 # The waker: writes one byte to the inherited socket `count` times, `rate` times a second.
 _WAKER = """
@@ -82,14 +85,32 @@ def _timed_burst() -> float:
     return time.thread_time() - started
 
 
-def idle_slowdown(idle_s: float, count: int = 30) -> tuple[float, float]:
-    """Thread CPU seconds of one short burst of Python work back to back, and right after
-    sleeping idle_s (the camera's period): medians over `count` bursts each."""
+class BurstTimes(NamedTuple):
+    """Thread CPU seconds of one short burst of Python work (medians)."""
+
+    back_to_back: float
+    after_sleep: float  # right after the thread slept one pause
+    after_busy: float  # right after it busy-waited one pause (no sleep, no wake-up)
+
+
+def idle_slowdown(pause_s: float, count: int = 30) -> BurstTimes:
+    """One short burst of Python work timed back to back, right after sleeping pause_s (the
+    camera's period), and right after busy-waiting as long: medians over `count` bursts each.
+    Busy-waiting keeps the thread on its CPU, so what it still loses is not the wake-up's."""
     for _ in range(5):
         _burst()
     back_to_back = statistics.median(_timed_burst() for _ in range(count))
-    after_idle = []
+    after_sleep, after_busy = [], []
     for _ in range(count):
-        time.sleep(idle_s)
-        after_idle.append(_timed_burst())
-    return back_to_back, statistics.median(after_idle)
+        time.sleep(pause_s)
+        after_sleep.append(_timed_burst())
+        _busy_wait(pause_s)
+        after_busy.append(_timed_burst())
+    return BurstTimes(back_to_back, statistics.median(after_sleep),
+                      statistics.median(after_busy))
+
+
+def _busy_wait(seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
