@@ -8,19 +8,18 @@ import os
 import queue
 import subprocess
 import sys
-import threading
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32
 
 from oricf.gateway.dds import DDS_PROFILE, use_dds_profile
+from tests.gateway.ros import spinning
 
 PUBLISHED = 40
 NAMESPACE = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
@@ -51,14 +50,11 @@ def counts(ros_context: Context) -> Iterator[tuple[str, queue.Queue[int]]]:
     node = Node("profile_test_subscriber", context=ros_context)
     node.create_subscription(Int32, topic, lambda msg: received.put(msg.data),
                              QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    yield topic, received
-    executor.shutdown(timeout_sec=5)
-    spinner.join(timeout=5)
-    node.destroy_node()
+    try:
+        with spinning(ros_context, node):
+            yield topic, received
+    finally:
+        node.destroy_node()
 
 
 def publish_from_another_process(topic: str, profile: Path) -> tuple[dict[str, int], str]:
