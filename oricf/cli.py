@@ -1,6 +1,6 @@
 """The `oricf` command.
 
-    oricf serve detector|asr|llm [--config FILE] [--listen HOST:PORT]
+    oricf serve detector|asr|llm|models [--config FILE] [--listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbs = parser.add_subparsers(dest="verb", required=True)
 
     serve = verbs.add_parser("serve", help="run a model service")
-    serve.add_argument("service", choices=["detector", "asr", "llm"])
+    serve.add_argument("service", choices=["detector", "asr", "llm", "models"])
     serve.add_argument("--config", type=Path,
                        help="service YAML (default configs/services/NAME.yaml)")
     serve.add_argument("--listen", help="override the listen address, e.g. 0.0.0.0:50051")

@@ -15,6 +15,10 @@ class InvalidInput(OricfError):
     """The caller sent something the model cannot use (bad image, empty audio...)."""
 
 
+class NotFound(OricfError):
+    """The caller named something the service does not have (a model, a version)."""
+
+
 class NotReady(OricfError):
     """The model is not loaded yet, or the service is shutting down."""
 

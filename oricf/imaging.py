@@ -83,7 +83,7 @@ def _decode_raw(data: bytes, encoding: str, width: int, height: int,
 
 def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
                     max_pixels: int) -> np.ndarray:
-    header = _encoded_size(data, encoding)
+    header = encoded_size(data, encoding)
     if header is not None:  # refuse decompression bombs before decoding
         check_size(header[0], header[1], max_pixels)
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
@@ -97,7 +97,7 @@ def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
     return image
 
 
-def _encoded_size(data: bytes, encoding: str) -> tuple[int, int] | None:
+def encoded_size(data: bytes, encoding: str) -> tuple[int, int] | None:
     """(width, height) from a PNG or JPEG header without decoding, if it can be read."""
     if encoding == "png" and len(data) >= 24 and data[:8] == b"\x89PNG\r\n\x1a\n":
         return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")

@@ -14,7 +14,7 @@ PROTO_ROOT = Path(__file__).resolve().parent.parent / "protos"
 
 
 def proto_files(root: Path = PROTO_ROOT) -> list[Path]:
-    return sorted((root / "oricf" / "v1").glob("*.proto"))
+    return sorted((root / "oricf").rglob("*.proto"))
 
 
 def generate(out_dir: Path, root: Path = PROTO_ROOT) -> None:

@@ -19,7 +19,7 @@ from oricf.config import FilePath, Schema, check_address, load_config, shipped_s
 from oricf.errors import ConfigError
 
 # the keys of oricf.services.REGISTRY (a test keeps the two in step)
-ServiceName = Literal["detector", "asr", "llm"]
+ServiceName = Literal["detector", "asr", "llm", "models"]
 
 
 class Restart(Schema):

@@ -8,9 +8,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from oricf.errors import InvalidInput
+from oricf.errors import ConfigError, InvalidInput
 from oricf.imaging import Box, Detection
-from oricf.services.detector.yolox import RawDetections
+from oricf.models.heads import Detections
 
 
 class LabelSpace:
@@ -22,10 +22,17 @@ class LabelSpace:
 
     def __init__(self, model_labels: Sequence[str], label_map: Mapping[str, str],
                  default_labels: Sequence[str]) -> None:
+        unknown = sorted(set(label_map) - set(model_labels))
+        if unknown:
+            raise ConfigError(f"detection.label_map: the model has no label(s) "
+                              f"{', '.join(unknown)}")
         self.names = [label_map.get(label, label) for label in model_labels]
         self._ids: dict[str, list[int]] = {}
         for class_id, name in enumerate(self.names):
             self._ids.setdefault(name, []).append(class_id)
+        unknown = sorted(set(default_labels) - set(self._ids))
+        if unknown:
+            raise ConfigError(f"detection.labels: unknown label(s) {', '.join(unknown)}")
         self.default_labels = list(default_labels)
 
     @property
@@ -47,7 +54,7 @@ class LabelSpace:
         ids = sorted(i for label in labels for i in self._ids[label])
         return labels, np.array(ids, dtype=np.int64)
 
-    def detections(self, raw: RawDetections) -> list[Detection]:
+    def detections(self, raw: Detections) -> list[Detection]:
         return [
             Detection(self.names[int(c)], int(c), float(s), Box(*map(float, b)))
             for b, s, c in zip(raw.boxes, raw.scores, raw.class_ids, strict=True)

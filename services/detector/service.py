@@ -1,37 +1,40 @@
-"""The detector as a runtime service: `oricf serve detector`."""
+"""The detector as a runtime service: `oricf serve detector`, for any declared detection model."""
 
 from __future__ import annotations
 
 import grpc
 
-from oricf.services.detector.coco import COCO_LABELS
+from oricf.errors import ConfigError
+from oricf.models.declaration import DetectionTask, load_declaration
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.servicer import DetectorServicer
-from oricf.services.detector.yolox import YoloxDetector, YoloxSettings
+from oricf.services.models.model import DeclaredModel
 from oricf.services.runtime import ModelSlot, ServiceSpec
 from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 
-def create_model(config: DetectorConfig, store: ModelStore) -> YoloxDetector:
-    name = config.model.name
-    entry = store.entry(name)
-    path = store.path(name, "model.onnx")
-    return YoloxDetector(YoloxSettings(
-        path=path, catalog_name=name, sha256=entry.files[0].sha256, license=entry.license,
-        providers=tuple(config.model.providers), threads=config.model.threads,
-        spin=config.model.spin,
-        input_size=config.model.input_size, nms_iou=config.detection.nms_iou,
-        max_detections=config.detection.max_detections))
+def detection_task(config: DetectorConfig) -> DetectionTask:
+    task = load_declaration(config.model).task
+    if not isinstance(task, DetectionTask):
+        raise ConfigError(f"{config.model}: task.kind: the detector serves detection models")
+    return task
 
 
-def add_servicer(server: grpc.Server, slot: ModelSlot[YoloxDetector],
+def create_model(config: DetectorConfig, store: ModelStore) -> DeclaredModel:
+    detection_task(config)
+    return DeclaredModel(load_declaration(config.model), store)
+
+
+def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
                  config: DetectorConfig) -> None:
+    task = detection_task(config)
     detection = config.detection
-    labels = LabelSpace(COCO_LABELS, detection.label_map, detection.labels)
+    labels = LabelSpace(task.label_list(), detection.label_map, detection.labels)
+    min_score = detection.min_score or task.min_score
     detector_pb2_grpc.add_DetectorServicer_to_server(
-        DetectorServicer(slot, config, labels), server)
+        DetectorServicer(slot, config, labels, min_score), server)
 
 
 SPEC = ServiceSpec(

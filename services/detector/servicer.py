@@ -16,9 +16,10 @@ import numpy as np
 
 from oricf.errors import InvalidInput
 from oricf.imaging import Detection, decode_image, draw_detections, encode_image
+from oricf.models.heads import Prepared
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
-from oricf.services.detector.yolox import PreparedImage, YoloxDetector
+from oricf.services.models.model import DeclaredModel
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import status_for
 from oricf.services.runtime.info import model_info_response
@@ -35,7 +36,7 @@ class Frame:
 
     frame_id: int
     image: np.ndarray
-    prepared: PreparedImage
+    prepared: Prepared
     labels: list[str]
     class_ids: np.ndarray | None
     min_score: float
@@ -50,11 +51,12 @@ StreamItem: TypeAlias = Frame | detector_pb2.DetectResponse | BaseException | No
 
 
 class DetectorServicer(detector_pb2_grpc.DetectorServicer):
-    def __init__(self, slot: ModelSlot[YoloxDetector], config: DetectorConfig,
-                 labels: LabelSpace) -> None:
+    def __init__(self, slot: ModelSlot[DeclaredModel], config: DetectorConfig,
+                 labels: LabelSpace, default_min_score: float) -> None:
         self.slot = slot
         self.config = config
         self.labels = labels
+        self.default_min_score = default_min_score
 
     def Detect(self, request: detector_pb2.DetectRequest,
                context: grpc.ServicerContext) -> detector_pb2.DetectResponse:
@@ -158,10 +160,10 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
 
     def _min_score(self, requested: float) -> float:
         if requested == 0:
-            return self.config.detection.min_score
+            return self.default_min_score
         if math.isnan(requested) or not 0 < requested <= 1:
             raise InvalidInput(f"min_score {requested} is out of range: use (0, 1], or 0 for the "
-                               f"service default ({self.config.detection.min_score})")
+                               f"service default ({self.default_min_score})")
         return requested
 
     def _annotate_encoding(self, request: detector_pb2.DetectRequest) -> str:

@@ -13,12 +13,20 @@ from typing import Any
 
 import grpc
 
-from oricf.errors import Cancelled, DeadlineExceeded, InvalidInput, NotReady, Overloaded
+from oricf.errors import (
+    Cancelled,
+    DeadlineExceeded,
+    InvalidInput,
+    NotFound,
+    NotReady,
+    Overloaded,
+)
 
 log = logging.getLogger(__name__)
 
 STATUS_FOR: dict[type[Exception], grpc.StatusCode] = {
     InvalidInput: grpc.StatusCode.INVALID_ARGUMENT,
+    NotFound: grpc.StatusCode.NOT_FOUND,
     NotReady: grpc.StatusCode.UNAVAILABLE,
     Overloaded: grpc.StatusCode.RESOURCE_EXHAUSTED,
     DeadlineExceeded: grpc.StatusCode.DEADLINE_EXCEEDED,

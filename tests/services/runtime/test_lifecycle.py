@@ -12,6 +12,7 @@ import grpc
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
+from oricf.config import REPO_ROOT
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
 from tests.support.processes import free_port, oricf_process, wait_serving
@@ -112,10 +113,16 @@ def test_invalid_config_exits_non_zero_naming_file_and_key(tmp_path: Path) -> No
 
 
 def test_unavailable_execution_provider_is_refused(tmp_path: Path) -> None:
+    declaration = tmp_path / "cuda.yaml"
+    declaration.write_text(
+        (REPO_ROOT / "configs/models/yolox-nano.yaml").read_text().replace(
+            "backend: {engine: onnxruntime, threads: 1}",
+            "backend: {engine: onnxruntime, providers: [CUDAExecutionProvider]}")
+        .replace("labels/coco80.txt", str(REPO_ROOT / "configs/models/labels/coco80.txt")))
     config = tmp_path / "detector.yaml"
-    config.write_text("model:\n  providers: [CUDAExecutionProvider]\n")
+    config.write_text(f"model: {declaration}\n")
     result = subprocess.run(
         [sys.executable, "-m", "oricf", "serve", "detector", "--config", str(config),
          "--listen", "127.0.0.1:0"], capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 2
-    assert "model.providers: CUDAExecutionProvider not available" in result.stderr
+    assert "backend.providers: CUDAExecutionProvider not available" in result.stderr

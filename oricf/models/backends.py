@@ -1,0 +1,109 @@
+"""Inference back ends: a model file in, a session that runs named tensors out.
+
+Each back end is one small class behind the same `Session` surface; BACKENDS maps the
+`backend.engine` of a declaration to it. The engines are imported when a model opens, so
+a missing one is refused at start with what to install, never at import time.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from oricf.errors import ConfigError
+from oricf.models.declaration import Backend, OnnxRuntimeBackend, OpenVinoBackend
+from oricf.models.tensors import TensorSpec, by_backend_name
+
+
+class Session(Protocol):
+    inputs: list[TensorSpec]
+    outputs: list[TensorSpec]
+    runtime: str                 # "onnxruntime 1.23.2"
+    devices: list[str]           # execution providers or devices in use
+
+    def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]: ...
+
+
+def _dims(shape: Any) -> tuple[int, ...]:
+    return tuple(d if isinstance(d, int) and d >= 0 else -1 for d in shape)
+
+
+class OnnxRuntimeSession:
+    def __init__(self, path: Path, settings: OnnxRuntimeBackend) -> None:
+        try:
+            import onnxruntime as ort
+        except ImportError:
+            raise ConfigError("backend.engine onnxruntime: the onnxruntime package is not "
+                              "installed") from None
+        available = ort.get_available_providers()
+        missing = [p for p in settings.providers if p not in available]
+        if missing:
+            raise ConfigError(f"backend.providers: {', '.join(missing)} not available in this "
+                              f"onnxruntime build (available: {', '.join(available)})")
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = settings.threads
+        options.inter_op_num_threads = 1
+        # Spinning threads keep a core busy between frames: battery for a little latency.
+        options.add_session_config_entry("session.intra_op.allow_spinning",
+                                         "1" if settings.spin else "0")
+        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        self._session = ort.InferenceSession(str(path), options,
+                                             providers=list(settings.providers))
+        self.inputs = [TensorSpec(i.name, by_backend_name("onnx", i.type).name, _dims(i.shape))
+                       for i in self._session.get_inputs()]
+        self.outputs = [TensorSpec(o.name, by_backend_name("onnx", o.type).name, _dims(o.shape))
+                        for o in self._session.get_outputs()]
+        self.runtime = f"onnxruntime {ort.__version__}"
+        self.devices = list(self._session.get_providers())
+        self._names = [o.name for o in self.outputs]
+
+    def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        values = self._session.run(self._names, feeds)
+        return dict(zip(self._names, values, strict=True))
+
+
+class OpenVinoSession:
+    def __init__(self, path: Path, settings: OpenVinoBackend) -> None:
+        try:
+            import openvino as ov
+        except ImportError:
+            raise ConfigError("backend.engine openvino: the openvino package is not installed "
+                              "(pip install 'oricf[openvino]')") from None
+        core = ov.Core()
+        if settings.device not in core.available_devices and settings.device != "AUTO":
+            raise ConfigError(f"backend.device: {settings.device} is not available (available: "
+                              f"{', '.join(core.available_devices)})")
+        config = {"INFERENCE_NUM_THREADS": settings.threads} if settings.device == "CPU" else {}
+        self._compiled = core.compile_model(str(path), settings.device, config)
+        self.inputs = [self._spec(port) for port in self._compiled.inputs]
+        self.outputs = [self._spec(port) for port in self._compiled.outputs]
+        self.runtime = f"openvino {ov.__version__}"
+        self.devices = [settings.device]
+        self._request = self._compiled.create_infer_request()
+        self._lock = threading.Lock()  # one infer request, used by one call at a time
+
+    @staticmethod
+    def _spec(port: Any) -> TensorSpec:
+        shape = tuple(d.get_length() if d.is_static else -1 for d in port.get_partial_shape())
+        datatype = by_backend_name("openvino", port.get_element_type().get_type_name())
+        return TensorSpec(port.get_any_name(), datatype.name, shape)
+
+    def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        with self._lock:
+            results = self._request.infer(feeds)
+            return {spec.name: np.array(results[port], copy=True)
+                    for spec, port in zip(self.outputs, self._compiled.outputs, strict=True)}
+
+
+BACKENDS: dict[str, Callable[[Path, Any], Session]] = {
+    "onnxruntime": OnnxRuntimeSession,
+    "openvino": OpenVinoSession,
+}
+
+
+def open_session(path: Path, backend: Backend) -> Session:
+    return BACKENDS[backend.engine](path, backend)

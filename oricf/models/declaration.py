@@ -1,0 +1,162 @@
+"""A declared model (configs/models/*.yaml): weights, back end, tensors and task, as data.
+
+    name: yolox-nano
+    weights: {catalog: yolox-nano}            # or {path: ./my-model.onnx, sha256: ...}
+    backend: {engine: onnxruntime, threads: 1} # or {engine: openvino, device: CPU}
+    task:                                     # optional: raw tensors in and out without it
+      kind: detection                         # or classification
+      image: {size: [416, 416], resize: letterbox, pad_value: 114, color: bgr}
+      decoder: yolox                          # yolox | yolov8 | ssd
+      labels_file: labels/coco80.txt
+      nms: {iou: 0.45}
+
+Tensor names, datatypes and shapes are read from the model file; `inputs:` and `outputs:`
+override them (a free dimension, or a name the file lacks). Relative paths resolve against
+the declaration's folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field, model_validator
+
+from oricf.config import FilePath, Schema, load_config
+from oricf.errors import ConfigError
+from oricf.models.tensors import DATATYPE_NAMES
+
+MODEL_NAME = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$"
+
+
+class Weights(Schema):
+    """Where the model file comes from: the catalog (sha256-checked) or a local file."""
+
+    catalog: str | None = Field(None, description="an entry of configs/models.yaml")
+    file: str | None = Field(None, description="catalog: which of the entry's files")
+    path: FilePath | None = Field(None, description="a local model file")
+    sha256: str | None = Field(None, pattern=r"^[0-9a-f]{64}$",
+                               description="path: checked before loading when given")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Weights:
+        if (self.catalog is None) == (self.path is None):
+            raise ValueError("give exactly one of catalog or path")
+        if self.path is not None and self.file is not None:
+            raise ValueError("file: only with catalog")
+        if self.catalog is not None and self.sha256 is not None:
+            raise ValueError("sha256: only with path (the catalog has its own)")
+        return self
+
+
+class OnnxRuntimeBackend(Schema):
+    engine: Literal["onnxruntime"]
+    providers: list[str] = Field(default_factory=lambda: ["CPUExecutionProvider"],
+                                 description="in order of preference")
+    threads: int = Field(1, ge=1, le=64, description="intra-op threads")
+    spin: bool = Field(False, description="idle threads busy-wait: lower latency, far more CPU")
+
+
+class OpenVinoBackend(Schema):
+    engine: Literal["openvino"]
+    device: str = Field("CPU", description="OpenVINO device: CPU, GPU, NPU, AUTO")
+    threads: int = Field(1, ge=1, le=64, description="inference threads (CPU)")
+
+
+Backend = Annotated[OnnxRuntimeBackend | OpenVinoBackend, Field(discriminator="engine")]
+
+
+class TensorOverride(Schema):
+    name: str
+    datatype: Literal[DATATYPE_NAMES] | None = None  # type: ignore[valid-type]
+    shape: list[int] | None = Field(None, description="-1 for a free dimension")
+
+
+class ImageInput(Schema):
+    """How an image becomes the model's input tensor: (pixel * scale - mean) / std."""
+
+    input: str | None = Field(None, description="the model input it feeds (default: first)")
+    size: tuple[int, int] | None = Field(
+        None, description="[width, height] of the network input (default: from the model)")
+    resize: Literal["letterbox", "stretch"] = Field(
+        "letterbox", description="letterbox keeps the aspect ratio and pads")
+    align: Literal["top_left", "center"] = Field(
+        "top_left", description="letterbox: where the resized image sits")
+    pad_value: int = Field(114, ge=0, le=255)
+    color: Literal["bgr", "rgb"] = "bgr"
+    scale: float = Field(1.0, gt=0, description="e.g. 0.00392156862745098 for 0-1 values")
+    mean: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    std: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    layout: Literal["nchw", "nhwc"] = "nchw"
+    datatype: Literal["FP32", "FP16", "UINT8"] = "FP32"
+
+    @model_validator(mode="after")
+    def _positive(self) -> ImageInput:
+        if self.size is not None and min(self.size) < 1:
+            raise ValueError("size: width and height must be >= 1")
+        if min(self.std) <= 0:
+            raise ValueError("std: every value must be > 0")
+        return self
+
+
+class Labels(Schema):
+    labels: list[str] | None = Field(None, description="class names in class-id order")
+    labels_file: FilePath | None = Field(None, description="one class name per line")
+
+    @model_validator(mode="after")
+    def _labels(self) -> Labels:
+        if self.labels is not None and self.labels_file is not None:
+            raise ValueError("give one of labels or labels_file, not both")
+        return self
+
+    def label_list(self) -> list[str]:
+        if self.labels_file is None:
+            return list(self.labels or [])
+        try:
+            lines = self.labels_file.read_text(encoding="utf-8").splitlines()
+        except OSError as exc:
+            raise ConfigError(f"{self.labels_file}: cannot read labels: {exc.strerror}") from None
+        return [line.strip() for line in lines if line.strip()]
+
+
+class Nms(Schema):
+    iou: float = Field(0.45, gt=0, le=1)
+    max_detections: int = Field(300, ge=1, le=100_000)
+
+
+class DetectionTask(Labels):
+    kind: Literal["detection"]
+    image: ImageInput = ImageInput()
+    decoder: Literal["yolox", "yolov8", "ssd"]
+    output: str | None = Field(None, description="the output the decoder reads (default: first)")
+    strides: list[int] = Field([8, 16, 32], min_length=1, description="yolox: grid strides")
+    min_score: float = Field(0.35, gt=0, le=1, description="default minimum score")
+    nms: Nms = Nms()
+
+
+class ClassificationTask(Labels):
+    kind: Literal["classification"]
+    image: ImageInput = ImageInput()
+    output: str | None = Field(None, description="the scores output (default: first)")
+    softmax: bool = Field(True, description="false when the model outputs probabilities")
+    top_k: int = Field(5, ge=1, le=1000)
+
+
+Task = Annotated[DetectionTask | ClassificationTask, Field(discriminator="kind")]
+
+
+class ModelDeclaration(Schema):
+    name: str = Field(pattern=MODEL_NAME, description="the name clients call it by")
+    description: str = ""
+    license: str = Field("", description="path weights: their licence (catalog: its own)")
+    weights: Weights | None = Field(
+        None, description="needed to serve the model; a gateway calling it needs only the task")
+    backend: Backend = OnnxRuntimeBackend(engine="onnxruntime")
+    inputs: list[TensorOverride] = Field(default_factory=list)
+    outputs: list[TensorOverride] = Field(default_factory=list)
+    task: Task | None = None
+
+
+def load_declaration(path: Path | str) -> ModelDeclaration:
+    """One model declaration file, validated; errors name the file and the key."""
+    return load_config(path, ModelDeclaration)

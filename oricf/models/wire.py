@@ -1,0 +1,158 @@
+"""Tensors on the Open Inference Protocol wire <-> numpy arrays, for servers and clients.
+
+A tensor travels as name, datatype and shape plus either raw bytes (flattened, row-major,
+little-endian; BYTES elements each prefixed by a 4-byte little-endian length) or typed
+contents (the repeated field of its datatype). Every count is checked against the shape
+before anything is allocated, and errors name the tensor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from oricf.errors import InvalidInput
+from oricf.models.tensors import Datatype, clip, datatype, datatype_of, element_count
+from oricf.oip import open_inference_grpc_pb2 as oip
+
+
+def _bytes_elements(raw: bytes, count: int, name: str) -> np.ndarray:
+    items: list[bytes] = []
+    view, offset = memoryview(raw), 0
+    while offset < len(raw):
+        if offset + 4 > len(raw):
+            raise InvalidInput(f"tensor '{name}': BYTES element {len(items)} has a cut "
+                               f"length prefix")
+        size = int.from_bytes(view[offset:offset + 4], "little")
+        offset += 4
+        if offset + size > len(raw):
+            raise InvalidInput(f"tensor '{name}': BYTES element {len(items)} claims {size:,} "
+                               f"bytes, {len(raw) - offset:,} remain")
+        items.append(bytes(view[offset:offset + size]))
+        offset += size
+    if len(items) != count:
+        raise InvalidInput(f"tensor '{name}': {len(items)} BYTES elements, its shape needs "
+                           f"{count}")
+    array = np.empty(count, dtype=object)
+    array[:] = items
+    return array
+
+
+def from_raw(name: str, type_name: str, shape: Sequence[int], raw: bytes) -> np.ndarray:
+    name = clip(name)
+    kind = datatype(type_name)
+    count = element_count(shape)
+    if kind.name == "BYTES":
+        return _bytes_elements(raw, count, name).reshape(shape)
+    expected = count * np.dtype(kind.numpy).itemsize
+    if len(raw) != expected:
+        raise InvalidInput(f"tensor '{name}': {len(raw):,} bytes, but {kind.name} "
+                           f"{list(shape)} needs {expected:,}")
+    return np.frombuffer(raw, dtype=kind.numpy).reshape(shape)
+
+
+def from_contents(name: str, type_name: str, shape: Sequence[int],
+                  contents: oip.InferTensorContents) -> np.ndarray:
+    name = clip(name)
+    kind = datatype(type_name)
+    count = element_count(shape)
+    if not kind.contents:
+        raise InvalidInput(f"tensor '{name}': {kind.name} travels only as raw contents")
+    values = getattr(contents, kind.contents)
+    if len(values) != count:
+        raise InvalidInput(f"tensor '{name}': {len(values)} values in {kind.contents}, but "
+                           f"{list(shape)} needs {count}")
+    if kind.name == "BYTES":
+        array = np.empty(count, dtype=object)
+        array[:] = list(values)
+        return array.reshape(shape)
+    try:
+        return np.asarray(values, dtype=np.dtype(kind.numpy)).reshape(shape)
+    except OverflowError:
+        raise InvalidInput(f"tensor '{name}': a value is out of range for {kind.name}") from None
+
+
+def to_raw(array: np.ndarray) -> tuple[Datatype, bytes]:
+    kind = datatype_of(array)
+    if kind.name == "BYTES":
+        parts = []
+        for item in array.reshape(-1):
+            data = item.encode() if isinstance(item, str) else bytes(item)
+            parts += [len(data).to_bytes(4, "little"), data]
+        return kind, b"".join(parts)
+    return kind, np.ascontiguousarray(array, dtype=np.dtype(kind.numpy)).tobytes()
+
+
+def request_inputs(request: oip.ModelInferRequest) -> dict[str, np.ndarray]:
+    """A request's input tensors, raw or typed; duplicates and miscounts refused."""
+    raw = request.raw_input_contents
+    if raw and len(raw) != len(request.inputs):
+        raise InvalidInput(f"raw_input_contents has {len(raw)} entries for "
+                           f"{len(request.inputs)} inputs")
+    tensors: dict[str, np.ndarray] = {}
+    for i, tensor in enumerate(request.inputs):
+        if tensor.name in tensors:
+            raise InvalidInput(f"input '{clip(tensor.name)}' is given twice")
+        if raw and tensor.HasField("contents"):
+            raise InvalidInput(f"input '{clip(tensor.name)}': contents and raw_input_contents "
+                               f"are both set")
+        tensors[tensor.name] = (from_raw(tensor.name, tensor.datatype, tensor.shape, raw[i])
+                                if raw else
+                                from_contents(tensor.name, tensor.datatype, tensor.shape,
+                                              tensor.contents))
+    return tensors
+
+
+def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[str] = (),
+                  request_id: str = "", parameters: dict[str, Any] | None = None
+                  ) -> oip.ModelInferRequest:
+    """A ModelInferRequest with raw contents (the compact form every server accepts)."""
+    request = oip.ModelInferRequest(model_name=model, id=request_id)
+    for name, array in inputs.items():
+        kind, raw = to_raw(array)
+        request.inputs.add(name=name, datatype=kind.name, shape=array.shape)
+        request.raw_input_contents.append(raw)
+    for name in outputs:
+        request.outputs.add(name=name)
+    for key, value in (parameters or {}).items():
+        set_parameter(request.parameters[key], value)
+    return request
+
+
+def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str = ""
+                   ) -> oip.ModelInferResponse:
+    response = oip.ModelInferResponse(model_name=model, id=request_id)
+    for name, array in outputs.items():
+        kind, raw = to_raw(array)
+        response.outputs.add(name=name, datatype=kind.name, shape=array.shape)
+        response.raw_output_contents.append(raw)
+    return response
+
+
+def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:
+    """A response's output tensors, raw or typed, in order."""
+    raw = response.raw_output_contents
+    if raw and len(raw) != len(response.outputs):
+        raise InvalidInput(f"raw_output_contents has {len(raw)} entries for "
+                           f"{len(response.outputs)} outputs")
+    return {t.name: (from_raw(t.name, t.datatype, t.shape, raw[i]) if raw else
+                     from_contents(t.name, t.datatype, t.shape, t.contents))
+            for i, t in enumerate(response.outputs)}
+
+
+def set_parameter(parameter: oip.InferParameter, value: Any) -> None:
+    if isinstance(value, bool):
+        parameter.bool_param = value
+    elif isinstance(value, int):
+        parameter.int64_param = value
+    elif isinstance(value, float):
+        parameter.double_param = value
+    else:
+        parameter.string_param = str(value)
+
+
+def parameter_value(parameter: oip.InferParameter) -> Any:
+    choice = parameter.WhichOneof("parameter_choice")
+    return getattr(parameter, choice) if choice else None

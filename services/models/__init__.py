@@ -1,0 +1,1 @@
+"""Declared models served over the Open Inference Protocol (`oricf serve models`)."""

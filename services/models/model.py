@@ -1,0 +1,163 @@
+"""A declared model, loaded: its session, its tensors, and its task's head.
+
+The model class of every declared-model service (`load()`, `infer()`, `close()`,
+`info()`); it knows nothing of gRPC. Inputs and outputs may be renamed or reshaped by the
+declaration: callers use the declared names, the session the file's own.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from oricf.errors import ConfigError, InvalidInput, NotReady
+from oricf.models.backends import Session, open_session
+from oricf.models.declaration import ModelDeclaration, TensorOverride
+from oricf.models.heads import DetectionHead, Detections, Head, Prepared, make_head
+from oricf.models.tensors import DATATYPES, TensorSpec, clip
+from oricf.services.runtime.model import ModelInfo
+from oricf.store import ModelStore, sha256_of
+
+log = logging.getLogger(__name__)
+
+
+def _override(specs: list[TensorSpec], overrides: list[TensorOverride], where: str
+              ) -> list[TensorSpec]:
+    """The i-th override renames or reshapes the i-th tensor of the file."""
+    if len(overrides) > len(specs):
+        raise ConfigError(f"{where}: {len(overrides)} given, the model file has {len(specs)}")
+    result = list(specs)
+    for i, o in enumerate(overrides):
+        spec = result[i]
+        if o.datatype is not None and o.datatype != spec.datatype:
+            raise ConfigError(f"{where}[{i}].datatype: the model file says {spec.datatype}")
+        if o.shape is not None and len(o.shape) != len(spec.shape):
+            raise ConfigError(f"{where}[{i}].shape: the model file has {len(spec.shape)} "
+                              f"dimensions")
+        result[i] = replace(spec, name=o.name,
+                            shape=tuple(o.shape) if o.shape is not None else spec.shape)
+    return result
+
+
+class DeclaredModel:
+    def __init__(self, declaration: ModelDeclaration, store: ModelStore) -> None:
+        if declaration.weights is None:
+            raise ConfigError(f"model {declaration.name}: weights: required to serve it")
+        self.declaration = declaration
+        self.name = declaration.name
+        self._store = store
+        self._session: Session | None = None
+        self.inputs: list[TensorSpec] = []
+        self.outputs: list[TensorSpec] = []
+        self.head: Head | None = None
+        self._file_names: dict[str, str] = {}  # declared input name -> the file's name
+        self._output_names: dict[str, str] = {}  # the file's output name -> declared name
+        self.sha256 = ""
+        self.license = declaration.license
+
+    def weights_path(self) -> Path:
+        weights = self.declaration.weights
+        assert weights is not None
+        if weights.catalog is not None:
+            entry = self._store.entry(weights.catalog)
+            path = self._store.path(weights.catalog, weights.file)
+            self.sha256 = next(f.sha256 for f in entry.files if f.name == path.name)
+            self.license = self.license or entry.license
+            return path
+        assert weights.path is not None
+        if not weights.path.is_file():
+            raise ConfigError(f"model {self.name}: weights.path: no file {weights.path}")
+        if weights.sha256 is not None:
+            self.sha256 = sha256_of(weights.path)
+            if self.sha256 != weights.sha256:
+                raise ConfigError(f"model {self.name}: {weights.path} has sha256 "
+                                  f"{self.sha256}, the declaration says {weights.sha256}")
+        return weights.path
+
+    def load(self) -> None:
+        session = open_session(self.weights_path(), self.declaration.backend)
+        self.inputs = _override(session.inputs, self.declaration.inputs, "inputs")
+        self.outputs = _override(session.outputs, self.declaration.outputs, "outputs")
+        self._file_names = {d.name: f.name for d, f in zip(self.inputs, session.inputs,
+                                                           strict=False)}
+        self._output_names = {f.name: d.name for d, f in zip(self.outputs, session.outputs,
+                                                             strict=False)}
+        task = self.declaration.task
+        if task is not None:
+            name = task.image.input or self.inputs[0].name
+            spec = self.input(name)
+            try:
+                self.head = make_head(task, name, spec.shape)
+            except ValueError as exc:
+                raise ConfigError(f"model {self.name}: task: {exc}") from None
+        self._session = session
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        if any(spec.datatype == "BYTES" for spec in self.inputs):
+            return
+        feeds = {spec.name: np.zeros([d if d > 0 else 1 for d in spec.shape],
+                                     np.dtype(DATATYPES[spec.datatype].numpy))
+                 for spec in self.inputs}
+        if self.head is not None:
+            feeds.update(self.head.prepare(np.zeros((64, 64, 3), np.uint8)).feeds)
+        self.infer(feeds)
+
+    def close(self) -> None:
+        self._session = None
+
+    def info(self) -> ModelInfo:
+        backend = self.declaration.backend
+        session = self._session
+        return ModelInfo(
+            model=self.name, runtime=session.runtime if session else backend.engine,
+            providers=session.devices if session else [], license=self.license,
+            sha256=self.sha256, labels=self.head.labels if self.head else [],
+            parameters={"threads": str(backend.threads),
+                        "task": self.declaration.task.kind if self.declaration.task else ""})
+
+    def input(self, name: str) -> TensorSpec:
+        for spec in self.inputs:
+            if spec.name == name:
+                return spec
+        raise InvalidInput(f"model {self.name} has no input '{clip(name)}' "
+                           f"(inputs: {', '.join(s.name for s in self.inputs)})")
+
+    def infer(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Runs the model on declared-name inputs, every one checked; declared-name outputs."""
+        session = self._session
+        if session is None:
+            raise NotReady(f"model {self.name} is not loaded")
+        for spec in self.inputs:
+            if spec.name not in feeds:
+                raise InvalidInput(f"model {self.name}: input '{spec.name}' is missing")
+        renamed = {}
+        for name, array in feeds.items():
+            self.input(name).check(array)
+            renamed[self._file_names[name]] = array
+        results = session.run(renamed)
+        return {self._output_names[name]: value for name, value in results.items()}
+
+    def prepare(self, pixels: np.ndarray) -> Prepared:
+        return self._detection_head().prepare(pixels)
+
+    def detect(self, prepared: Prepared, min_score: float,
+               class_ids: np.ndarray | None = None) -> Detections:
+        head = self._detection_head()
+        started = time.perf_counter()
+        outputs = self.infer(prepared.feeds)
+        inference_ms = (time.perf_counter() - started) * 1e3
+        result = head.decode(outputs, prepared, min_score, class_ids)
+        result.timings_ms.update(preprocess_ms=prepared.preprocess_ms, inference_ms=inference_ms)
+        return result
+
+    def _detection_head(self) -> DetectionHead:
+        if not isinstance(self.head, DetectionHead):
+            raise ConfigError(f"model {self.name} is not a declared detection model "
+                              f"(task.kind: detection)")
+        return self.head
+

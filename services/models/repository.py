@@ -1,0 +1,42 @@
+"""Every declared model one server holds, loaded and closed together."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from oricf.errors import ConfigError, NotFound
+from oricf.models.declaration import ModelDeclaration
+from oricf.models.tensors import clip
+from oricf.services.models.model import DeclaredModel
+from oricf.services.runtime.model import ModelInfo
+from oricf.store import ModelStore
+
+
+class ModelRepository:
+    def __init__(self, declarations: Iterable[ModelDeclaration], store: ModelStore) -> None:
+        self.models: dict[str, DeclaredModel] = {}
+        for declaration in declarations:
+            if declaration.name in self.models:
+                raise ConfigError(f"models: two declarations name the model "
+                                  f"'{declaration.name}'")
+            self.models[declaration.name] = DeclaredModel(declaration, store)
+
+    def get(self, name: str) -> DeclaredModel:
+        try:
+            return self.models[name]
+        except KeyError:
+            raise NotFound(f"no model '{clip(name)}' (this server has: "
+                           f"{', '.join(self.models)})") from None
+
+    def load(self) -> None:
+        for model in self.models.values():
+            model.load()
+
+    def close(self) -> None:
+        for model in self.models.values():
+            model.close()
+
+    def info(self) -> ModelInfo:
+        infos = [model.info() for model in self.models.values()]
+        return ModelInfo(model=", ".join(i.model for i in infos),
+                         runtime=", ".join(sorted({i.runtime for i in infos})))

@@ -1,0 +1,32 @@
+"""Declared models over the Open Inference Protocol: `oricf serve models`."""
+
+from __future__ import annotations
+
+import grpc
+
+from oricf.models.declaration import load_declaration
+from oricf.oip import open_inference_grpc_pb2 as oip
+from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services.models.config import ModelsConfig
+from oricf.services.models.repository import ModelRepository
+from oricf.services.models.servicer import InferenceServicer
+from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.store import ModelStore
+
+
+def create_model(config: ModelsConfig, store: ModelStore) -> ModelRepository:
+    return ModelRepository((load_declaration(path) for path in config.models), store)
+
+
+def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],
+                 config: ModelsConfig) -> None:
+    oip_grpc.add_GRPCInferenceServiceServicer_to_server(InferenceServicer(slot, config), server)
+
+
+SPEC = ServiceSpec(
+    name="models",
+    service_name=oip.DESCRIPTOR.services_by_name["GRPCInferenceService"].full_name,
+    config_schema=ModelsConfig,
+    create_model=create_model,
+    add_servicer=add_servicer,
+)

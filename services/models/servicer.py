@@ -1,0 +1,119 @@
+"""inference.GRPCInferenceService (the Open Inference Protocol) over declared models.
+
+ModelInfer runs a model on its own tensors. For a model with an image task, its image
+input may instead come as an encoded image (a BYTES tensor of one JPEG or PNG under the
+input's name): the service decodes it, refusing oversized or lying images, and applies the
+declared pre-processing. That is how a remote gateway sends camera frames as JPEG.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import grpc
+import numpy as np
+
+from oricf import __version__
+from oricf.errors import InvalidInput, NotFound
+from oricf.imaging import decode_image
+from oricf.models.tensors import clip
+from oricf.models.wire import infer_response, request_inputs
+from oricf.oip import open_inference_grpc_pb2 as oip
+from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services.models.config import ModelsConfig
+from oricf.services.models.model import DeclaredModel
+from oricf.services.models.repository import ModelRepository
+from oricf.services.runtime import ModelSlot
+
+log = logging.getLogger(__name__)
+
+VERSION = "1"  # every declared model is served as its one version
+PLATFORMS = {"onnxruntime": "onnxruntime_onnx", "openvino": "openvino"}
+
+
+class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
+    def __init__(self, slot: ModelSlot[ModelRepository], config: ModelsConfig) -> None:
+        self.slot = slot
+        self.config = config
+
+    def ServerLive(self, request: oip.ServerLiveRequest, context: grpc.ServicerContext
+                   ) -> oip.ServerLiveResponse:
+        return oip.ServerLiveResponse(live=True)
+
+    def ServerReady(self, request: oip.ServerReadyRequest, context: grpc.ServicerContext
+                    ) -> oip.ServerReadyResponse:
+        return oip.ServerReadyResponse(ready=self.slot.ready)
+
+    def ServerMetadata(self, request: oip.ServerMetadataRequest,
+                       context: grpc.ServicerContext) -> oip.ServerMetadataResponse:
+        return oip.ServerMetadataResponse(name="oricf", version=__version__)
+
+    def ModelReady(self, request: oip.ModelReadyRequest, context: grpc.ServicerContext
+                   ) -> oip.ModelReadyResponse:
+        self._model(request.name, request.version, loaded=False)
+        return oip.ModelReadyResponse(ready=self.slot.ready)
+
+    def ModelMetadata(self, request: oip.ModelMetadataRequest,
+                      context: grpc.ServicerContext) -> oip.ModelMetadataResponse:
+        model = self._model(request.name, request.version)
+        declaration = model.declaration
+        response = oip.ModelMetadataResponse(
+            name=model.name, versions=[VERSION],
+            platform=PLATFORMS[declaration.backend.engine])
+        for spec in model.inputs:
+            response.inputs.add(name=spec.name, datatype=spec.datatype, shape=spec.shape)
+        for spec in model.outputs:
+            response.outputs.add(name=spec.name, datatype=spec.datatype, shape=spec.shape)
+        info = model.info()
+        response.properties.update({"runtime": info.runtime, "license": info.license,
+                                    "sha256": info.sha256})
+        if declaration.task is not None:
+            response.properties["task"] = declaration.task.kind
+        return response
+
+    def ModelInfer(self, request: oip.ModelInferRequest, context: grpc.ServicerContext
+                   ) -> oip.ModelInferResponse:
+        model = self._model(request.model_name, request.model_version)
+        wanted = [o.name for o in request.outputs]
+        known = {spec.name for spec in model.outputs}
+        for name in wanted:
+            if name not in known:
+                raise InvalidInput(f"model {model.name} has no output '{clip(name)}' "
+                                   f"(outputs: {', '.join(sorted(known))})")
+        feeds = self._decode_images(model, request_inputs(request))
+        unknown = sorted(set(feeds) - {spec.name for spec in model.inputs})
+        if unknown:
+            raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
+                               f"(inputs: {', '.join(s.name for s in model.inputs)})")
+        outputs = model.infer(feeds)
+        if wanted:
+            outputs = {name: outputs[name] for name in wanted}
+        response = infer_response(model.name, outputs, request.id)
+        response.model_version = VERSION
+        return response
+
+    def _model(self, name: str, version: str, loaded: bool = True) -> DeclaredModel:
+        """The named model (NOT_FOUND for an unknown name or version); UNAVAILABLE while
+        loading unless loaded=False."""
+        model = (self.slot.get() if loaded else self.slot.peek()).get(name)
+        if version not in ("", VERSION):
+            raise NotFound(f"model {model.name} has no version '{clip(version)}' "
+                           f"(served: {VERSION})")
+        return model
+
+    def _decode_images(self, model: DeclaredModel, feeds: dict[str, np.ndarray]
+                       ) -> dict[str, np.ndarray]:
+        """An encoded image under the image input's name -> the declared input tensor."""
+        head = model.head
+        if head is None or head.input_name not in feeds:
+            return feeds
+        value = feeds[head.input_name]
+        if value.dtype != object or model.input(head.input_name).datatype == "BYTES":
+            return feeds
+        if value.size != 1:
+            raise InvalidInput(f"input '{head.input_name}': one encoded image per request, "
+                               f"got {value.size}")
+        data = value.reshape(-1)[0]
+        encoding = "png" if data[:8] == b"\x89PNG\r\n\x1a\n" else "jpeg"
+        pixels = decode_image(data, encoding, max_pixels=self.config.images.max_pixels)
+        return {**feeds, **head.prepare(pixels).feeds}
