@@ -3,33 +3,66 @@
     Detect      image            -> detections, counts, annotated
     Transcribe  audio            -> transcript, duration_s (an empty transcript ends the route)
     Generate    prompt template  -> answer (context: data products, stale ones never as current)
+    Infer       image            -> detection model: detections, counts
+                                    classification model: classes, label, score
+
+Each method's binder runs once per route (e.g. building a declared model's head) and
+returns the function that handles one record.
 """
 
 from __future__ import annotations
 
 import logging
-from typing import Any
+from collections import Counter
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeAlias
+
+import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.gateway.config import CallConfig, EndpointConfig
-from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.products import ProductStore
 from oricf.gateway.values import AudioClip, Frame, Record
-from oricf.imaging import Box, Detection
+from oricf.imaging import Box, Detection, encoded_size
+from oricf.models.heads import (
+    ClassificationHead,
+    DetectionHead,
+    Prepared,
+    declared_head,
+)
+from oricf.models.image import geometry
+from oricf.models.wire import infer_request, response_outputs
 from oricf.v1 import detector_pb2, language_pb2, speech_pb2
 
+if TYPE_CHECKING:
+    from oricf.gateway.config import (
+        DetectCall,
+        EndpointConfig,
+        GenerateCall,
+        InferCall,
+        TranscribeCall,
+    )
+    from oricf.gateway.endpoints import Endpoint
+    from oricf.gateway.products import ProductStore
+
 log = logging.getLogger(__name__)
+
+Invoke: TypeAlias = Callable[[Record], Record]
+Binder: TypeAlias = Callable[[Any, "Endpoint", "ProductStore"], Invoke]
 
 
 class Skip(Exception):
     """Nothing to pass on for this message (e.g. silence transcribed to nothing)."""
 
 
-def detect_request(record: Record, call: CallConfig, endpoint: EndpointConfig
-                   ) -> detector_pb2.DetectRequest:
+def _frame(record: Record, method: str) -> Frame:
     frame = record.get("image")
     if not isinstance(frame, Frame):
-        raise InvalidInput("Detect needs an image input")
+        raise InvalidInput(f"{method} needs an image input")
+    return frame
+
+
+def detect_request(record: Record, call: DetectCall, endpoint: EndpointConfig
+                   ) -> detector_pb2.DetectRequest:
+    frame = _frame(record, "Detect")
     return detector_pb2.DetectRequest(
         image=frame.to_proto(endpoint.image.transport, endpoint.image.jpeg_quality),
         labels=call.labels, min_score=call.min_score, annotate=call.annotate,
@@ -48,7 +81,12 @@ def detect_fields(response: detector_pb2.DetectResponse) -> Record:
     return fields
 
 
-def transcribe_request(record: Record, call: CallConfig) -> speech_pb2.TranscribeRequest:
+def detect(call: DetectCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    return lambda record: detect_fields(
+        endpoint.call("Detect", detect_request(record, call, endpoint.config)))
+
+
+def transcribe_request(record: Record, call: TranscribeCall) -> speech_pb2.TranscribeRequest:
     clip = record.get("audio")
     if not isinstance(clip, AudioClip):
         raise InvalidInput("Transcribe needs an audio input")
@@ -62,7 +100,12 @@ def transcribe_fields(response: speech_pb2.Transcript) -> Record:
     return {"transcript": text, "duration_s": response.duration_s}
 
 
-def generate_request(record: Record, call: CallConfig, products: ProductStore
+def transcribe(call: TranscribeCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    return lambda record: transcribe_fields(
+        endpoint.call("Transcribe", transcribe_request(record, call)))
+
+
+def generate_request(record: Record, call: GenerateCall, products: ProductStore
                      ) -> language_pb2.GenerateRequest:
     try:
         prompt = call.prompt.format_map(record).strip()
@@ -78,20 +121,60 @@ def generate_request(record: Record, call: CallConfig, products: ProductStore
     return request
 
 
-def generate_fields(response: language_pb2.GenerateResponse) -> Record:
-    return {"answer": response.text.strip()}
+def generate(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    def invoke(record: Record) -> Record:
+        request = generate_request(record, call, products)
+        log.debug("Generate prompt %r context %s", request.prompt, dict(request.context))
+        return {"answer": endpoint.call("Generate", request).text.strip()}
+
+    return invoke
 
 
-def invoke(call: CallConfig, endpoint: Endpoint, products: ProductStore, record: Record
-           ) -> Record:
-    """One call of the route's method through its endpoint; returns the new fields."""
-    response: Any
-    if call.method == "Detect":
-        response = endpoint.call("Detect", detect_request(record, call, endpoint.config))
-        return detect_fields(response)
-    if call.method == "Transcribe":
-        response = endpoint.call("Transcribe", transcribe_request(record, call))
-        return transcribe_fields(response)
-    request = generate_request(record, call, products)
-    log.debug("Generate prompt %r context %s", request.prompt, dict(request.context))
-    return generate_fields(endpoint.call("Generate", request))
+def infer_fields(call: InferCall) -> tuple[str, ...]:
+    task = call.declaration.task
+    return ("detections", "counts") if task is None or task.kind == "detection" \
+        else ("classes", "label", "score")
+
+
+def _encoded_input(frame: Frame, head: DetectionHead | ClassificationHead, quality: int
+                   ) -> Prepared:
+    """The frame as one JPEG (or its own encoding) for the server to pre-process."""
+    image = frame.to_proto("jpeg", quality)
+    size = (image.width, image.height) if image.width else encoded_size(image.data,
+                                                                        image.encoding)
+    if not size:
+        size = frame.pixels().shape[1::-1]
+    tensor = np.empty(1, dtype=object)
+    tensor[0] = image.data
+    return Prepared({head.input_name: tensor},
+                    geometry(size[0], size[1], head.image, head.size), 0.0)
+
+
+def infer(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    head = declared_head(call.declaration)
+    wanted = [head.output] if head.output else []
+    label_ids = {label: i for i, label in enumerate(head.labels)}
+    class_ids = (np.array(sorted(label_ids[label] for label in call.labels), np.int64)
+                 if call.labels else None)
+    transport = endpoint.config.image
+
+    def invoke(record: Record) -> Record:
+        frame = _frame(record, "Infer")
+        prepared = (_encoded_input(frame, head, transport.jpeg_quality)
+                    if transport.transport == "jpeg" else head.prepare(frame.pixels()))
+        request = infer_request(call.server_model, prepared.feeds, wanted)
+        outputs = response_outputs(endpoint.call("ModelInfer", request))
+        if isinstance(head, ClassificationHead):
+            classes = head.decode(outputs, prepared, call.top_k)
+            return {"classes": list(zip(classes.labels, classes.scores, strict=True)),
+                    "label": classes.labels[0], "score": classes.scores[0]}
+        found = head.decode(outputs, prepared, call.min_score or head.task.min_score,
+                            class_ids)
+        detections = [Detection(head.labels[c], int(c), float(s), Box(*map(float, b)))
+                      for b, s, c in zip(found.boxes, found.scores, found.class_ids,
+                                         strict=True)]
+        counts = dict.fromkeys(call.labels, 0)
+        counts.update(Counter(d.label for d in detections))
+        return {"detections": detections, "counts": counts}
+
+    return invoke

@@ -23,25 +23,34 @@ endpoint, a data product, a record field) is checked at load time.
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from functools import cached_property
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from oricf.config import Schema, check_address, deep_merge, read_with_overlays, validate
-from oricf.errors import ConfigError
-from oricf.gateway.methods import (
-    IMAGE_INPUTS,
-    INPUT_FIELDS,
-    METHOD_FIELDS,
-    METHOD_KEYS,
-    SERVICE_OF,
+from oricf.config import (
+    FilePath,
+    Schema,
+    check_address,
+    deep_merge,
+    read_with_overlays,
+    validate,
 )
+from oricf.errors import ConfigError
+from oricf.gateway.methods import METHODS
+from oricf.models.declaration import ModelDeclaration, load_declaration
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
 OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
-Method = Literal["Detect", "Transcribe", "Generate"]
+# The record field each input type fills (checked against `from`, templates).
+INPUT_FIELDS: dict[str, str] = {
+    "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
+    "std_msgs/String": "text", "std_msgs/Int16MultiArray": "audio", "std_msgs/Int32": "value",
+}
+# Camera inputs: newest frame only, sensor_data QoS.
+IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
 
 
 class ImageTransport(Schema):
@@ -104,27 +113,79 @@ class ContextConfig(Schema):
         "omit", description="a product older than its max_age_s: left out, or sent marked stale")
 
 
-class CallConfig(Schema):
+class DetectCall(Schema):
+    """oricf.v1.Detector/Detect: an image -> detections, counts, annotated."""
+
+    method: Literal["Detect"]
     service: str = Field(description="an endpoint name")
-    method: Method
     labels: list[str] = Field(default_factory=list)
     min_score: float = Field(0.0, ge=0, le=1)
     annotate: bool = False
+
+
+class TranscribeCall(Schema):
+    """oricf.v1.SpeechRecognizer/Transcribe: audio -> transcript, duration_s."""
+
+    method: Literal["Transcribe"]
+    service: str = Field(description="an endpoint name")
     language: str = ""
+
+
+class GenerateCall(Schema):
+    """oricf.v1.LanguageModel/Generate: a prompt template with context -> answer."""
+
+    method: Literal["Generate"]
+    service: str = Field(description="an endpoint name")
     prompt: str = Field("{text}", description="template over the record's fields")
     max_tokens: int = Field(0, ge=0, le=4096)
     temperature: float | None = Field(None, ge=0, le=5)
     stop: list[str] = Field(default_factory=list)
     context: ContextConfig | None = None
 
+
+class InferCall(Schema):
+    """inference.GRPCInferenceService/ModelInfer on any Open Inference Protocol server: a
+    declared model's pre-processing makes its input tensors, its post-processing turns the
+    outputs into fields (detection: detections, counts; classification: classes, label,
+    score)."""
+
+    method: Literal["Infer"]
+    service: str = Field(description="an endpoint name")
+    model: FilePath = Field(description="the model's declaration (configs/models/*.yaml)")
+    model_name: str | None = Field(
+        None, description="its name on the server, if not the declaration's name")
+    labels: list[str] = Field(default_factory=list, description="detection: keep only these")
+    min_score: float | None = Field(None, gt=0, le=1,
+                                    description="detection: default the declaration's")
+    top_k: int | None = Field(None, ge=1, le=1000, description="classification")
+
+    @cached_property
+    def declaration(self) -> ModelDeclaration:
+        return load_declaration(self.model)
+
     @model_validator(mode="after")
-    def _keys_fit_method(self) -> CallConfig:
-        for method, keys in METHOD_KEYS.items():
-            wrong = sorted(set(keys) & self.model_fields_set) if method != self.method else []
-            if wrong:
-                raise ValueError(f"{', '.join(wrong)}: only for method {method}, "
-                                 f"not {self.method}")
+    def _usable_declaration(self) -> InferCall:
+        task = self.declaration.task
+        if task is None:
+            raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
+                             f"to turn its input into tensors and its outputs into fields")
+        unknown = sorted(set(self.labels) - set(task.label_list())) if task.label_list() \
+            else []
+        if unknown:
+            raise ValueError(f"labels: the model has no label(s) {', '.join(unknown)}")
+        if self.labels and task.kind != "detection":
+            raise ValueError("labels: only for detection models")
+        if self.top_k is not None and task.kind != "classification":
+            raise ValueError("top_k: only for classification models")
         return self
+
+    @property
+    def server_model(self) -> str:
+        return self.model_name or self.declaration.name
+
+
+CallConfig = Annotated[DetectCall | TranscribeCall | GenerateCall | InferCall,
+                       Field(discriminator="method")]
 
 
 class CountStep(Schema):
@@ -205,21 +266,22 @@ class PipelineConfig(Schema):
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="named overlays chosen with --profile")
 
-    def service_of(self, endpoint: str) -> str:
-        """The gRPC service an endpoint serves (from the routes that call it)."""
+    def method_of(self, endpoint: str) -> str:
+        """The method the routes call on an endpoint (one gRPC service per endpoint)."""
         for route in self.routes.values():
             if route.call.service == endpoint:
-                return SERVICE_OF[route.call.method]
+                return route.call.method
         return ""
 
 
 def _route_problems(name: str, route: RouteConfig) -> Iterator[str]:
     """Outputs must name fields the route has (input, call and post-processor fields)."""
-    fields = {route.input.field, *METHOD_FIELDS[route.call.method]}
+    fields = {route.input.field, *METHODS[route.call.method].fields(route.call)}
     for i, step in enumerate(route.post):
         if step.kind in ("map_labels", "filter", "count", "annotate") \
-                and route.call.method != "Detect":
-            yield f"routes.{name}.post[{i}].{step.kind}: works on detections (method Detect)"
+                and "detections" not in fields:
+            yield (f"routes.{name}.post[{i}].{step.kind}: works on detections (method Detect, "
+                   f"or Infer on a detection model)")
         if step.writes:
             fields.add(step.writes)
     for i, output in enumerate(route.outputs):
@@ -244,13 +306,14 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
         if call.service not in config.endpoints:
             yield (f"routes.{name}.call.service: no endpoint '{call.service}' "
                    f"(endpoints: {', '.join(sorted(config.endpoints)) or 'none'})")
-        kind = SERVICE_OF[call.method]
+        kind = METHODS[call.method].service
         if service_of.setdefault(call.service, kind) != kind:
             yield (f"routes.{name}.call.service: endpoint '{call.service}' would serve both "
                    f"{service_of[call.service]} and {kind}")
         if route.input.product is not None and route.input.product not in produced:
             yield f"routes.{name}.input.product: no route outputs '{route.input.product}'"
-        for i, product in enumerate(call.context.products if call.context else []):
+        context = call.context if isinstance(call, GenerateCall) else None
+        for i, product in enumerate(context.products if context else []):
             if product not in produced:
                 yield f"routes.{name}.call.context.products[{i}]: no route outputs '{product}'"
         yield from _route_problems(name, route)

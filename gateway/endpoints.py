@@ -16,19 +16,13 @@ import threading
 from typing import Any
 
 import grpc
-from grpc_health.v1 import health_pb2, health_pb2_grpc
 
 from oricf.gateway.config import EndpointConfig
-from oricf.v1 import detector_pb2_grpc, language_pb2_grpc, speech_pb2_grpc
+from oricf.gateway.methods import Method
 
 log = logging.getLogger(__name__)
 
 FAILOVER_CODES = frozenset({grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED})
-STUBS: dict[str, Any] = {
-    "oricf.v1.Detector": detector_pb2_grpc.DetectorStub,
-    "oricf.v1.SpeechRecognizer": speech_pb2_grpc.SpeechRecognizerStub,
-    "oricf.v1.LanguageModel": language_pb2_grpc.LanguageModelStub,
-}
 # Short reconnect backoff: a restarted service is found within about a second, not the
 # default of up to two minutes. gRPC also uses the minimum as the connect timeout, so a host
 # that accepts connections but never completes the handshake fails within a second too.
@@ -51,33 +45,32 @@ PROBE_TIMEOUT_S = 1.0
 
 
 class Target:
-    """One address: a channel, the service's stub and its health stub."""
+    """One address: a channel, the method's stub and its readiness probe."""
 
-    def __init__(self, address: str, service: str) -> None:
+    def __init__(self, address: str, method: Method) -> None:
         self.address = address
         self.channel = grpc.insecure_channel(address, options=CHANNEL_OPTIONS)
-        self.stub = STUBS[service](self.channel)
-        self.health = health_pb2_grpc.HealthStub(self.channel)
-        self.service = service
+        self.stub = method.stub(self.channel)
+        self.service = method.service
+        self._ready = method.ready
 
     def serving(self) -> bool:
         try:
-            reply = self.health.Check(health_pb2.HealthCheckRequest(service=self.service),
-                                      timeout=PROBE_TIMEOUT_S)
+            return self._ready(self.channel, PROBE_TIMEOUT_S)
         except grpc.RpcError:
             return False
-        return bool(reply.status == health_pb2.HealthCheckResponse.SERVING)
 
     def close(self) -> None:
         self.channel.close()
 
 
 class Endpoint:
-    def __init__(self, name: str, config: EndpointConfig, service: str) -> None:
+    def __init__(self, name: str, config: EndpointConfig, method: Method) -> None:
         self.name = name
         self.config = config
-        self.primary = Target(config.address, service)
-        self.fallback = Target(config.fallback, service) if config.fallback else None
+        self.method = method
+        self.primary = Target(config.address, method)
+        self.fallback = Target(config.fallback, method) if config.fallback else None
         self.failovers = 0
         self.recoveries = 0
         self._on_fallback = False
@@ -94,16 +87,16 @@ class Endpoint:
         with self._lock:
             return self.fallback if self._on_fallback and self.fallback else self.primary
 
-    def call(self, method: str, request: Any) -> Any:
-        """Calls method on the active target; fails over once on UNAVAILABLE/DEADLINE_EXCEEDED."""
+    def call(self, rpc: str, request: Any) -> Any:
+        """Calls rpc on the active target; fails over once on UNAVAILABLE/DEADLINE_EXCEEDED."""
         target = self.active
         try:
-            return getattr(target.stub, method)(request, timeout=self.deadline_s)
+            return getattr(target.stub, rpc)(request, timeout=self.deadline_s)
         except grpc.RpcError as exc:
             if self.fallback is None or target is self.fallback or exc.code() not in FAILOVER_CODES:
                 raise
             self._fail_over(exc)
-            return getattr(self.fallback.stub, method)(request, timeout=self.deadline_s)
+            return getattr(self.fallback.stub, rpc)(request, timeout=self.deadline_s)
 
     def _fail_over(self, exc: grpc.RpcError) -> None:
         assert self.fallback is not None

@@ -20,8 +20,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from oricf.gateway import convert
 from oricf.gateway.camera import CameraReceiver
-from oricf.gateway.config import InputConfig, OutputConfig, PipelineConfig
-from oricf.gateway.methods import IMAGE_INPUTS
+from oricf.gateway.config import IMAGE_INPUTS, InputConfig, OutputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
@@ -101,7 +100,15 @@ class GatewayNode(Node):
             self._throttle.error(f"emit:{output.topic}", "cannot publish %r on %s (%s): %s",
                                  value, output.topic, output.type, exc)
             return
-        self._publishers_by_topic[output.topic].publish(msg)
+        try:
+            self._publishers_by_topic[output.topic].publish(msg)
+        except Exception:
+            # SIGTERM shuts the ROS context down before the camera threads stop, so a frame
+            # in flight may finish after it: nothing can be published any more, and that
+            # is not an error of the route.
+            if self.context.ok():
+                raise
+            log.debug("shutting down: %s not published", output.topic)
 
     def shutdown(self) -> None:
         for camera in self._cameras:

@@ -12,6 +12,7 @@ from typing import Any
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.methods import METHODS
 from oricf.gateway.products import ProductStore
 from oricf.gateway.route import Emit, Loader, Route
 from oricf.gateway.throttle import ThrottledLog
@@ -29,7 +30,7 @@ class Pipeline:
         self.products = products or ProductStore()
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
-        self.endpoints = {name: Endpoint(name, cfg, config.service_of(name))
+        self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)])
                           for name, cfg in config.endpoints.items() if name in used}
         for route_config in config.routes.values():
             for output in route_config.outputs:
@@ -68,7 +69,7 @@ class Pipeline:
         for name, endpoint in self.endpoints.items():
             fallback = f", fallback {endpoint.fallback.address}" if endpoint.fallback else ""
             images = (f", images {endpoint.config.image.transport}"
-                      if endpoint.primary.service == "oricf.v1.Detector" else "")
+                      if endpoint.method.image_transport else "")
             log.info("endpoint %s: %s%s, deadline %d ms%s", name, endpoint.primary.address,
                      fallback, endpoint.config.deadline_ms, images)
 

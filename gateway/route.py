@@ -54,10 +54,11 @@ class Route:
         self._emit = emit
         self._post = post.chain(config.post)
         self._throttle = throttle
+        self._invoke = endpoint.method.bind(config.call, endpoint, products)
 
     def run(self, record: Record) -> Record:
         """Call and post-process one record; returns it with every field filled in."""
-        record.update(calls.invoke(self.config.call, self.endpoint, self.products, record))
+        record.update(self._invoke(record))
         self._post(record)
         return record
 

@@ -101,13 +101,27 @@ def validate(data: Any, schema: type[T], source: str, base_dir: Path | None = No
     try:
         return schema.model_validate(data, context={"base_dir": base_dir})
     except ValidationError as exc:
-        lines = [f"{source}: {format_location(e['loc'])}: {_message(e)}" for e in exc.errors()]
+        lines = [f"{source}: {format_location(_location(e))}: {_message(e)}"
+                 for e in exc.errors()]
         raise ConfigError("\n".join(lines)) from None
+
+
+def _location(error: Mapping[str, Any]) -> tuple[Any, ...]:
+    """Where the error is; a discriminated union's own errors point at its tag key."""
+    loc = tuple(error["loc"])
+    if error["type"] in ("union_tag_invalid", "union_tag_not_found"):
+        return (*loc, str(error["ctx"]["discriminator"]).strip("'"))
+    return loc
 
 
 def _message(error: Mapping[str, Any]) -> str:
     if error["type"] == "extra_forbidden":
         return "unknown key"
+    if error["type"] == "union_tag_invalid":
+        return (f"'{error['ctx']['tag']}' is not one of "
+                f"{str(error['ctx']['expected_tags']).replace(chr(39), '')}")
+    if error["type"] == "union_tag_not_found":
+        return "required"
     message = str(error["msg"])
     return message.removeprefix("Value error, ")
 

@@ -16,7 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.models.declaration import ClassificationTask, DetectionTask, ImageInput
+from oricf.models.declaration import (
+    ClassificationTask,
+    DetectionTask,
+    ImageInput,
+    ModelDeclaration,
+)
 from oricf.models.decoders import DECODERS
 from oricf.models.image import Geometry, network_size, to_tensor
 from oricf.models.tensors import clip
@@ -145,3 +150,17 @@ def make_head(task: DetectionTask | ClassificationTask, input_name: str,
     if isinstance(task, DetectionTask):
         return DetectionHead(task, input_name, input_shape)
     return ClassificationHead(task, input_name, input_shape)
+
+
+def declared_head(declaration: ModelDeclaration) -> Head:
+    """The head from the declaration alone, for a caller without the model file (the
+    gateway): the image input's name and size must then be declared. Raises ValueError."""
+    task = declaration.task
+    if task is None:
+        raise ValueError(f"model {declaration.name} declares no task")
+    name = task.image.input or (declaration.inputs[0].name if declaration.inputs else None)
+    if name is None:
+        raise ValueError(f"model {declaration.name}: name its image input (task.image.input)")
+    shape = next((tuple(i.shape) for i in declaration.inputs if i.name == name and i.shape),
+                 ())
+    return make_head(task, name, shape)

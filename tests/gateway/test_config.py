@@ -74,7 +74,9 @@ def test_placement_by_overlay_or_profile_gives_the_same_result(placement: str) -
 
 
 BAD = [
-    ({"routes": {"people": {"call": {"deadline": 3}}}}, "routes.people.call.deadline: unknown key"),
+    # A call's keys are its method's: the path names the method whose schema refused them.
+    ({"routes": {"people": {"call": {"deadline": 3}}}},
+     "routes.people.call.Detect.deadline: unknown key"),
     ({"endpoints": {"detector": {"address": "localhost"}}},
      "endpoints.detector.address: 'localhost' is not host:port"),
     ({"endpoints": {"detector": {"deadline_ms": 0}}}, "endpoints.detector.deadline_ms"),
@@ -84,7 +86,7 @@ BAD = [
      "routes.people.call.service: no endpoint 'detektor'"),
     ({"routes": {"people": {"call": {"method": "Classify"}}}}, "routes.people.call.method"),
     ({"routes": {"people": {"call": {"max_tokens": 5}}}},
-     "max_tokens: only for method Generate, not Detect"),
+     "routes.people.call.Detect.max_tokens: unknown key"),
     ({"routes": {"people": {"input": {"type": "sensor_msgs/PointCloud2"}}}},
      "routes.people.input.type"),
     ({"routes": {"people": {"input": {"product": "frames"}}}},

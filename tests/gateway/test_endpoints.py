@@ -13,13 +13,14 @@ import pytest
 
 from oricf.gateway.config import EndpointConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.methods import METHODS
 from oricf.gateway.values import Frame
 from oricf.v1 import common_pb2, detector_pb2
 from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.services import running_service
 
-DETECTOR = "oricf.v1.Detector"
+DETECTOR = METHODS["Detect"]
 
 
 @pytest.fixture(scope="module")

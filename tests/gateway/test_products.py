@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from oricf.gateway.calls import generate_request
-from oricf.gateway.config import CallConfig
+from oricf.gateway.config import GenerateCall
 from oricf.gateway.products import ProductStore
 
 
@@ -53,7 +53,7 @@ def test_context_leaves_out_or_marks_stale_values(store: ProductStore, clock: Cl
 
 
 def test_generate_request_carries_fresh_context_only(store: ProductStore, clock: Clock) -> None:
-    call = CallConfig.model_validate({
+    call = GenerateCall.model_validate({
         "service": "llm", "method": "Generate", "prompt": "{text}", "max_tokens": 24,
         "temperature": 0.0, "context": {"products": ["people_count"]}})
     store.put("people_count", 4)
