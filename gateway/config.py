@@ -165,7 +165,10 @@ class InferCall(Schema):
 
     @model_validator(mode="after")
     def _usable_declaration(self) -> InferCall:
-        task = self.declaration.task
+        try:
+            task = self.declaration.task
+        except ConfigError as exc:  # named here too, so the pipeline's file and key show
+            raise ValueError(f"model: {exc}") from None
         if task is None:
             raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
                              f"to turn its input into tensors and its outputs into fields")
