@@ -21,6 +21,7 @@ import yaml
 
 from oricf.config import deep_merge, read_yaml, shipped_service_config
 from oricf.launch.health import free_port, wait_serving
+from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.store import ModelStore
 
 FRAME_SIZE = (640, 480)
@@ -75,6 +76,22 @@ def variant_config(service: str, overrides: dict[str, Any], folder: Path, tag: s
     path = folder / f"{service}-{tag}.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
+
+
+def shipped_detector_model() -> ModelDeclaration:
+    """The model the shipped detector YAML declares."""
+    path = shipped_service_config("detector")
+    return load_declaration(path.parent / read_yaml(path)["model"])
+
+
+def detector_with_threads(threads: int, folder: Path) -> Path:
+    """The shipped detector YAML with its declared model at another thread count, written
+    into folder for `oricf serve detector --config`."""
+    declaration = shipped_detector_model().model_dump(mode="json", exclude_unset=True)
+    declaration["backend"]["threads"] = threads
+    model = folder / f"model-{threads}-threads.yaml"
+    model.write_text(yaml.safe_dump(declaration))
+    return variant_config("detector", {"model": str(model)}, folder, f"{threads}-threads")
 
 
 def print_table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -> None:

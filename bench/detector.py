@@ -23,7 +23,7 @@ import numpy as np
 from oricf.bench.common import load_frames, median_ms, print_table, served
 from oricf.config import load_config, shipped_service_config
 from oricf.services.detector.config import DetectorConfig
-from oricf.services.detector.service import create_model
+from oricf.services.detector.service import create_model, detection_task
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
@@ -57,8 +57,12 @@ def main(argv: list[str] | None = None) -> int:
     model = create_model(config, ModelStore())
     model.load()
     frames = load_frames(args.frames)
-    min_score = config.detection.min_score
+    min_score = config.detection.min_score or detection_task(config).min_score
     person = np.array([0])
+
+    def in_process(frame: np.ndarray) -> object:
+        return model.detect(model.prepare(frame), min_score, person)
+
     rgb = [request_for(f, "rgb8", i) for i, f in enumerate(frames)]
     jpeg = [request_for(f, "jpeg", i) for i, f in enumerate(frames)]
 
@@ -70,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
             stub.Detect(warm, timeout=10)
         latency: dict[str, list[float]] = {"in-process": [], "Detect rgb8": [], "Detect jpeg": []}
         for frame, raw_request, jpeg_request in zip(frames, rgb, jpeg, strict=True):
-            latency["in-process"].append(timed(lambda f=frame: model.infer(f, min_score, person)))
+            latency["in-process"].append(timed(lambda f=frame: in_process(f)))
             latency["Detect rgb8"].append(timed(lambda r=raw_request: stub.Detect(r, timeout=10)))
             latency["Detect jpeg"].append(timed(lambda r=jpeg_request: stub.Detect(r, timeout=10)))
 
@@ -78,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         inproc_fps, stream_fps = [], []
         for _ in range(3):
             inproc_fps.append(len(frames) / timed(
-                lambda: [model.infer(f, min_score, person) for f in frames]))
+                lambda: [in_process(f) for f in frames]))
             stream_fps.append(len(frames) / timed(lambda: _drain(stub.DetectStream(iter(rgb)))))
         channel.close()
     model.close()

@@ -52,11 +52,12 @@ import yaml
 
 from oricf.bench.common import (
     FRAME_SIZE,
+    detector_with_threads,
     load_frames,
     median_ms,
     served,
+    shipped_detector_model,
     stop,
-    variant_config,
 )
 from oricf.bench.gateway_report import (
     InputResult,
@@ -67,7 +68,7 @@ from oricf.bench.gateway_report import (
     wakeup_note,
 )
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
-from oricf.config import config_dir, read_yaml, shipped_service_config
+from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import EndpointConfig, load_pipeline
 from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.values import Frame
@@ -247,7 +248,7 @@ def cpu_per_frame(camera: Camera, frames: list[Any], fps: float,
 
 
 def shipped_threads() -> int:
-    return int(read_yaml(shipped_service_config("detector"))["model"]["threads"])
+    return shipped_detector_model().backend.threads
 
 
 def other_threads() -> int:
@@ -299,8 +300,7 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                 woken = wakeups(jpeg.pid)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
                 result.edge_wakeups = (wakeups(jpeg.pid) - woken) / len(messages)
-        other = str(variant_config("detector", {"model": {"threads": other_threads()}},
-                                   folder, "other-threads"))
+        other = str(detector_with_threads(other_threads(), folder))
         with served("detector", "--config", other) as (address, det1), \
                 gateway(address, "onboard", folder, compressed) as raw:
             camera.warm_up(messages[0], raw)
@@ -312,7 +312,7 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
 
 
 def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
-    detector = read_yaml(shipped_service_config("detector"))["model"]
+    detector = shipped_detector_model()
     pipeline = read_yaml(PIPELINE)
     placements = ", ".join(
         f"{where} (detector transport {describe_transport(endpoint)}, deadline "
@@ -322,9 +322,9 @@ def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
           f"{args.frames} frames per phase; camera input: {args.input}; gateway: {PIPELINE.name} "
           f"people route (count only), executor threads "
           f"{pipeline.get('executor_threads', 1)}; placements: {placements}; "
-          f"onboard detector: configs/services/detector.yaml (model {detector['name']}, "
-          f"{detector['threads']} threads, spin {detector['spin']}, input "
-          f"{detector['input_size']}) and the same with {other_threads()} thread(s); "
+          f"onboard detector: configs/services/detector.yaml (model {detector.name}, "
+          f"{detector.backend.engine} {detector.backend.threads} threads) and the same with "
+          f"{other_threads()} thread(s); "
           f"offloaded: the detector runs on this machine but is not counted as robot CPU.")
     print(f"Power model: {power.describe()}.")
 

@@ -75,7 +75,7 @@ def test_local_weights_are_checked_by_sha256_before_loading(tmp_path: Path) -> N
     model = tmp_path / "mine.onnx"
     model.write_bytes(ModelStore().path("yolox-nano").read_bytes())
     path = declared(tmp_path, {"weights": {"path": "mine.onnx", "sha256": "0" * 64}})
-    with pytest.raises(ConfigError, match="mine.onnx has sha256 615e2661"):
+    with pytest.raises(ConfigError, match=r"mine\.onnx has sha256 615e2661"):
         DeclaredModel(load_declaration(path), ModelStore()).load()
     good = declared(tmp_path, {"weights": {
         "path": "mine.onnx",
@@ -87,10 +87,10 @@ def test_local_weights_are_checked_by_sha256_before_loading(tmp_path: Path) -> N
 
 def test_missing_weights_file_and_labels_file_are_named(tmp_path: Path) -> None:
     path = declared(tmp_path, {"weights": {"path": "absent.onnx"}})
-    with pytest.raises(ConfigError, match="weights.path: no file .*absent.onnx"):
+    with pytest.raises(ConfigError, match=r"weights\.path: no file .*absent\.onnx"):
         DeclaredModel(load_declaration(path), ModelStore()).load()
     path = declared(tmp_path, {"task.labels_file": "nowhere.txt"})
-    with pytest.raises(ConfigError, match="nowhere.txt: cannot read labels"):
+    with pytest.raises(ConfigError, match=r"nowhere\.txt: cannot read labels"):
         load_declaration(path).task.label_list()  # type: ignore[union-attr]
 
 
