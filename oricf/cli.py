@@ -5,7 +5,7 @@
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
     oricf demo [...]
-    oricf bench detector|asr|llm|gateway [...]
+    oricf bench detector|asr|llm|gateway|models [...]
 
 Verbs with options of their own hand the rest of the command line to their module's main().
 """
@@ -31,7 +31,7 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.launch.demo",
 }
-BENCHMARKS = ("detector", "asr", "llm", "gateway")
+BENCHMARKS = ("detector", "asr", "llm", "gateway", "models")
 
 
 def cmd_serve(args: argparse.Namespace) -> int:

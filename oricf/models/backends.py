@@ -77,7 +77,9 @@ class OpenVinoSession:
         if settings.device not in core.available_devices and settings.device != "AUTO":
             raise ConfigError(f"backend.device: {settings.device} is not available (available: "
                               f"{', '.join(core.available_devices)})")
-        config = {"INFERENCE_NUM_THREADS": settings.threads} if settings.device == "CPU" else {}
+        config: dict[str, Any] = {"INFERENCE_PRECISION_HINT": settings.precision}
+        if settings.device == "CPU":
+            config["INFERENCE_NUM_THREADS"] = settings.threads
         self._compiled = core.compile_model(str(path), settings.device, config)
         self.inputs = [self._spec(port) for port in self._compiled.inputs]
         self.outputs = [self._spec(port) for port in self._compiled.outputs]

@@ -61,6 +61,9 @@ class OpenVinoBackend(Schema):
     engine: Literal["openvino"]
     device: str = Field("CPU", description="OpenVINO device: CPU, GPU, NPU, AUTO")
     threads: int = Field(1, ge=1, le=64, description="inference threads (CPU)")
+    precision: Literal["f32", "bf16", "f16"] = Field(
+        "f32", description="inference precision: f32 agrees with onnxruntime; bf16 (the CPU "
+                           "default where it has bfloat16 instructions) is faster but coarser")
 
 
 Backend = Annotated[OnnxRuntimeBackend | OpenVinoBackend, Field(discriminator="engine")]
