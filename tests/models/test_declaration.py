@@ -114,3 +114,43 @@ def test_overrides_rename_tensors_and_must_fit_the_file(tmp_path: Path) -> None:
     bad = declared(tmp_path, {"inputs": [{"name": "images", "datatype": "UINT8"}]})
     with pytest.raises(ConfigError, match=r"inputs\[0\].datatype: the model file says FP32"):
         DeclaredModel(load_declaration(bad), ModelStore()).load()
+
+
+def test_openvino_serves_the_same_model_within_tolerance(tmp_path: Path) -> None:
+    import cv2
+
+    from tests.support.data import image
+
+    onnx = DeclaredModel(load_declaration(YOLOX), ModelStore())
+    openvino = DeclaredModel(load_declaration(declared(tmp_path, {
+        "backend": {"engine": "openvino", "threads": 1}})), ModelStore())
+    onnx.load()
+    openvino.load()
+    assert openvino.info().runtime.startswith("openvino")
+    prepared = onnx.prepare(cv2.imread(str(image("person.jpg"))))
+    expected, got = onnx.infer(prepared.feeds), openvino.infer(prepared.feeds)
+    assert float(abs(expected["output"] - got["output"]).max()) < 1e-3
+    assert len(openvino.detect(prepared, 0.35).scores) == len(onnx.detect(prepared, 0.35).scores)
+
+
+def test_an_unavailable_openvino_device_is_refused_at_load(tmp_path: Path) -> None:
+    path = declared(tmp_path, {"backend": {"engine": "openvino", "device": "NPU"}})
+    with pytest.raises(ConfigError, match="backend.device: NPU is not available"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
+
+
+def test_a_back_end_that_is_not_installed_is_refused_naming_the_extra(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    path = declared(tmp_path, {"backend": {"engine": "openvino"}})
+    script = ("import sys; sys.modules['openvino'] = None\n"  # as if it were not installed
+              "from oricf.models.declaration import load_declaration\n"
+              "from oricf.services.models.model import DeclaredModel\n"
+              "from oricf.store import ModelStore\n"
+              f"DeclaredModel(load_declaration({str(path)!r}), ModelStore()).load()\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=60, check=False)
+    assert result.returncode != 0
+    assert "backend.engine openvino: the openvino package is not installed " \
+           "(pip install 'oricf[openvino]')" in result.stderr
