@@ -42,3 +42,21 @@ def test_detect_with_a_json_body(detector: RunningService) -> None:
 def test_health_check(detector: RunningService) -> None:
     answer = json.loads(grpcurl(detector.address, "grpc.health.v1.Health/Check"))
     assert answer["status"] == "SERVING"
+
+
+def test_declared_models_answer_grpcurl_over_the_open_inference_protocol() -> None:
+    with running_service("models") as models:
+        assert "inference.GRPCInferenceService" in grpcurl(models.address, "list").split()
+        meta = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelMetadata",
+                                  data='{"name": "yolox-nano"}'))
+        assert meta["inputs"] == [{"name": "images", "datatype": "FP32",
+                                   "shape": ["1", "3", "416", "416"]}]
+        # An encoded photo as one BYTES element: the server pre-processes it.
+        body = json.dumps({"model_name": "yolox-nano", "inputs": [{
+            "name": "images", "datatype": "BYTES", "shape": [1],
+            "contents": {"bytes_contents": [
+                base64.b64encode(image("person.jpg").read_bytes()).decode()]}}]})
+        answer = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelInfer",
+                                    data=body))
+        assert answer["outputs"][0]["shape"] == ["1", "3549", "85"]
+        assert len(base64.b64decode(answer["raw_output_contents"][0])) == 3549 * 85 * 4
