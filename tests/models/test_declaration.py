@@ -135,7 +135,7 @@ def test_openvino_serves_the_same_model_within_tolerance(tmp_path: Path) -> None
 
 def test_an_unavailable_openvino_device_is_refused_at_load(tmp_path: Path) -> None:
     path = declared(tmp_path, {"backend": {"engine": "openvino", "device": "NPU"}})
-    with pytest.raises(ConfigError, match="backend.device: NPU is not available"):
+    with pytest.raises(ConfigError, match=r"backend\.device: NPU is not available"):
         DeclaredModel(load_declaration(path), ModelStore()).load()
 
 
