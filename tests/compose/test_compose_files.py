@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from oricf.config import REPO_ROOT, config_dir, read_yaml
+from oricf.models.declaration import load_declaration
 from oricf.store import ModelStore
 
 COMPOSE = REPO_ROOT / "compose"
@@ -128,8 +129,13 @@ def test_images_bake_the_models_the_services_load() -> None:
         baked = service["build"]["args"]["MODELS"].split()
         for model in baked:
             store.entry(model)  # raises for a name the catalog lacks
-        config = read_yaml(config_dir() / "services" / f"{name}.yaml")
-        assert config["model"]["name"] in baked, f"{name} loads a model the image lacks"
+        path = config_dir() / "services" / f"{name}.yaml"
+        model = read_yaml(path)["model"]
+        if isinstance(model, str):  # a declared model: the catalog entry of its weights
+            weights = load_declaration(path.parent / model).weights
+            assert weights is not None and weights.catalog is not None
+            model = {"name": weights.catalog}
+        assert model["name"] in baked, f"{name} loads a model the image lacks"
 
 
 def test_dockerfile_follows_the_container_rules() -> None:
