@@ -30,7 +30,7 @@ from oricf.gateway.dds import DDS_PROFILE
 from oricf.gateway.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
-           "/camera/image_annotated": Image}
+           "/camera/image_annotated": Image, "/people_fallen": Int32, "/fall_alert": String}
 
 
 def private_domain() -> dict[str, str]:
@@ -63,15 +63,15 @@ class Probe:
 
     def wait_connected(self, inputs: tuple[str, ...] = ("camera/image_raw",
                                                         "/audio/utterance", "/question"),
-                       timeout: float = 10.0) -> None:
-        """Until the gateway's subscriptions to these inputs and its counts are discovered."""
+                       timeout: float = 10.0, output: str = "/human_counter") -> None:
+        """Until the gateway's subscriptions to these inputs and its output are discovered."""
         by_topic = {"camera/image_raw": self.camera, "/audio/utterance": self.audio,
                     "/question": self.question, "camera/compressed": self.compressed}
         publishers = [by_topic[topic] for topic in inputs]
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if all(p.get_subscription_count() > 0 for p in publishers) and \
-                    self.node.count_publishers("/human_counter") > 0:
+                    self.node.count_publishers(output) > 0:
                 return
             time.sleep(0.05)
         raise TimeoutError("the gateway's topics were not discovered")
@@ -147,8 +147,9 @@ def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[
     try:
         with spinning(context, gateway, probe.node):
             try:
+                outputs = [o.topic for r in config.routes.values() for o in r.outputs if o.topic]
                 probe.wait_connected(tuple(r.input.topic for r in config.routes.values()
-                                           if r.input.topic is not None))
+                                           if r.input.topic is not None), output=outputs[0])
                 yield gateway, probe
             finally:
                 gateway.shutdown()

@@ -96,3 +96,36 @@ def test_a_declaration_without_task_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="declares no task"):
         infer_config("127.0.0.1:1", {"routes": {"people": {"call": {"model": str(path),
                                                                      "labels": []}}}})
+
+
+def test_infer_on_a_classifier_adds_label_classes_and_score() -> None:
+    import cv2
+
+    from oricf.gateway.pipeline import Pipeline
+    from oricf.gateway.values import Frame
+    from tests.support.data import text_crops
+
+    data = {"endpoints": {"models": {"address": "127.0.0.1:1"}},
+            "routes": {"direction": {
+                "input": {"topic": "camera/text", "type": "sensor_msgs/Image"},
+                "call": {"service": "models", "method": "Infer", "top_k": 1,
+                         "model": str(REPO_ROOT / "configs/models/text-direction.yaml")},
+                "outputs": [{"topic": "/direction", "type": "std_msgs/String",
+                             "from": "label"}]}}}
+    crops = text_crops()[:6]
+    with running_service("models") as models:
+        data["endpoints"]["models"]["address"] = models.address
+        outputs = Outputs()
+        pipeline = Pipeline(parse_pipeline(data, "classifier pipeline"), outputs)
+        pipeline.start()
+        records = []
+        for crop in crops + [cv2.rotate(c, cv2.ROTATE_180) for c in crops]:
+            record = pipeline.routes["direction"].run({"image": Frame.from_pixels(crop)})
+            records.append(record)
+            pipeline.submit("direction", lambda f=Frame.from_pixels(crop): {"image": f})
+            assert pipeline.idle(10)
+        pipeline.stop()
+    labels = [r["label"] for r in records]
+    assert labels[:6].count("0") >= 5 and labels[6:].count("180") >= 5, labels
+    assert all(len(r["classes"]) == 1 and 0.5 <= r["score"] <= 1 for r in records)
+    assert [v for _, v in outputs.sent] == labels

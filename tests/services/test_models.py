@@ -25,7 +25,7 @@ YOLOX = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
 
 @pytest.fixture(scope="module")
 def models() -> Iterator[RunningService]:
-    with running_service("models", {"server": {"max_message_mb": 4}}) as service:
+    with running_service("models", {"server": {"max_message_mb": 8}}) as service:
         yield service
 
 
@@ -212,3 +212,46 @@ def test_not_ready_until_the_models_load() -> None:
         with pytest.raises(grpc.RpcError) as error:
             stub.ModelInfer(_request())
         assert error.value.code() == grpc.StatusCode.UNAVAILABLE
+
+
+DECLARED = ["yolox-nano", "yolov8n-fall", "text-direction"]
+
+
+def _valid_input(stub: oip_grpc.GRPCInferenceServiceStub, model: str
+                 ) -> tuple[str, np.ndarray]:
+    """A zero tensor that fits the model's first input (free dimensions become 64)."""
+    spec = stub.ModelMetadata(oip.ModelMetadataRequest(name=model)).inputs[0]
+    assert spec.datatype == "FP32"
+    return spec.name, np.zeros([d if d > 0 else 64 for d in spec.shape], np.float32)
+
+
+@pytest.mark.parametrize("model", DECLARED)
+def test_every_declared_model_is_served_and_refuses_bad_tensors(
+        stub: oip_grpc.GRPCInferenceServiceStub, model: str) -> None:
+    assert stub.ModelReady(oip.ModelReadyRequest(name=model)).ready
+    name, tensor = _valid_input(stub, model)
+    assert stub.ModelInfer(infer_request(model, {name: tensor})).outputs
+    bad = {
+        "unknown input": infer_request(model, {"nope": tensor}),
+        "wrong datatype": infer_request(model, {name: tensor.astype(np.int32)}),
+        "wrong rank": infer_request(model, {name: tensor[0]}),
+        "byte count": infer_request(model, {name: tensor}),
+    }
+    bad["byte count"].raw_input_contents[0] = b"\0" * 12
+    expected = {"unknown input": "no input 'nope'", "wrong datatype": "datatype INT32",
+                "wrong rank": "shape", "byte count": "12 bytes"}
+    for case, request in bad.items():
+        with pytest.raises(grpc.RpcError) as error:
+            stub.ModelInfer(request, timeout=10)
+        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT, case
+        assert expected[case] in (error.value.details() or ""), case
+    assert stub.ServerReady(oip.ServerReadyRequest()).ready
+
+
+def test_an_oversized_request_is_refused_before_it_is_read(
+        stub: oip_grpc.GRPCInferenceServiceStub) -> None:
+    huge = infer_request("yolox-nano", {"images": np.zeros((6, 3, 416, 416), np.float32)})
+    with pytest.raises(grpc.RpcError) as error:
+        stub.ModelInfer(huge, timeout=10)
+    assert error.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+    assert stub.ServerReady(oip.ServerReadyRequest()).ready

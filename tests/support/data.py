@@ -37,3 +37,24 @@ def video_frames(indices: list[int], size: tuple[int, int] | None = None) -> lis
     finally:
         capture.release()
     return frames
+
+
+def text_crops() -> list[np.ndarray]:
+    """Crops of printed text lines from OpenCV's sample page, four times as wide as high,
+    upright (the text-direction classifier's input shape)."""
+    page = cv2.imread(str(data_file("opencv-text-image", "imageTextN.png")))
+    ink = (cv2.cvtColor(page, cv2.COLOR_BGR2GRAY) < 128).sum(axis=1)
+    lines, start = [], None
+    for y, count in enumerate(ink):
+        if count and start is None:
+            start = y
+        elif not count and start is not None:
+            lines.append((start, y))
+            start = None
+    crops = []
+    for top, bottom in lines:
+        height = bottom - top + 6
+        y = max(0, top - 3)
+        for x in range(10, page.shape[1] - 4 * height, 4 * height):
+            crops.append(page[y:y + height, x:x + 4 * height])
+    return crops

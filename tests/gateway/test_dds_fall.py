@@ -1,0 +1,35 @@
+"""End to end over real DDS with the YOLOv8 fall detector added by YAML alone:
+configs/pipelines/fall_alert.yaml as shipped, against `oricf serve models`."""
+
+from __future__ import annotations
+
+import cv2
+from rclpy.context import Context
+
+from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.gateway.config import parse_pipeline
+from tests.gateway.ros import running_gateway
+from tests.support.data import image
+from tests.support.services import running_service
+
+PIPELINE = config_dir() / "pipelines" / "fall_alert.yaml"
+
+
+def test_a_fallen_person_is_counted_and_announced(ros_context: Context) -> None:
+    standing = cv2.imread(str(image("person.jpg")))
+    lying = cv2.rotate(standing, cv2.ROTATE_90_CLOCKWISE)
+    with running_service("models") as models:
+        data = deep_merge(read_yaml(PIPELINE),
+                          {"endpoints": {"models": {"address": models.address}}})
+        config = parse_pipeline(data, str(PIPELINE), PIPELINE.parent)
+        with running_gateway(config, ros_context) as (gateway, probe):
+            seen = []
+            for frame in (standing, lying, standing):
+                probe.publish_frame(frame)
+                seen.append((probe.next("/people_fallen", timeout=10).data,
+                             probe.next("/fall_alert", timeout=10).data))
+    assert seen[0] == (0, "1 people standing, 0 fallen")
+    assert seen[1][0] >= 1 and seen[1][1].startswith("0 people standing")
+    assert seen[2] == seen[0]
+    reading = gateway.pipeline.products.read("people_fallen")
+    assert reading is not None and reading.value == 0
