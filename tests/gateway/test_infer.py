@@ -120,9 +120,9 @@ def test_infer_on_a_classifier_adds_label_classes_and_score() -> None:
         pipeline.start()
         records = []
         for crop in crops + [cv2.rotate(c, cv2.ROTATE_180) for c in crops]:
-            record = pipeline.routes["direction"].run({"image": Frame.from_pixels(crop)})
-            records.append(record)
-            pipeline.submit("direction", lambda f=Frame.from_pixels(crop): {"image": f})
+            frame = Frame.from_pixels(crop)
+            records.append(pipeline.routes["direction"].run({"image": frame}))
+            pipeline.submit("direction", lambda f=frame: {"image": f})
             assert pipeline.idle(10)
         pipeline.stop()
     labels = [r["label"] for r in records]
