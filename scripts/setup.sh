@@ -52,7 +52,7 @@ fi
 
 step "python packages"
 EXTRAS="asr,llm,ros"
-((DEV)) && EXTRAS="$EXTRAS,openvino,dev"
+((DEV)) && EXTRAS="$EXTRAS,openvino,interop,dev"
 "${PIP[@]}" install --find-links "$WHEELS" -e ".[$EXTRAS]"
 
 step "models and sample data (checked by sha256)"

@@ -24,3 +24,36 @@ def test_stubs_import_through_the_project_namespace() -> None:
         for s in module.DESCRIPTOR.services_by_name.values()
     }
     assert services == {"oricf.v1.Detector", "oricf.v1.SpeechRecognizer", "oricf.v1.LanguageModel"}
+
+
+def test_this_environment_runs_protobuf_6() -> None:
+    """The test set-up installs tritonclient and kserve, which hold protobuf below 7."""
+    import google.protobuf
+
+    assert google.protobuf.__version__.startswith("6.")
+
+
+def test_stubs_run_on_protobuf_7_too(tmp_path: Path) -> None:
+    """The stubs are generated for protobuf 6 (so ORICF installs beside tritonclient, kserve
+    and mlserver, which need protobuf < 7); they must import on protobuf 7 as well."""
+    import subprocess
+    import sys
+
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    python = str(venv / "bin" / "python")
+    subprocess.run([python, "-m", "pip", "install", "-q", "--disable-pip-version-check",
+                    "protobuf>=7,<8", "grpcio>=1.81.1"], check=True, timeout=600)
+    package = tmp_path / "path" / "oricf"  # the stubs under their own namespace, nothing else
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    for folder in ("v1", "oip"):
+        (package / folder).symlink_to(PROTO_ROOT / "oricf" / folder)
+    script = ("import google.protobuf as p; assert p.__version__.startswith('7.'), p.__version__\n"
+              "from oricf.v1 import detector_pb2_grpc, language_pb2_grpc, speech_pb2_grpc\n"
+              "from oricf.oip import open_inference_grpc_pb2_grpc\n"
+              "print('ok', p.__version__)\n")
+    result = subprocess.run([python, "-c", script], capture_output=True, text=True,
+                            env={"PYTHONPATH": str(tmp_path / "path")}, cwd=tmp_path, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("ok 7.")

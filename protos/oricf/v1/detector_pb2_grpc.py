@@ -6,7 +6,7 @@ import warnings
 from oricf.v1 import common_pb2 as oricf_dot_v1_dot_common__pb2
 from oricf.v1 import detector_pb2 as oricf_dot_v1_dot_detector__pb2
 
-GRPC_GENERATED_VERSION = '1.85.1'
+GRPC_GENERATED_VERSION = '1.81.1'
 GRPC_VERSION = grpc.__version__
 _version_not_supported = False
 
