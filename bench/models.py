@@ -25,6 +25,7 @@ import yaml
 
 from oricf.bench.common import load_frames, median_ms, print_table, served
 from oricf.config import config_dir
+from oricf.gateway.endpoints import CHANNEL_OPTIONS  # as the gateway's calls are made
 from oricf.imaging import encode_image
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.models.heads import DetectionHead
@@ -37,8 +38,6 @@ from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 # Outputs of two back ends agree when no element differs by more than this (FP32 networks
 # reorder sums differently; class scores and box offsets are of order 1).
 AGREEMENT = 1e-3
-CHANNEL_OPTIONS = [("grpc.max_send_message_length", 64 << 20),
-                   ("grpc.max_receive_message_length", 64 << 20)]
 
 
 def timed(call: Callable[[], object]) -> float:
