@@ -110,10 +110,7 @@ def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[s
                   ) -> oip.ModelInferRequest:
     """A ModelInferRequest with raw contents (the compact form every server accepts)."""
     request = oip.ModelInferRequest(model_name=model, id=request_id)
-    for name, array in inputs.items():
-        kind, raw = to_raw(array)
-        request.inputs.add(name=name, datatype=kind.name, shape=array.shape)
-        request.raw_input_contents.append(raw)
+    _add_raw(request.inputs, request.raw_input_contents, inputs)
     for name in outputs:
         request.outputs.add(name=name)
     for key, value in (parameters or {}).items():
@@ -124,11 +121,16 @@ def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[s
 def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str = ""
                    ) -> oip.ModelInferResponse:
     response = oip.ModelInferResponse(model_name=model, id=request_id)
-    for name, array in outputs.items():
-        kind, raw = to_raw(array)
-        response.outputs.add(name=name, datatype=kind.name, shape=array.shape)
-        response.raw_output_contents.append(raw)
+    _add_raw(response.outputs, response.raw_output_contents, outputs)
     return response
+
+
+def _add_raw(tensors: Any, contents: Any, arrays: dict[str, np.ndarray]) -> None:
+    """Each array as a tensor entry (name, datatype, shape) plus its raw contents."""
+    for name, array in arrays.items():
+        kind, raw = to_raw(array)
+        tensors.add(name=name, datatype=kind.name, shape=array.shape)
+        contents.append(raw)
 
 
 def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from rclpy.context import Context
 
-from oricf.config import config_dir, deep_merge, read_yaml
-from oricf.gateway.config import parse_pipeline
+from oricf.config import config_dir
+from tests.gateway.pipelines import shipped_pipeline
 from tests.gateway.ros import running_gateway
 from tests.support.data import video_frames
 from tests.support.services import running_service
@@ -17,9 +17,7 @@ FRAMES = [0, 80, 160, 400]
 
 def test_the_declared_pipeline_counts_people_on_a_topic(ros_context: Context) -> None:
     with running_service("models") as models:
-        data = deep_merge(read_yaml(PIPELINE),
-                          {"endpoints": {"models": {"address": models.address}}})
-        config = parse_pipeline(data, str(PIPELINE), PIPELINE.parent)
+        config = shipped_pipeline(PIPELINE, models=models.address)
         with running_gateway(config, ros_context) as (gateway, probe):
             counts = []
             for frame in video_frames(FRAMES):

@@ -6,8 +6,8 @@ from __future__ import annotations
 import cv2
 from rclpy.context import Context
 
-from oricf.config import config_dir, deep_merge, read_yaml
-from oricf.gateway.config import parse_pipeline
+from oricf.config import config_dir
+from tests.gateway.pipelines import shipped_pipeline
 from tests.gateway.ros import running_gateway
 from tests.support.data import image
 from tests.support.services import running_service
@@ -19,9 +19,7 @@ def test_a_fallen_person_is_counted_and_announced(ros_context: Context) -> None:
     standing = cv2.imread(str(image("person.jpg")))
     lying = cv2.rotate(standing, cv2.ROTATE_90_CLOCKWISE)
     with running_service("models") as models:
-        data = deep_merge(read_yaml(PIPELINE),
-                          {"endpoints": {"models": {"address": models.address}}})
-        config = parse_pipeline(data, str(PIPELINE), PIPELINE.parent)
+        config = shipped_pipeline(PIPELINE, models=models.address)
         with running_gateway(config, ros_context) as (gateway, probe):
             seen = []
             for frame in (standing, lying, standing):
