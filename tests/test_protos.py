@@ -9,7 +9,8 @@ def test_generated_stubs_are_up_to_date(tmp_path: Path) -> None:
     generate(tmp_path)
     fresh = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*_pb2*.py*"))
     assert fresh, "protoc generated nothing"
-    committed = sorted(p.relative_to(PROTO_ROOT) for p in PROTO_ROOT.rglob("*_pb2*.py*"))
+    committed = sorted(p.relative_to(PROTO_ROOT) for p in PROTO_ROOT.rglob("*_pb2*.py*")
+                       if "__pycache__" not in p.parts)
     assert committed == fresh, "stub files differ: run `python -m oricf.protogen`"
     stale = [str(p) for p in fresh if (tmp_path / p).read_bytes() != (PROTO_ROOT / p).read_bytes()]
     assert not stale, f"stale generated code (run `python -m oricf.protogen`): {stale}"
@@ -54,6 +55,7 @@ def test_stubs_run_on_protobuf_7_too(tmp_path: Path) -> None:
               "from oricf.oip import open_inference_grpc_pb2_grpc\n"
               "print('ok', p.__version__)\n")
     result = subprocess.run([python, "-c", script], capture_output=True, text=True,
-                            env={"PYTHONPATH": str(tmp_path / "path")}, cwd=tmp_path, timeout=60)
+                            env={"PYTHONPATH": str(tmp_path / "path"),
+                                 "PYTHONDONTWRITEBYTECODE": "1"}, cwd=tmp_path, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("ok 7.")
