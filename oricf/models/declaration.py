@@ -136,6 +136,12 @@ class DetectionTask(Labels):
     min_score: float = Field(0.35, gt=0, le=1, description="default minimum score")
     nms: Nms = Nms()
 
+    @model_validator(mode="after")
+    def _has_labels(self) -> DetectionTask:
+        if self.labels is None and self.labels_file is None:
+            raise ValueError("labels or labels_file: the class names, in class-id order")
+        return self
+
 
 class ClassificationTask(Labels):
     kind: Literal["classification"]

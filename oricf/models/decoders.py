@@ -41,9 +41,9 @@ def _corners(centres: np.ndarray, sizes: np.ndarray) -> np.ndarray:
 
 
 def _rows(output: np.ndarray, width: int, name: str) -> np.ndarray:
-    if output.ndim != 3 or output.shape[0] != 1 or output.shape[2] < width:
+    if output.ndim != 3 or output.shape[0] != 1 or output.shape[2] != width:
         raise InvalidInput(f"{name} decoder: output shape {list(output.shape)} is not "
-                           f"[1, N, >= {width}]")
+                           f"[1, N, {width}] (the labels give {width - 5} classes)")
     return output[0].astype(np.float32, copy=False)
 
 
@@ -75,9 +75,9 @@ def yolox(size: tuple[int, int], strides: Sequence[int], classes: int) -> Decode
 def yolov8(size: tuple[int, int], strides: Sequence[int], classes: int) -> Decoder:
     def decode(output: np.ndarray, min_score: float, class_ids: np.ndarray | None
                ) -> Candidates:
-        if output.ndim != 3 or output.shape[0] != 1 or output.shape[1] < 4 + classes:
+        if output.ndim != 3 or output.shape[0] != 1 or output.shape[1] != 4 + classes:
             raise InvalidInput(f"yolov8 decoder: output shape {list(output.shape)} is not "
-                               f"[1, 4 + {classes}, N]")
+                               f"[1, 4 + {classes}, N] (the labels give {classes} classes)")
         rows = output[0].T.astype(np.float32, copy=False)
         scores, labels = _best_class(rows[:, 4:4 + classes], class_ids)
         keep = scores >= min_score

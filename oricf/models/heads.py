@@ -110,10 +110,13 @@ class DetectionHead(ImageHead):
         self.task = task
         self._decode = DECODERS[task.decoder](self.size, task.strides, len(self.labels))
 
-    def decode(self, outputs: dict[str, np.ndarray], prepared: Prepared, min_score: float,
-               class_ids: np.ndarray | None = None) -> Detections:
+    def decode(self, outputs: dict[str, np.ndarray], prepared: Prepared,
+               min_score: float | None = None, class_ids: np.ndarray | None = None
+               ) -> Detections:
+        """Boxes in image pixels after NMS; min_score defaults to the declared one."""
         started = time.perf_counter()
-        boxes, scores, labels = self._decode(self.output_of(outputs), min_score, class_ids)
+        score = self.task.min_score if min_score is None else min_score
+        boxes, scores, labels = self._decode(self.output_of(outputs), score, class_ids)
         boxes = prepared.geometry.to_image(boxes)
         kept = nms(boxes, scores, labels, self.task.nms.iou, self.task.nms.max_detections)
         return Detections(boxes[kept], scores[kept].astype(np.float32),

@@ -103,9 +103,15 @@ class DeclaredModel:
         feeds = {spec.name: np.zeros([d if d > 0 else 1 for d in spec.shape],
                                      np.dtype(DATATYPES[spec.datatype].numpy))
                  for spec in self.inputs}
-        if self.head is not None:
-            feeds.update(self.head.prepare(np.zeros((64, 64, 3), np.uint8)).feeds)
-        self.infer(feeds)
+        if self.head is None:
+            self.infer(feeds)
+            return
+        prepared = self.head.prepare(np.zeros((64, 64, 3), np.uint8))
+        outputs = self.infer({**feeds, **prepared.feeds})
+        try:  # a task that does not fit the model's outputs fails here, not on a request
+            self.head.decode(outputs, prepared)
+        except InvalidInput as exc:
+            raise ConfigError(f"model {self.name}: task: {exc}") from None
 
     def close(self) -> None:
         self._session = None

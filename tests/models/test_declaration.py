@@ -154,3 +154,12 @@ def test_a_back_end_that_is_not_installed_is_refused_naming_the_extra(tmp_path: 
     assert result.returncode != 0
     assert "backend.engine openvino: the openvino package is not installed " \
            "(pip install 'oricf[openvino]')" in result.stderr
+
+
+def test_a_decoder_that_does_not_fit_the_model_is_refused_at_load(tmp_path: Path) -> None:
+    path = declared(tmp_path, {"task.decoder": "ssd"})
+    with pytest.raises(ConfigError, match=r"model yolox-nano: task: ssd decoder: output shape"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
+    path = declared(tmp_path, {"task.labels_file": None, "task.labels": ["a", "b"]})
+    with pytest.raises(ConfigError, match="yolox decoder"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
