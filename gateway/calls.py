@@ -140,10 +140,7 @@ def _encoded_input(frame: Frame, head: DetectionHead | ClassificationHead, quali
                    ) -> Prepared:
     """The frame as one JPEG (or its own encoding) for the server to pre-process."""
     image = frame.to_proto("jpeg", quality)
-    size = (image.width, image.height) if image.width else encoded_size(image.data,
-                                                                        image.encoding)
-    if not size:
-        size = frame.pixels().shape[1::-1]
+    size = (image.width, image.height) if image.width else encoded_size(image.data)[1:]
     tensor = np.empty(1, dtype=object)
     tensor[0] = image.data
     return Prepared({head.input_name: tensor},

@@ -83,33 +83,71 @@ def _decode_raw(data: bytes, encoding: str, width: int, height: int,
 
 def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
                     max_pixels: int) -> np.ndarray:
-    header = encoded_size(data, encoding)
-    if header is not None:  # refuse decompression bombs before decoding
-        check_size(header[0], header[1], max_pixels)
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if image is None:
-        raise InvalidInput(f"image data is not a valid {encoding.upper()} file")
-    actual_h, actual_w = image.shape[:2]
+    # The size comes from the file's own header, before anything is decoded: a few bytes
+    # must never make the decoder allocate gigabytes.
+    kind, actual_w, actual_h = encoded_size(data)
+    if kind != encoding:
+        raise InvalidInput(f"image labelled {encoding} is a {kind.upper()} file")
+    check_size(actual_w, actual_h, max_pixels)
     if (width and width != actual_w) or (height and height != actual_h):
         raise InvalidInput(
             f"image declared as {width}x{height} but the {encoding.upper()} is "
             f"{actual_w}x{actual_h}")
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if image is None or image.shape[:2] != (actual_h, actual_w):
+        raise InvalidInput(f"image data is not a valid {encoding.upper()} file")
     return image
 
 
-def encoded_size(data: bytes, encoding: str) -> tuple[int, int] | None:
-    """(width, height) from a PNG or JPEG header without decoding, if it can be read."""
-    if encoding == "png" and len(data) >= 24 and data[:8] == b"\x89PNG\r\n\x1a\n":
-        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
-    if encoding == "jpeg":
-        i = 2
-        while i + 9 < len(data) and data[i] == 0xFF:
-            marker, length = data[i + 1], int.from_bytes(data[i + 2:i + 4], "big")
-            if marker in (0xC0, 0xC1, 0xC2):  # start of frame: height then width
-                return (int.from_bytes(data[i + 7:i + 9], "big"),
-                        int.from_bytes(data[i + 5:i + 7], "big"))
-            i += 2 + length
-    return None
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# Every JPEG start-of-frame marker (baseline, progressive, lossless, arithmetic...): C0-CF
+# except DHT (C4), JPG (C8) and DAC (CC), which are not frames.
+JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+# Markers without a length field: RST0-7 and TEM.
+JPEG_STANDALONE = frozenset(range(0xD0, 0xD8)) | {0x01}
+
+
+def encoded_size(data: bytes) -> tuple[str, int, int]:
+    """("jpeg" or "png", width, height) from the file's header, whatever it is labelled;
+    raises InvalidInput for anything else or a header that cannot be read."""
+    if data.startswith(PNG_SIGNATURE):
+        if len(data) < 24 or data[12:16] != b"IHDR":
+            raise InvalidInput("PNG file without its IHDR header (corrupt or truncated)")
+        return "png", int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if data.startswith(b"\xff\xd8"):
+        width, height = _jpeg_frame_size(data)
+        return "jpeg", width, height
+    raise InvalidInput("image data is neither a JPEG nor a PNG file")
+
+
+def _jpeg_frame_size(data: bytes) -> tuple[int, int]:
+    """Walks the JPEG's marker segments to its frame header (SOFn)."""
+    i, end = 2, len(data)
+    while i < end:
+        if data[i] != 0xFF:
+            break
+        while i < end and data[i] == 0xFF:  # any number of 0xFF fill bytes before a marker
+            i += 1
+        if i >= end:
+            break
+        marker = data[i]
+        i += 1
+        if marker in JPEG_STANDALONE:
+            continue
+        if marker in (0xD9, 0xDA):  # end of image, or image data, before any frame header
+            raise InvalidInput("JPEG file has no frame header before its image data")
+        if i + 2 > end:
+            break
+        length = int.from_bytes(data[i:i + 2], "big")
+        if length < 2:
+            break
+        if marker in JPEG_FRAMES:
+            if i + 7 > end:
+                break
+            return int.from_bytes(data[i + 5:i + 7], "big"), int.from_bytes(data[i + 3:i + 5],
+                                                                               "big")
+        i += length
+    raise InvalidInput("JPEG file is corrupt or truncated before its frame header")
 
 
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> bytes:

@@ -26,7 +26,7 @@ def test_jpeg_png_and_raw_decode_to_the_same_pixels() -> None:
     ("data", "encoding", "width", "height", "message"),
     [
         (b"", "jpeg", 0, 0, "image data is empty"),
-        (b"\xff\xd8\xff\xe0garbage", "jpeg", 0, 0, "not a valid JPEG"),
+        (b"\xff\xd8\xff\xe0garbage", "jpeg", 0, 0, "corrupt or truncated"),
         (b"\x00" * 10, "rgb8", 2, 2, "needs 12 bytes"),
         (b"\x00" * 12, "rgb8", 0, 2, "width and height must be > 0"),
         (b"\x00" * 12, "yuv422", 2, 2, "unknown image encoding 'yuv422'"),
@@ -48,3 +48,52 @@ def test_png_bomb_is_refused_before_decoding() -> None:
     header = b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\rIHDR" + (60000).to_bytes(4, "big") * 2
     with pytest.raises(InvalidInput, match="60000x60000 is over the limit"):
         decode_image(header + b"\x00" * 32, "png")
+
+
+def _jpeg_claiming(width: int, height: int, marker: int = 0xC0, fill: int = 0) -> bytes:
+    """A real small JPEG whose frame header is rewritten to claim width x height, with
+    `fill` 0xFF fill bytes before the frame marker and the marker changed (SOF0, SOF2...)."""
+    data = bytearray(cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes())
+    at = data.index(b"\xff\xc0")
+    data[at + 1] = marker
+    data[at + 5:at + 9] = height.to_bytes(2, "big") + width.to_bytes(2, "big")
+    return bytes(data[:at] + b"\xff" * fill + data[at:])
+
+
+@pytest.mark.parametrize(("marker", "fill"), [(0xC0, 0), (0xC0, 3), (0xC2, 1), (0xC1, 0),
+                                              (0xC9, 2)])
+def test_jpeg_bombs_are_refused_from_their_frame_header(marker: int, fill: int) -> None:
+    """Fill bytes before a marker are legal; every SOFn carries the size."""
+    with pytest.raises(InvalidInput, match="20000x20000 is over the limit"):
+        decode_image(_jpeg_claiming(20000, 20000, marker, fill), "jpeg")
+
+
+def test_a_jpeg_with_fill_bytes_still_decodes() -> None:
+    real = cv2.imencode(".jpg", np.full((8, 8, 3), 200, np.uint8))[1].tobytes()
+    at = real.index(b"\xff\xc0")
+    padded = real[:at] + b"\xff\xff" + real[at:]
+    assert decode_image(padded, "jpeg").shape == (8, 8, 3)
+
+
+def test_labels_that_lie_about_the_format_are_refused() -> None:
+    png = encode_image(np.zeros((4, 4, 3), np.uint8), "png")
+    jpeg = encode_image(np.zeros((4, 4, 3), np.uint8), "jpeg")
+    with pytest.raises(InvalidInput, match="image labelled jpeg is a PNG file"):
+        decode_image(png, "jpeg")
+    with pytest.raises(InvalidInput, match="image labelled png is a JPEG file"):
+        decode_image(jpeg, "png")
+    bomb = b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\rIHDR" + (60000).to_bytes(4, "big") * 2
+    with pytest.raises(InvalidInput, match="labelled jpeg is a PNG"):
+        decode_image(bomb + b"\x00" * 32, "jpeg")
+
+
+@pytest.mark.parametrize(("data", "message"), [
+    (b"GIF89a" + b"\x00" * 40, "neither a JPEG nor a PNG"),
+    (b"\xff\xd8\xff\xda\x00\x08" + b"\x00" * 40, "no frame header before its image data"),
+    (b"\xff\xd8\xff\xe0\x00\x10JFIF", "corrupt or truncated"),
+    (b"\x89PNG\r\n\x1a\n\x00\x00", "without its IHDR"),
+])
+def test_headers_that_cannot_be_read_are_refused_before_decoding(data: bytes,
+                                                                 message: str) -> None:
+    with pytest.raises(InvalidInput, match=message):
+        decode_image(data, "png" if data.startswith(b"\x89") else "jpeg")

@@ -15,7 +15,7 @@ import numpy as np
 
 from oricf import __version__
 from oricf.errors import InvalidInput, NotFound
-from oricf.imaging import decode_image
+from oricf.imaging import decode_image, encoded_size
 from oricf.models.tensors import clip
 from oricf.models.wire import infer_response, request_inputs
 from oricf.oip import open_inference_grpc_pb2 as oip
@@ -113,7 +113,7 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
         if value.size != 1:
             raise InvalidInput(f"input '{head.input_name}': one encoded image per request, "
                                f"got {value.size}")
-        data = value.reshape(-1)[0]
-        encoding = "png" if data[:8] == b"\x89PNG\r\n\x1a\n" else "jpeg"
-        pixels = decode_image(data, encoding, max_pixels=self.config.images.max_pixels)
+        data = bytes(value.reshape(-1)[0])
+        kind, _, _ = encoded_size(data)  # whichever of the two it is
+        pixels = decode_image(data, kind, max_pixels=self.config.images.max_pixels)
         return {**feeds, **head.prepare(pixels).feeds}

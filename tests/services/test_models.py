@@ -166,7 +166,7 @@ BAD = {
     "long name echoed short": (_request(name="x" * 100_000), grpc.StatusCode.INVALID_ARGUMENT,
                                "no input '" + "x" * 64 + "...'"),
     "not an image": (_encoded(b"GIF89a" + b"\0" * 100), grpc.StatusCode.INVALID_ARGUMENT,
-                     "not a valid JPEG"),
+                     "neither a JPEG nor a PNG"),
     "decompression bomb": (_encoded(_bomb()), grpc.StatusCode.INVALID_ARGUMENT,
                            "30000x30000 is over the limit"),
 }
