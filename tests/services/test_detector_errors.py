@@ -36,7 +36,8 @@ def raw(data: bytes, encoding: str, width: int, height: int, **fields: object
 
 BAD_REQUESTS = {
     "empty data": (raw(b"", "jpeg", 0, 0), "image data is empty"),
-    "undecodable jpeg": (raw(b"\xff\xd8\xff\xe0" + b"x" * 500, "jpeg", 0, 0), "corrupt or truncated"),
+    "undecodable jpeg": (raw(b"\xff\xd8\xff\xe0" + b"x" * 500, "jpeg", 0, 0),
+                         "corrupt or truncated"),
     "wrong raw length": (raw(b"\x00" * 1000, "rgb8", 640, 480),
                          "rgb8 image 640x480 needs 921,600 bytes"),
     "unknown encoding": (raw(b"\x00" * 12, "yuyv", 2, 2), "unknown image encoding 'yuyv'"),
