@@ -1,6 +1,8 @@
 """Domain errors -> gRPC status codes, in one place, for every service.
 
-ErrorMappingInterceptor wraps every handler of a server: a servicer raises InvalidInput
+ErrorMappingInterceptor wraps every handler of a server. Requests are parsed inside it, so
+bytes that are not the request message get INVALID_ARGUMENT like any bad input; a servicer
+raises InvalidInput
 (or lets a model raise it) and the caller gets INVALID_ARGUMENT with the message. Anything
 unexpected is logged with its traceback and returned as INTERNAL without internals.
 """
@@ -34,13 +36,19 @@ STATUS_FOR: dict[type[Exception], grpc.StatusCode] = {
 }
 
 INTERNAL_MESSAGE = "internal error in the service (details are in its log)"
+# Status messages travel in trailing metadata (8 KB by default) and may echo caller input:
+# longer ones are cut, so a huge label is still answered INVALID_ARGUMENT.
+MAX_MESSAGE = 1000
 
 
 def status_for(exc: BaseException, method: str = "") -> tuple[grpc.StatusCode, str]:
     """The status code and caller-facing message for an exception."""
     for kind, code in STATUS_FOR.items():
         if isinstance(exc, kind):
-            return code, str(exc) or kind.__name__
+            message = str(exc) or kind.__name__
+            if len(message) > MAX_MESSAGE:
+                message = message[:MAX_MESSAGE] + "... (cut)"
+            return code, message
     log.error("unexpected error in %s", method or "a call", exc_info=exc)
     return grpc.StatusCode.INTERNAL, INTERNAL_MESSAGE
 
@@ -66,22 +74,49 @@ def _abort(context: grpc.ServicerContext, exc: Exception, method: str) -> None:
     context.abort(code, message)
 
 
-def _wrap_unary_response(behavior: Callable[..., Any], method: str) -> Callable[..., Any]:
+Parse = Callable[[bytes], Any]
+
+
+def _parser(deserializer: Parse | None) -> Parse:
+    """The request deserializer, raising InvalidInput for bytes that are not the message:
+    grpcio's own would answer INTERNAL and log a traceback for every such request."""
+    if deserializer is None:
+        return lambda data: data
+    owner = getattr(deserializer, "__self__", None)
+    name = getattr(getattr(owner, "DESCRIPTOR", None), "full_name", "request")
+
+    def parse(data: bytes) -> Any:
+        try:
+            return deserializer(data)
+        except Exception:
+            raise InvalidInput(f"the request is not a valid {name} message "
+                               f"({len(data):,} bytes)") from None
+
+    return parse
+
+
+def _requests(stream: bool, parse: Parse, request: Any) -> Any:
+    return (parse(item) for item in request) if stream else parse(request)
+
+
+def _wrap_unary_response(behavior: Callable[..., Any], method: str, parse: Parse,
+                         stream: bool) -> Callable[..., Any]:
     def handler(request: Any, context: grpc.ServicerContext) -> Any:
         try:
             check_deadline(context)
-            return behavior(request, context)
+            return behavior(_requests(stream, parse, request), context)
         except Exception as exc:
             _abort(context, exc, method)
 
     return handler
 
 
-def _wrap_stream_response(behavior: Callable[..., Any], method: str) -> Callable[..., Any]:
+def _wrap_stream_response(behavior: Callable[..., Any], method: str, parse: Parse,
+                          stream: bool) -> Callable[..., Any]:
     def handler(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
         try:
             check_deadline(context)
-            yield from behavior(request, context)
+            yield from behavior(_requests(stream, parse, request), context)
         except Exception as exc:
             _abort(context, exc, method)
 
@@ -98,15 +133,18 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
         if handler is None:
             return None
         method = handler_call_details.method
+        parse = _parser(handler.request_deserializer)
+        handler = handler._replace(request_deserializer=None)  # parsed in the wrappers
         if handler.unary_unary:
-            return handler._replace(unary_unary=_wrap_unary_response(handler.unary_unary, method))
+            return handler._replace(unary_unary=_wrap_unary_response(
+                handler.unary_unary, method, parse, stream=False))
         if handler.stream_unary:
-            return handler._replace(
-                stream_unary=_wrap_unary_response(handler.stream_unary, method))
+            return handler._replace(stream_unary=_wrap_unary_response(
+                handler.stream_unary, method, parse, stream=True))
         if handler.unary_stream:
-            return handler._replace(
-                unary_stream=_wrap_stream_response(handler.unary_stream, method))
+            return handler._replace(unary_stream=_wrap_stream_response(
+                handler.unary_stream, method, parse, stream=False))
         if handler.stream_stream:
-            return handler._replace(
-                stream_stream=_wrap_stream_response(handler.stream_stream, method))
+            return handler._replace(stream_stream=_wrap_stream_response(
+                handler.stream_stream, method, parse, stream=True))
         return handler
