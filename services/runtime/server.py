@@ -8,6 +8,9 @@ drain in-flight calls within the grace period, close the model, exit 0.
 from __future__ import annotations
 
 import logging
+import os
+import threading
+import time
 from concurrent import futures
 from typing import Any
 
@@ -27,6 +30,9 @@ log = logging.getLogger(__name__)
 # Threads beyond the call limit, so that a refused call is refused at once rather than
 # waiting for a thread.
 SPARE_WORKERS = 2
+# How long past the grace period a stop may take before the process exits anyway: a call
+# stuck in a servicer must not keep a stopping service alive forever.
+STOP_MARGIN_S = 5.0
 
 
 class ServiceHost:
@@ -39,9 +45,10 @@ class ServiceHost:
         self.slot: ModelSlot[Any] = ModelSlot(model)
         settings = config.server
         limit = settings.max_concurrent_rpcs
+        self._workers = futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
+                                                   thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(
-            futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
-                                       thread_name_prefix=f"{spec.name}-rpc"),
+            self._workers,
             interceptors=[ErrorMappingInterceptor()],
             options=[
                 ("grpc.max_receive_message_length", settings.max_message_bytes),
@@ -78,14 +85,25 @@ class ServiceHost:
         self._set_health(health_pb2.HealthCheckResponse.SERVING)
         log.info("%s model loaded in %.1f s; SERVING", self.spec.name, seconds)
 
-    def stop(self, grace: float | None = None) -> None:
-        """NOT_SERVING first (load balancers stop sending), then drain, then close the model."""
+    def stop(self, grace: float | None = None) -> bool:
+        """NOT_SERVING first (load balancers stop sending), then drain, then close the model.
+        Returns False when calls were still stuck STOP_MARGIN_S after the grace period."""
         grace = self.config.server.grace_s if grace is None else grace
         self.health.enter_graceful_shutdown()
         log.info("%s draining (grace %.1f s)", self.spec.name, grace)
-        self.server.stop(grace).wait()
+        deadline = time.monotonic() + grace + STOP_MARGIN_S
+        stopped = self.server.stop(grace).wait(grace + STOP_MARGIN_S)
+        workers = threading.Thread(target=self._workers.shutdown, kwargs={"wait": True},
+                                   daemon=True, name=f"{self.spec.name}-stop")
+        workers.start()
+        workers.join(max(0.0, deadline - time.monotonic()))
         self.slot.close()
-        log.info("%s stopped", self.spec.name)
+        if stopped and not workers.is_alive():
+            log.info("%s stopped", self.spec.name)
+            return True
+        log.warning("%s: calls still running %.1f s after the grace period; exiting anyway",
+                    self.spec.name, STOP_MARGIN_S)
+        return False
 
 
 def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | None) -> int:
@@ -100,5 +118,8 @@ def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | 
             raise
         while not stop.wait(0.5):
             pass
-        host.stop()
+        if not host.stop():
+            # Stuck call threads would block the interpreter's exit: leave without them.
+            logging.shutdown()
+            os._exit(1)
     return 0

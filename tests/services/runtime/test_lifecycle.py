@@ -126,3 +126,52 @@ def test_unavailable_execution_provider_is_refused(tmp_path: Path) -> None:
          "--listen", "127.0.0.1:0"], capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 2
     assert "backend.providers: CUDAExecutionProvider not available" in result.stderr
+
+
+def test_sigterm_stop_is_bounded_even_with_streams_held_open(tmp_path: Path) -> None:
+    """Streams that carried undecodable bytes and a stream the client never ends: the
+    service still exits within its grace period and a margin, and says so."""
+    config = tmp_path / "detector.yaml"
+    config.write_text("server: {grace_s: 1}\n")
+    port = free_port()
+    with oricf_process("serve", "detector", "--config", str(config), "--listen",
+                       f"127.0.0.1:{port}") as process:
+        wait_serving(f"127.0.0.1:{port}", process=process)
+        channel = grpc.insecure_channel(f"127.0.0.1:{port}")
+        release = threading.Event()
+        stream = channel.stream_stream("/oricf.v1.Detector/DetectStream")
+
+        def garbage_then_hold() -> Iterator[bytes]:
+            yield b"\x0a\xff\xff\xff\x0f"
+            release.wait(60)
+
+        def held() -> Iterator[detector_pb2.DetectRequest]:
+            yield person_request(1)
+            release.wait(60)
+
+        responses = [stream(garbage_then_hold(), timeout=60) for _ in range(10)]
+        responses.append(detector_pb2_grpc.DetectorStub(channel).DetectStream(held(),
+                                                                              timeout=60))
+        pulled = []
+        for response in responses:
+            pulled.append(threading.Thread(target=lambda r=response: _drain(r), daemon=True))
+            pulled[-1].start()
+        time.sleep(1.0)
+        started = time.monotonic()
+        process.send_signal(signal.SIGTERM)
+        code = process.wait(timeout=30)
+        stopped_in = time.monotonic() - started
+        release.set()
+        channel.close()
+        output = process.stdout.read() if process.stdout else ""
+        assert stopped_in < 15, output
+        assert code in (0, 1), output
+        assert "stopped" in output or "exiting anyway" in output, output
+
+
+def _drain(responses: Iterator[object]) -> None:
+    try:
+        for _ in responses:
+            pass
+    except grpc.RpcError:
+        pass
