@@ -22,6 +22,9 @@ ENCODINGS = ("pcm_s16le", "wav")
 MODEL_RATE = 16000
 INT16_SCALE = 32768.0
 MAX_RATE = 384_000
+# Below telephone rate there is no speech to recognise, and a tiny rate turns a few bytes
+# into hours of audio to resample and scan.
+MIN_RATE = 8000
 MAX_CHANNELS = 32
 
 WAVE_FORMAT_PCM = 0x0001
@@ -54,6 +57,8 @@ class PcmAudio:
 def check_format(sample_rate: int, channels: int) -> None:
     if sample_rate <= 0:
         raise InvalidInput("sample_rate must be > 0 Hz")
+    if sample_rate < MIN_RATE:
+        raise InvalidInput(f"sample_rate {sample_rate} Hz is below the {MIN_RATE} Hz minimum")
     if sample_rate > MAX_RATE:
         raise InvalidInput(f"sample_rate {sample_rate} Hz is above the {MAX_RATE} Hz limit")
     if not 1 <= channels <= MAX_CHANNELS:

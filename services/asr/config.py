@@ -59,6 +59,8 @@ class EndpointingSettings(Schema):
 
 class AudioSettings(Schema):
     max_audio_s: float = Field(30.0, gt=0, le=3600, description="longest Transcribe request")
+    max_stream_s: float = Field(
+        600.0, gt=0, le=86_400, description="most audio one TranscribeStream may carry")
 
 
 class AsrConfig(ServiceConfig):

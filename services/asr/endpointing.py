@@ -11,12 +11,16 @@ onsets otherwise. Bursts shorter than `min_speech_ms` are dropped; an utterance 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from oricf.services.asr.config import EndpointingSettings
 from oricf.services.asr.vad import SAMPLE_RATE, WINDOW, VadStream
+
+# Windows scored between two checks of the caller's deadline (about 2 s of audio).
+CHECK_EVERY = 64
 
 # Silero's own streaming iterator ends speech at threshold - 0.15.
 HYSTERESIS = 0.15
@@ -58,12 +62,17 @@ class Endpointer:
         self._silence = 0        # trailing samples scored as silence
         self._vad_ms = 0.0
 
-    def push(self, samples: np.ndarray) -> list[Utterance]:
+    def push(self, samples: np.ndarray, check: Callable[[], None] | None = None
+             ) -> list[Utterance]:
+        """Utterances the samples complete; check() runs every CHECK_EVERY windows (it raises
+        to stop, e.g. when the caller's deadline has passed)."""
         audio = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
         whole = len(audio) - len(audio) % WINDOW
         self._pending = audio[whole:]
         done: list[Utterance] = []
         for offset in range(0, whole, WINDOW):
+            if check is not None and offset % (CHECK_EVERY * WINDOW) == 0:
+                check()
             utterance = self._window(audio[offset:offset + WINDOW])
             if utterance is not None:
                 done.append(utterance)

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import grpc
 
 from oricf.audio import decode_audio, to_model_input
-from oricf.errors import InvalidInput
+from oricf.errors import Cancelled, InvalidInput
 from oricf.services.asr.config import AsrConfig
 from oricf.services.asr.endpointing import Utterance
 from oricf.services.asr.model import SpeechModel
@@ -49,14 +49,21 @@ class SpeechRecognizerServicer(speech_pb2_grpc.SpeechRecognizerServicer):
     def TranscribeStream(self, request_iterator: Iterator[speech_pb2.TranscribeStreamRequest],
                          context: grpc.ServicerContext) -> Iterator[speech_pb2.Transcript]:
         model = self.slot.get()
-        decoder = StreamDecoder(model.sample_rate)
+        decoder = StreamDecoder(model.sample_rate, self.config.audio.max_stream_s)
         endpointer = model.endpointer()
         count = 0
+
+        def still_wanted() -> None:
+            check_deadline(context, "during voice activity detection")
+            if not context.is_active():
+                raise Cancelled("the caller went away")
+
         for request in request_iterator:
             received = time.perf_counter()
+            still_wanted()
             audio = request.audio
             samples = decoder.push(audio.data, audio.encoding, audio.sample_rate, audio.channels)
-            for utterance in endpointer.push(samples):
+            for utterance in endpointer.push(samples, still_wanted):
                 yield self._utterance(model, utterance, count, decoder, received, context)
                 count += 1
         received = time.perf_counter()

@@ -29,8 +29,10 @@ class StreamFormat:
 
 
 class StreamDecoder:
-    def __init__(self, target_rate: int) -> None:
+    def __init__(self, target_rate: int, max_seconds: float = float("inf")) -> None:
         self.target_rate = target_rate
+        self.max_seconds = max_seconds
+        self.seconds = 0.0  # of audio received so far
         self.format: StreamFormat | None = None
         self._carry = b""
         self._resampler: Resampler | None = None
@@ -44,6 +46,10 @@ class StreamDecoder:
         whole = len(data) - len(data) % fmt.frame_bytes
         self._carry = data[whole:]
         frames = pcm_from_bytes(data[:whole], fmt.sample_rate, fmt.channels).samples
+        self.seconds += len(frames) / fmt.sample_rate
+        if self.seconds > self.max_seconds:
+            raise InvalidInput(f"the stream carried more than {self.max_seconds:g} s of audio "
+                               f"(audio.max_stream_s)")
         samples = self._convert(mix_down(to_float32(frames)), flush=False)
         self._decode_ms += (time.perf_counter() - started) * 1e3
         return samples

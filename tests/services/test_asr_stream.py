@@ -1,5 +1,6 @@
 """TranscribeStream: microphone-sized chunks in, one transcript per utterance out."""
 
+import logging
 import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -172,3 +173,46 @@ def test_a_deadline_ends_a_stream_and_the_service_goes_on(
     assert time.monotonic() - started < 3
     good = transcripts(stub, chunks(np.concatenate([speech(QUESTION), silence(0.6)])))
     assert len(good) == 1 and "people" in words(good[0].text)
+
+
+def _one_chunk(samples: np.ndarray, rate: int) -> speech_pb2.TranscribeStreamRequest:
+    return speech_pb2.TranscribeStreamRequest(audio=speech_pb2.Audio(
+        data=samples.astype("<i2").tobytes(), encoding="pcm_s16le", sample_rate=rate,
+        channels=1))
+
+
+def test_a_tiny_sample_rate_is_refused_before_any_work(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    """8 KB of PCM at 1 Hz would be over an hour of audio to resample and scan."""
+    request = _one_chunk(np.zeros(4096, np.int16), rate=1)
+    with pytest.raises(grpc.RpcError) as error:
+        transcripts(stub, [request])
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert "below the 8000 Hz minimum" in (error.value.details() or "")
+
+
+def test_a_stream_longer_than_its_limit_is_refused() -> None:
+    with running_service("asr", {"audio": {"max_stream_s": 2}}) as asr:
+        stub = speech_pb2_grpc.SpeechRecognizerStub(asr.channel)
+        with pytest.raises(grpc.RpcError) as error:
+            transcripts(stub, chunks(silence(3.0)))
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert "more than 2 s of audio (audio.max_stream_s)" in (error.value.details() or "")
+
+
+def test_the_deadline_is_checked_during_voice_activity_detection(
+        stub: speech_pb2_grpc.SpeechRecognizerStub, caplog: pytest.LogCaptureFixture) -> None:
+    """Ten minutes of noise in one message with a short deadline: the scan stops at the
+    deadline instead of running on after the caller has gone, and the service goes on."""
+    caplog.set_level(logging.DEBUG, logger="oricf.services.runtime.errors")
+    noise = np.random.default_rng(0).integers(-2000, 2000, 8000 * 590, dtype=np.int16)
+    with pytest.raises(grpc.RpcError) as error:
+        list(stub.TranscribeStream(iter([_one_chunk(noise, 8000)]), timeout=1.0))
+    assert error.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
+    stopped = time.monotonic() + 20
+    while not any("during voice activity detection" in r.getMessage() for r in caplog.records):
+        assert time.monotonic() < stopped, "the scan did not stop at the caller's deadline"
+        time.sleep(0.05)
+    answer = transcripts(stub, chunks(np.concatenate([silence(0.5), speech(QUESTION),
+                                                      silence(1.0)])))
+    assert words(answer[0].text) == words(QUESTION)
