@@ -59,6 +59,15 @@ class ImageTransport(Schema):
     jpeg_quality: int = Field(80, ge=1, le=100)
 
 
+class RetryConfig(Schema):
+    """Retries of a call the service refused as busy (RESOURCE_EXHAUSTED), within its
+    deadline: wait the service's pushback, or exponential backoff with jitter if longer."""
+
+    attempts: int = Field(2, ge=0, le=10, description="retries after the first refusal")
+    initial_backoff_ms: int = Field(50, ge=1, le=60_000)
+    max_backoff_ms: int = Field(1000, ge=1, le=600_000)
+
+
 class EndpointConfig(Schema):
     address: str
     fallback: str | None = Field(None, description="used while the primary is unavailable")
@@ -66,6 +75,7 @@ class EndpointConfig(Schema):
     probe_interval_s: float = Field(
         1.0, gt=0, le=60, description="health probe of the primary while on the fallback")
     image: ImageTransport = ImageTransport()
+    retry: RetryConfig = RetryConfig()
 
     @field_validator("address", "fallback")
     @classmethod

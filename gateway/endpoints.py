@@ -5,14 +5,21 @@ State machine (per endpoint):
     PRIMARY --call fails UNAVAILABLE / DEADLINE_EXCEEDED--> FALLBACK (the call is retried there)
     FALLBACK --health probe of the primary says SERVING--> PRIMARY
 
+A call a service refuses as busy (RESOURCE_EXHAUSTED) is retried on the same target after
+the wait the service asked for (grpc-retry-pushback-ms) or an exponential backoff with
+jitter, whichever is longer, while its deadline allows (`retry:` in the endpoint's YAML).
+
 While on the fallback a background thread asks the primary's grpc.health.v1 service every
 probe_interval_s. Without a fallback, errors go back to the caller (the route logs them).
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
+import random
 import threading
+import time
 from typing import Any
 
 import grpc
@@ -44,6 +51,15 @@ CHANNEL_OPTIONS = [
 PROBE_TIMEOUT_S = 1.0
 
 
+def _pushback_ms(exc: grpc.RpcError) -> float:
+    """The wait the service asked for (gRPC's grpc-retry-pushback-ms), 0 if none."""
+    metadata = dict(exc.trailing_metadata() or ())  # type: ignore[attr-defined]
+    try:
+        return max(0.0, float(metadata.get("grpc-retry-pushback-ms", 0)))
+    except (TypeError, ValueError):
+        return 0.0
+
+
 class Target:
     """One address: a channel, the method's stub and its readiness probe."""
 
@@ -73,6 +89,7 @@ class Endpoint:
         self.fallback = Target(config.fallback, method) if config.fallback else None
         self.failovers = 0
         self.recoveries = 0
+        self.retries = 0
         self._on_fallback = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -91,12 +108,38 @@ class Endpoint:
         """Calls rpc on the active target; fails over once on UNAVAILABLE/DEADLINE_EXCEEDED."""
         target = self.active
         try:
-            return getattr(target.stub, rpc)(request, timeout=self.deadline_s)
+            return self._call(target, rpc, request)
         except grpc.RpcError as exc:
             if self.fallback is None or target is self.fallback or exc.code() not in FAILOVER_CODES:
                 raise
             self._fail_over(exc)
-            return getattr(self.fallback.stub, rpc)(request, timeout=self.deadline_s)
+            return self._call(self.fallback, rpc, request)
+
+    def _call(self, target: Target, rpc: str, request: Any) -> Any:
+        """One target, its deadline, and retries while it refuses the call as busy."""
+        deadline = time.monotonic() + self.deadline_s
+        for attempt in itertools.count(1):
+            try:
+                return getattr(target.stub, rpc)(request,
+                                                 timeout=max(deadline - time.monotonic(), 0.001))
+            except grpc.RpcError as exc:
+                wait = self._retry_wait(exc, attempt, deadline - time.monotonic())
+                if wait is None:
+                    raise
+                self.retries += 1
+                log.debug("endpoint %s: %s busy, retry %d in %.0f ms", self.name,
+                          target.address, attempt, wait * 1000)
+                time.sleep(wait)
+        raise AssertionError("unreachable")
+
+    def _retry_wait(self, exc: grpc.RpcError, attempt: int, remaining: float) -> float | None:
+        """Seconds to wait before retrying a refused call, or None to give up."""
+        retry = self.config.retry
+        if exc.code() != grpc.StatusCode.RESOURCE_EXHAUSTED or attempt > retry.attempts:
+            return None
+        backoff = min(retry.max_backoff_ms, retry.initial_backoff_ms * 2 ** (attempt - 1))
+        wait_ms = max(backoff * random.uniform(0.5, 1.5), _pushback_ms(exc))
+        return wait_ms / 1000 if wait_ms / 1000 < remaining else None
 
     def _fail_over(self, exc: grpc.RpcError) -> None:
         assert self.fallback is not None

@@ -16,6 +16,9 @@ class ServerSettings(Schema):
     max_concurrent_rpcs: int = Field(
         8, ge=1, le=1024, description="calls beyond this get RESOURCE_EXHAUSTED at once")
     grace_s: float = Field(5.0, ge=0, le=600, description="drain time for in-flight calls")
+    retry_after_ms: int = Field(
+        100, ge=1, le=60_000,
+        description="a refused call is told to wait 1-2x this long (grpc-retry-pushback-ms)")
 
     @property
     def max_message_bytes(self) -> int:

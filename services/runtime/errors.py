@@ -23,6 +23,7 @@ from oricf.errors import (
     NotReady,
     Overloaded,
 )
+from oricf.services.runtime.limits import PUSHBACK_KEY, CallLimit, exempt
 
 log = logging.getLogger(__name__)
 
@@ -99,31 +100,55 @@ def _requests(stream: bool, parse: Parse, request: Any) -> Any:
     return (parse(item) for item in request) if stream else parse(request)
 
 
+def _refuse(context: grpc.ServicerContext, limit: CallLimit) -> None:
+    wait_ms = limit.pushback_ms()
+    context.set_trailing_metadata(((PUSHBACK_KEY, str(wait_ms)),))
+    context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                  f"the service is busy ({limit.limit} calls in progress); "
+                  f"retry in {wait_ms} ms")
+
+
 def _wrap_unary_response(behavior: Callable[..., Any], method: str, parse: Parse,
-                         stream: bool) -> Callable[..., Any]:
+                         stream: bool, limit: CallLimit | None) -> Callable[..., Any]:
     def handler(request: Any, context: grpc.ServicerContext) -> Any:
+        if limit is not None and not limit.try_enter():
+            _refuse(context, limit)
         try:
             check_deadline(context)
             return behavior(_requests(stream, parse, request), context)
         except Exception as exc:
             _abort(context, exc, method)
+        finally:
+            if limit is not None:
+                limit.leave()
 
     return handler
 
 
 def _wrap_stream_response(behavior: Callable[..., Any], method: str, parse: Parse,
-                          stream: bool) -> Callable[..., Any]:
+                          stream: bool, limit: CallLimit | None) -> Callable[..., Any]:
     def handler(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+        if limit is not None and not limit.try_enter():
+            _refuse(context, limit)
         try:
             check_deadline(context)
             yield from behavior(_requests(stream, parse, request), context)
         except Exception as exc:
             _abort(context, exc, method)
+        finally:
+            if limit is not None:
+                limit.leave()
 
     return handler
 
 
 class ErrorMappingInterceptor(grpc.ServerInterceptor):
+    """Error mapping and request parsing for every handler; the call limit for every handler
+    but health and reflection."""
+
+    def __init__(self, limit: CallLimit | None = None) -> None:
+        self.limit = limit
+
     def intercept_service(
         self,
         continuation: Callable[[grpc.HandlerCallDetails], grpc.RpcMethodHandler | None],
@@ -133,18 +158,19 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
         if handler is None:
             return None
         method = handler_call_details.method
+        limit = None if exempt(method) else self.limit
         parse = _parser(handler.request_deserializer)
         handler = handler._replace(request_deserializer=None)  # parsed in the wrappers
         if handler.unary_unary:
             return handler._replace(unary_unary=_wrap_unary_response(
-                handler.unary_unary, method, parse, stream=False))
+                handler.unary_unary, method, parse, False, limit))
         if handler.stream_unary:
             return handler._replace(stream_unary=_wrap_unary_response(
-                handler.stream_unary, method, parse, stream=True))
+                handler.stream_unary, method, parse, True, limit))
         if handler.unary_stream:
             return handler._replace(unary_stream=_wrap_stream_response(
-                handler.unary_stream, method, parse, stream=False))
+                handler.unary_stream, method, parse, False, limit))
         if handler.stream_stream:
             return handler._replace(stream_stream=_wrap_stream_response(
-                handler.stream_stream, method, parse, stream=True))
+                handler.stream_stream, method, parse, True, limit))
         return handler

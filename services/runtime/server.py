@@ -21,6 +21,7 @@ from grpc_reflection.v1alpha import reflection
 from oricf.errors import ConfigError
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
+from oricf.services.runtime.limits import CallLimit
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.spec import ServiceSpec
 from oricf.signals import stop_on_signals
@@ -28,8 +29,8 @@ from oricf.signals import stop_on_signals
 log = logging.getLogger(__name__)
 
 # Threads beyond the call limit, so that a refused call is refused at once rather than
-# waiting for a thread.
-SPARE_WORKERS = 2
+# waiting for a thread, and health checks are answered while the service is busy.
+SPARE_WORKERS = 4
 # How long past the grace period a stop may take before the process exits anyway: a call
 # stuck in a servicer must not keep a stopping service alive forever.
 STOP_MARGIN_S = 5.0
@@ -49,13 +50,13 @@ class ServiceHost:
                                                    thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(
             self._workers,
-            interceptors=[ErrorMappingInterceptor()],
+            interceptors=[ErrorMappingInterceptor(
+                CallLimit(limit, settings.retry_after_ms))],
             options=[
                 ("grpc.max_receive_message_length", settings.max_message_bytes),
                 ("grpc.max_send_message_length", settings.max_message_bytes),
                 ("grpc.so_reuseport", 0),
             ],
-            maximum_concurrent_rpcs=limit,
         )
         spec.add_servicer(self.server, self.slot, config)
         self.health = health.HealthServicer(experimental_non_blocking=True)

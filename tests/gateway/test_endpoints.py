@@ -11,11 +11,11 @@ from collections.abc import Iterator
 import grpc
 import pytest
 
-from oricf.gateway.config import EndpointConfig
+from oricf.gateway.config import EndpointConfig, RetryConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.methods import METHODS
 from oricf.gateway.values import Frame
-from oricf.v1 import common_pb2, detector_pb2
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.services import running_service
@@ -119,3 +119,45 @@ def test_deadline_exceeded_fails_over(hung_address: str, request_0: detector_pb2
         assert ep.active is ep.fallback
         assert "failed (DEADLINE_EXCEEDED); using fallback" in caplog.text
         ep.close()
+
+
+def _busy_detector_call(attempts: int, request_0: detector_pb2.DetectRequest,
+                        hold_s: float) -> tuple[Endpoint, object]:
+    """A detector that takes one call at a time, held by a stream for hold_s; returns the
+    endpoint and what its Detect call gave (a response or the RpcError)."""
+    overrides = {"server": {"max_concurrent_rpcs": 1, "retry_after_ms": 150}}
+    with running_service("detector", overrides) as busy:
+        release = threading.Event()
+
+        def held() -> Iterator[detector_pb2.DetectRequest]:
+            yield request_0
+            release.wait(10)
+
+        stream = detector_pb2_grpc.DetectorStub(busy.channel).DetectStream(held(), timeout=20)
+        next(stream)  # the one allowed call is in flight
+        threading.Timer(hold_s, release.set).start()
+        config = EndpointConfig(address=busy.address, deadline_ms=5000,
+                                retry=RetryConfig(attempts=attempts, initial_backoff_ms=100))
+        ep = Endpoint("detector", config, DETECTOR)
+        try:
+            result: object = ep.call("Detect", request_0)
+        except grpc.RpcError as exc:
+            result = exc
+        release.set()
+        list(stream)
+        ep.close()
+        return ep, result
+
+
+def test_a_busy_service_is_retried_after_its_pushback(
+        request_0: detector_pb2.DetectRequest) -> None:
+    ep, result = _busy_detector_call(attempts=5, request_0=request_0, hold_s=0.4)
+    assert isinstance(result, detector_pb2.DetectResponse) and result.counts["person"] == 4
+    assert 1 <= ep.retries <= 5
+
+
+def test_without_retries_the_refusal_reaches_the_caller(
+        request_0: detector_pb2.DetectRequest) -> None:
+    ep, result = _busy_detector_call(attempts=0, request_0=request_0, hold_s=0.4)
+    assert isinstance(result, grpc.RpcError)
+    assert result.code() == grpc.StatusCode.RESOURCE_EXHAUSTED and ep.retries == 0

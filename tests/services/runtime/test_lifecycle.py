@@ -65,6 +65,11 @@ def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
             stub.Detect(person_request(), timeout=10)
         assert err.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
         assert time.monotonic() - started < 2  # refused, not queued
+        pushback = dict(err.value.trailing_metadata() or ())["grpc-retry-pushback-ms"]
+        assert 100 <= int(pushback) <= 200  # retry_after_ms 100, jittered up to 2x
+        assert f"retry in {pushback} ms" in (err.value.details() or "")
+        health_stub = health_pb2_grpc.HealthStub(service.channel)  # busy, and still alive
+        assert health_stub.Check(health_pb2.HealthCheckRequest(), timeout=5).status == SERVING
         release.set()
         assert list(stream) == []
         assert stub.Detect(person_request(), timeout=10).counts["person"] == 1
