@@ -40,6 +40,7 @@ from oricf.config import (
 from oricf.errors import ConfigError
 from oricf.gateway.methods import METHODS
 from oricf.models.declaration import ModelDeclaration, load_declaration
+from oricf.tls import ClientTls, TokenSource
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
@@ -76,6 +77,8 @@ class EndpointConfig(Schema):
         1.0, gt=0, le=60, description="health probe of the primary while on the fallback")
     image: ImageTransport = ImageTransport()
     retry: RetryConfig = RetryConfig()
+    tls: ClientTls | None = Field(None, description="TLS to the service (mTLS with cert/key)")
+    token: TokenSource | None = Field(None, description="bearer token sent with every call")
 
     @field_validator("address", "fallback")
     @classmethod

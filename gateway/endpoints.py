@@ -25,7 +25,8 @@ from typing import Any
 import grpc
 
 from oricf.gateway.config import EndpointConfig
-from oricf.gateway.methods import Method
+from oricf.gateway.methods import Metadata, Method
+from oricf.tls import ClientTls, open_channel
 
 log = logging.getLogger(__name__)
 
@@ -61,18 +62,21 @@ def _pushback_ms(exc: grpc.RpcError) -> float:
 
 
 class Target:
-    """One address: a channel, the method's stub and its readiness probe."""
+    """One address: a channel (TLS if configured), the method's stub, the call metadata (a
+    bearer token if configured) and the readiness probe."""
 
-    def __init__(self, address: str, method: Method) -> None:
+    def __init__(self, address: str, method: Method, tls: ClientTls | None = None,
+                 token: str | None = None) -> None:
         self.address = address
-        self.channel = grpc.insecure_channel(address, options=CHANNEL_OPTIONS)
+        self.channel = open_channel(address, tls, CHANNEL_OPTIONS)
         self.stub = method.stub(self.channel)
         self.service = method.service
+        self.metadata: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
         self._ready = method.ready
 
     def serving(self) -> bool:
         try:
-            return self._ready(self.channel, PROBE_TIMEOUT_S)
+            return self._ready(self.channel, PROBE_TIMEOUT_S, self.metadata)
         except grpc.RpcError:
             return False
 
@@ -85,8 +89,10 @@ class Endpoint:
         self.name = name
         self.config = config
         self.method = method
-        self.primary = Target(config.address, method)
-        self.fallback = Target(config.fallback, method) if config.fallback else None
+        token = config.token.tokens()[0] if config.token else None
+        self.primary = Target(config.address, method, config.tls, token)
+        self.fallback = (Target(config.fallback, method, config.tls, token)
+                         if config.fallback else None)
         self.failovers = 0
         self.recoveries = 0
         self.retries = 0
@@ -120,7 +126,7 @@ class Endpoint:
         deadline = time.monotonic() + self.deadline_s
         for attempt in itertools.count(1):
             try:
-                return getattr(target.stub, rpc)(request,
+                return getattr(target.stub, rpc)(request, metadata=target.metadata,
                                                  timeout=max(deadline - time.monotonic(), 0.001))
             except grpc.RpcError as exc:
                 wait = self._retry_wait(exc, attempt, deadline - time.monotonic())

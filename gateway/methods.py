@@ -17,24 +17,27 @@ from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.v1 import detector_pb2_grpc, language_pb2_grpc, speech_pb2_grpc
 
-Ready = Callable[[grpc.Channel, float], bool]
+Metadata = tuple[tuple[str, str], ...]
+Ready = Callable[[grpc.Channel, float, Metadata], bool]
 
 
 def health_check(service: str) -> Ready:
     """Ready when grpc.health.v1 says the service is SERVING (ORICF's own services)."""
-    def ready(channel: grpc.Channel, timeout: float) -> bool:
+    def ready(channel: grpc.Channel, timeout: float, metadata: Metadata = ()) -> bool:
         reply = health_pb2_grpc.HealthStub(channel).Check(
-            health_pb2.HealthCheckRequest(service=service), timeout=timeout)
+            health_pb2.HealthCheckRequest(service=service), timeout=timeout,
+            metadata=metadata)
         return bool(reply.status == health_pb2.HealthCheckResponse.SERVING)
 
     return ready
 
 
-def server_ready(channel: grpc.Channel, timeout: float) -> bool:
+def server_ready(channel: grpc.Channel, timeout: float, metadata: Metadata = ()) -> bool:
     """Ready when the Open Inference Protocol's ServerReady says so: Triton, KServe and
     MLServer need not implement grpc.health.v1."""
     stub = oip_grpc.GRPCInferenceServiceStub(channel)
-    return bool(stub.ServerReady(oip.ServerReadyRequest(), timeout=timeout).ready)
+    return bool(stub.ServerReady(oip.ServerReadyRequest(), timeout=timeout,
+                                 metadata=metadata).ready)
 
 
 @dataclass(frozen=True)

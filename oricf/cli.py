@@ -4,6 +4,7 @@
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
+    oricf certs DIR [--host NAME ...]
     oricf demo [...]
     oricf bench detector|asr|llm|gateway|models [...]
 
@@ -19,7 +20,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from oricf.config import load_config, shipped_service_config
+from oricf.config import deep_merge, read_yaml, shipped_service_config, validate
 from oricf.errors import ConfigError, ModelMissing
 from oricf.logs import setup_logging
 
@@ -27,11 +28,27 @@ log = logging.getLogger("oricf")
 
 # verb -> module whose main(argv) -> int handles it
 DELEGATED = {
+    "certs": "oricf.tls",
     "gateway": "oricf.gateway.main",
     "up": "oricf.launch.up",
     "demo": "oricf.launch.demo",
 }
 BENCHMARKS = ("detector", "asr", "llm", "gateway", "models")
+
+
+def security_overrides(args: argparse.Namespace) -> dict[str, object]:
+    """`oricf serve` flags as `server:` keys, paths made absolute (they are the shell's)."""
+    server: dict[str, object] = {}
+    if args.tls_cert or args.tls_key:
+        tls = {"cert": args.tls_cert, "key": args.tls_key, "client_ca": args.tls_client_ca}
+        server["tls"] = {k: str(Path(v).resolve()) for k, v in tls.items() if v}
+    elif args.tls_client_ca:
+        raise ConfigError("--tls-client-ca needs --tls-cert and --tls-key")
+    if args.auth_token_file:
+        server["auth"] = {"file": str(Path(args.auth_token_file).resolve())}
+    if args.no_reflection:
+        server["reflection"] = False
+    return {"server": server} if server else {}
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
@@ -40,8 +57,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from oricf.store import ModelStore
 
     spec = load_spec(args.service)
-    path = args.config or shipped_service_config(args.service)
-    config = load_config(path, spec.config_schema)
+    path = Path(args.config or shipped_service_config(args.service))
+    data = deep_merge(read_yaml(path), security_overrides(args))
+    config = validate(data, spec.config_schema, str(path), base_dir=path.parent)
     model = spec.create_model(config, ModelStore())
     return serve(spec, config, model, args.listen)
 
@@ -80,6 +98,12 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--config", type=Path,
                        help="service YAML (default configs/services/NAME.yaml)")
     serve.add_argument("--listen", help="override the listen address, e.g. 0.0.0.0:50051")
+    serve.add_argument("--tls-cert", help="serve TLS with this certificate (PEM)")
+    serve.add_argument("--tls-key", help="the certificate's private key (PEM)")
+    serve.add_argument("--tls-client-ca", help="require client certificates signed by this CA")
+    serve.add_argument("--auth-token-file",
+                       help="require `authorization: Bearer TOKEN`, one token per line")
+    serve.add_argument("--no-reflection", action="store_true", help="do not serve reflection")
     serve.set_defaults(run=cmd_serve)
 
     models = verbs.add_parser("models", help="list or fetch models into the local model store")

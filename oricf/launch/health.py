@@ -1,9 +1,12 @@
 """grpc.health.v1 checks, and the probe that containers run.
 
     python -m oricf.launch.health [ADDRESS] [--service NAME] [--timeout S]
+        [--tls-ca CA.pem [--tls-cert CERT --tls-key KEY] [--server-name NAME]]
 
 exits 0 when ADDRESS (default $ORICF_HEALTH_ADDRESS, else 127.0.0.1:50051) answers SERVING,
-1 otherwise: the HEALTHCHECK of compose/Dockerfile and the compose files.
+1 otherwise: the HEALTHCHECK of compose/Dockerfile and the compose files. Health checks need
+no token (services exempt them), but a TLS service needs --tls-ca (and a client certificate
+where it requires one).
 """
 
 from __future__ import annotations
@@ -19,13 +22,16 @@ from typing import Any
 import grpc
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
+from oricf.tls import ClientTls, open_channel
+
 SERVING = health_pb2.HealthCheckResponse.SERVING
 DEFAULT_ADDRESS = "127.0.0.1:50051"
 
 
-def status(address: str, service: str = "", timeout: float = 2.0) -> str:
+def status(address: str, service: str = "", timeout: float = 2.0,
+           tls: ClientTls | None = None) -> str:
     """The health status name (SERVING, NOT_SERVING, ...), or UNREACHABLE."""
-    with grpc.insecure_channel(address) as channel:
+    with open_channel(address, tls) as channel:
         stub = health_pb2_grpc.HealthStub(channel)
         try:
             reply = stub.Check(health_pb2.HealthCheckRequest(service=service), timeout=timeout)
@@ -35,13 +41,14 @@ def status(address: str, service: str = "", timeout: float = 2.0) -> str:
 
 
 def wait_serving(address: str, timeout: float = 300.0,
-                 process: subprocess.Popen[Any] | None = None) -> None:
+                 process: subprocess.Popen[Any] | None = None,
+                 tls: ClientTls | None = None) -> None:
     """Blocks until address answers SERVING; fails early if `process` (the server) exits."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if process is not None and process.poll() is not None:
             raise RuntimeError(f"the service exited with {process.returncode} before SERVING")
-        if status(address, timeout=1.0) == "SERVING":
+        if status(address, timeout=1.0, tls=tls) == "SERVING":
             return
         time.sleep(0.1)
     raise TimeoutError(f"{address} was not SERVING after {timeout} s")
@@ -61,8 +68,16 @@ def main(argv: list[str] | None = None) -> int:
                         default=os.environ.get("ORICF_HEALTH_ADDRESS") or DEFAULT_ADDRESS)
     parser.add_argument("--service", default="", help="service name (default: the server)")
     parser.add_argument("--timeout", type=float, default=3.0, help="seconds for the call")
+    parser.add_argument("--tls-ca", help="TLS: the CA that signed the service's certificate")
+    parser.add_argument("--tls-cert", help="mTLS: this client's certificate")
+    parser.add_argument("--tls-key", help="mTLS: its key")
+    parser.add_argument("--server-name", help="TLS: the name in the service's certificate")
     args = parser.parse_args(argv)
-    state = status(args.address, args.service, args.timeout)
+    tls = None
+    if args.tls_ca:
+        tls = ClientTls(ca=args.tls_ca, cert=args.tls_cert, key=args.tls_key,
+                        server_name=args.server_name)
+    state = status(args.address, args.service, args.timeout, tls)
     print(f"{args.address}: {state}")
     return 0 if state == "SERVING" else 1
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from oricf.config import Schema
+from oricf.tls import ServerTls, TokenSource
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
 DEFAULT_MAX_MESSAGE_MB = 16
@@ -16,6 +17,9 @@ class ServerSettings(Schema):
     max_concurrent_rpcs: int = Field(
         8, ge=1, le=1024, description="calls beyond this get RESOURCE_EXHAUSTED at once")
     grace_s: float = Field(5.0, ge=0, le=600, description="drain time for in-flight calls")
+    tls: ServerTls | None = Field(None, description="serve TLS (mTLS with client_ca)")
+    auth: TokenSource | None = Field(None, description="require one of these bearer tokens")
+    reflection: bool = Field(True, description="serve gRPC reflection (grpcurl without protos)")
     retry_after_ms: int = Field(
         100, ge=1, le=60_000,
         description="a refused call is told to wait 1-2x this long (grpc-retry-pushback-ms)")

@@ -19,6 +19,7 @@ from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
 
 from oricf.errors import ConfigError
+from oricf.services.runtime.auth import TokenAuthInterceptor
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.limits import CallLimit
@@ -46,12 +47,15 @@ class ServiceHost:
         self.slot: ModelSlot[Any] = ModelSlot(model)
         settings = config.server
         limit = settings.max_concurrent_rpcs
+        interceptors: list[grpc.ServerInterceptor] = []
+        if settings.auth is not None:
+            interceptors.append(TokenAuthInterceptor(settings.auth.tokens()))
+        interceptors.append(ErrorMappingInterceptor(CallLimit(limit, settings.retry_after_ms)))
         self._workers = futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
                                                    thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(
             self._workers,
-            interceptors=[ErrorMappingInterceptor(
-                CallLimit(limit, settings.retry_after_ms))],
+            interceptors=interceptors,
             options=[
                 ("grpc.max_receive_message_length", settings.max_message_bytes),
                 ("grpc.max_send_message_length", settings.max_message_bytes),
@@ -61,11 +65,13 @@ class ServiceHost:
         spec.add_servicer(self.server, self.slot, config)
         self.health = health.HealthServicer(experimental_non_blocking=True)
         health_pb2_grpc.add_HealthServicer_to_server(self.health, self.server)
-        reflection.enable_server_reflection(
-            [spec.service_name, health.SERVICE_NAME, reflection.SERVICE_NAME], self.server)
+        if settings.reflection:
+            reflection.enable_server_reflection(
+                [spec.service_name, health.SERVICE_NAME, reflection.SERVICE_NAME], self.server)
         self.address = listen or settings.listen
         try:
-            self.port = self.server.add_insecure_port(self.address)
+            self.port = (self.server.add_secure_port(self.address, settings.tls.credentials())
+                         if settings.tls else self.server.add_insecure_port(self.address))
         except RuntimeError as exc:
             raise ConfigError(f"cannot listen on {self.address}: {exc}") from None
         if self.port == 0:
@@ -78,8 +84,13 @@ class ServiceHost:
 
     def start(self) -> None:
         self.server.start()
-        log.info("%s listening on port %d (health NOT_SERVING until the model loads)",
-                 self.spec.name, self.port)
+        settings = self.config.server
+        security = ("mTLS" if settings.tls and settings.tls.client_ca else
+                    "TLS" if settings.tls else "plaintext")
+        if settings.auth is not None:
+            security += ", bearer tokens"
+        log.info("%s listening on port %d (%s; health NOT_SERVING until the model loads)",
+                 self.spec.name, self.port, security)
 
     def load_model(self) -> None:
         seconds = self.slot.load()
