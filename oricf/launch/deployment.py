@@ -17,6 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from oricf.config import FilePath, Schema, check_address, load_config, shipped_service_config
 from oricf.errors import ConfigError
+from oricf.tls import ClientTls
 
 # the keys of oricf.services.REGISTRY (a test keeps the two in step)
 ServiceName = Literal["detector", "asr", "llm", "models"]
@@ -66,6 +67,9 @@ class Deployment(Schema):
     gateway: Gateway | None = None
     env: dict[str, str] = Field(default_factory=dict, description="for every process")
     startup_timeout_s: float = Field(600, gt=0, description="per service, to reach SERVING")
+    tls: ClientTls | None = Field(
+        None, description="how the health checks reach services that serve TLS (CA, and a "
+                          "client certificate where they require one)")
     stop_grace_s: float = Field(10, ge=0, le=600, description="SIGTERM to SIGKILL")
 
     @model_validator(mode="after")

@@ -95,7 +95,7 @@ class Launcher:
                 raise Stopped()
             for name, address in list(pending.items()):
                 self._check_alive(name)
-                states[name] = health.status(address, timeout=1.0)
+                states[name] = health.status(address, timeout=1.0, tls=self.deployment.tls)
                 if states[name] == "SERVING":
                     del pending[name]
                     self.progress(f"{name} SERVING at {address} "

@@ -140,3 +140,29 @@ def test_unreachable_remote_service_fails_the_launch_in_time(tmp_path: Path) -> 
         assert up.finish(timeout=60) == 1
     assert "not SERVING after" in up.output and "llm (UNREACHABLE)" in up.output
     assert "gateway" not in up.started()  # never started without its services
+
+
+def test_up_waits_for_a_service_that_requires_mtls_and_tokens(tmp_path: Path) -> None:
+    from oricf.tls import ClientTls, make_certificates
+
+    certs = tmp_path / "certs"
+    make_certificates(certs, ["localhost", "127.0.0.1"])
+    (certs / "tokens").write_text("t0ken\n")
+    config = tmp_path / "detector.yaml"
+    config.write_text(
+        f"server:\n  tls: {{cert: {certs}/server.pem, key: {certs}/server.key, "
+        f"client_ca: {certs}/ca.pem}}\n  auth: {{file: {certs}/tokens}}\n")
+    port = free_port()
+    entry = {**service_entry(port), "config": str(config)}
+    client = {"ca": str(certs / "ca.pem"), "cert": str(certs / "client.pem"),
+              "key": str(certs / "client.key")}
+    path = write_deployment(tmp_path, {"services": {"detector": entry}, "tls": client,
+                                       "stop_grace_s": 5})
+    with oricf_up(path) as up:
+        up.wait_for(RUNNING, timeout=120)
+        address = f"127.0.0.1:{port}"
+        assert health.status(address, tls=ClientTls.model_validate(client)) == "SERVING"
+        assert health.status(address) == "UNREACHABLE"  # plaintext gets nowhere
+        up.process.send_signal(signal.SIGTERM)
+        assert up.finish(timeout=30) == 0
+    assert "t0ken" not in up.output
