@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -112,9 +113,12 @@ def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
         config_path = service["command"][service["command"].index("--config") + 1]
         host_config = resolve_in_mounts(mounts(service), config_path)
         assert host_config == (config_dir() / "services" / f"{name}.yaml").resolve()
-        listen = read_yaml(host_config)["server"]["listen"]
+        # the shipped YAML keeps to loopback; the container listens on every interface
+        assert read_yaml(host_config)["server"]["listen"].startswith("127.0.0.1:")
+        listen = service["command"][service["command"].index("--listen") + 1]
         host, _, port = listen.rpartition(":")
         assert host == "0.0.0.0", f"{name}: a container must listen on every interface"
+        assert port == read_yaml(host_config)["server"]["listen"].rpartition(":")[2]
         assert service["ports"] == [f"{port}:{port}"]
         assert service["healthcheck"]["test"][-1] == f"127.0.0.1:{port}"
         assert service["healthcheck"]["test"][1:4] == [
@@ -132,6 +136,9 @@ def test_images_bake_the_models_the_services_load() -> None:
         path = config_dir() / "services" / f"{name}.yaml"
         model = read_yaml(path)["model"]
         if isinstance(model, str):  # a declared model: the catalog entry of its weights
+            container = str(Path("/etc/oricf/services") / model)
+            mounted = resolve_in_mounts(mounts(service), os.path.normpath(container))
+            assert mounted is not None and mounted.is_file(), f"{name}: {model} not mounted"
             weights = load_declaration(path.parent / model).weights
             assert weights is not None and weights.catalog is not None
             model = {"name": weights.catalog}
