@@ -20,6 +20,8 @@ die() { printf 'setup: %s\n' "$*" >&2; exit 1; }
 
 step "system packages (espeak-ng and sox synthesize the spoken questions)"
 APT_PACKAGES=(espeak-ng sox)
+# The tests degrade a link between network namespaces (iptables drops packets at random).
+((DEV)) && APT_PACKAGES+=(iptables iproute2)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")

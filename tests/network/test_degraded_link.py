@@ -1,0 +1,94 @@
+"""Gateway and edge service on two hosts (network namespaces) joined by a degraded link:
+20 Mbit/s, 2% random loss, 50 ms +- 10 ms delay; then the link is cut for 10 s and comes
+back. The people route keeps counting throughout: on the edge, on the onboard fallback
+while the link is down, and on the edge again once its health check says SERVING."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from oricf.bench.netns import EdgeHost, edge_host
+from oricf.bench.relay import DelayRelay
+from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.values import Frame
+from oricf.launch.health import wait_serving
+from tests.gateway.test_pipeline import Outputs, pipeline_config
+from tests.support.data import video_frames
+from tests.support.services import running_service
+
+EDGE_PORT = 50051
+FPS = 10
+
+
+@contextmanager
+def edge_detector(edge: EdgeHost) -> Iterator[str]:
+    address = f"{edge.address}:{EDGE_PORT}"
+    process = subprocess.Popen(
+        edge.exec_argv([sys.executable, "-m", "oricf", "--log-level", "WARNING", "serve",
+                        "detector", "--listen", address]),
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        wait_serving(address, timeout=120, process=process)
+        yield address
+    finally:
+        process.terminate()
+        try:
+            process.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
+    """Camera frames at FPS for `seconds`, newest-frame-only as a camera route takes them."""
+    end = time.monotonic() + seconds
+    i = 0
+    while time.monotonic() < end:
+        frame = frames[i % len(frames)]
+        pipeline.submit("people", lambda f=frame: {"image": f})
+        i += 1
+        time.sleep(1 / FPS)
+
+
+def test_counting_survives_a_degraded_and_cut_link() -> None:
+    frames = [Frame.from_pixels(f) for f in video_frames([0, 80, 160, 400])]
+    with edge_host() as edge, edge_detector(edge) as remote, \
+            running_service("detector") as onboard:
+        host, _, port = remote.rpartition(":")
+        relay = DelayRelay((host, int(port)), delay_s=0.05, jitter_s=0.01)
+        edge.degrade(rate_mbit=20, loss=0.02)
+        config = pipeline_config(relay.address, {"endpoints": {"detector": {
+            "fallback": onboard.address, "deadline_ms": 1500, "probe_interval_s": 0.5,
+            "image": {"transport": "jpeg", "jpeg_quality": 80}}}})
+        outputs = Outputs()
+        pipeline = Pipeline(config, outputs)
+        pipeline.start()
+        endpoint = pipeline.endpoints["detector"]
+        try:
+            feed(pipeline, frames, 4)
+            on_edge = len(outputs.sent)
+            assert endpoint.failovers == 0 and endpoint.active is endpoint.primary
+            edge.cut()
+            feed(pipeline, frames, 10)
+            during_cut = len(outputs.sent) - on_edge
+            assert endpoint.failovers == 1 and endpoint.active is endpoint.fallback
+            edge.reconnect()
+            deadline = time.monotonic() + 60
+            while endpoint.active is not endpoint.primary:
+                assert time.monotonic() < deadline, "never returned to the edge"
+                feed(pipeline, frames, 1)
+            back = len(outputs.sent)
+            feed(pipeline, frames, 3)
+            after = len(outputs.sent) - back
+        finally:
+            pipeline.stop()
+            relay.close()
+    counts = [value for topic, value in outputs.sent if topic == "/human_counter"]
+    assert on_edge >= 2 * 4 and during_cut >= 2 * 10 and after >= 2 * 3, (
+        on_edge, during_cut, after)
+    assert all(2 <= c <= 12 for c in counts)
+    assert endpoint.recoveries >= 1
