@@ -5,8 +5,9 @@ schemas for TLS and tokens, gRPC credentials from them, and a local CA for a dep
 
 writes DIR/ca.pem (the deployment's CA; its key ca.key stays with whoever issues
 certificates), server.pem/server.key (for the services; the hosts as subject alternative
-names) and client.pem/client.key (for gateways, when services require client certificates).
-Keys are written readable by their owner only. Certificates use the `cryptography` library.
+names), client.pem/client.key (for gateways, when services require client certificates) and
+DIR/tokens, one random bearer token for `server.auth` and the gateway's `token`. Keys and
+the token are written readable by their owner only. Certificates use the `cryptography` library.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import argparse
 import datetime
 import ipaddress
 import os
+import secrets
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -130,14 +132,18 @@ def _san(hosts: list[str]) -> x509.SubjectAlternativeName:
     return x509.SubjectAlternativeName(names)
 
 
-def _write_key(path: Path, key: EllipticCurvePrivateKey) -> None:
-    from cryptography.hazmat.primitives import serialization
-
-    data = key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                             serialization.NoEncryption())
+def _write_private(path: Path, data: bytes) -> None:
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     with os.fdopen(fd, "wb") as out:
         out.write(data)
+
+
+def _write_key(path: Path, key: EllipticCurvePrivateKey) -> None:
+    from cryptography.hazmat.primitives import serialization
+
+    _write_private(path, key.private_bytes(serialization.Encoding.PEM,
+                                           serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
 
 
 def make_certificates(folder: Path, hosts: list[str]) -> None:
@@ -172,6 +178,8 @@ def make_certificates(folder: Path, hosts: list[str]) -> None:
         cert = builder.sign(ca_key, hashes.SHA256())
         _write_key(folder / f"{role}.key", key)
         (folder / f"{role}.pem").write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    if not (folder / "tokens").exists():  # a token already handed out stays valid
+        _write_private(folder / "tokens", (secrets.token_urlsafe(32) + "\n").encode())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -184,5 +192,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     hosts = args.host or ["localhost", "127.0.0.1"]
     make_certificates(args.folder, hosts)
-    print(f"{args.folder}: ca.pem, server.pem/.key ({', '.join(hosts)}), client.pem/.key")
+    print(f"{args.folder}: ca.pem, server.pem/.key ({', '.join(hosts)}), client.pem/.key, "
+          f"tokens")
     return 0

@@ -75,6 +75,16 @@ def test_certs_are_written_with_private_keys_private(certs: Path) -> None:
         assert stat.S_IMODE(os.stat(certs / name).st_mode) == 0o600
 
 
+def test_oricf_certs_writes_a_random_private_token(tmp_path: Path) -> None:
+    result = subprocess.run([sys.executable, "-m", "oricf", "certs", str(tmp_path / "c"),
+                             "--host", "edge.local"], capture_output=True, text=True,
+                            timeout=60, check=False)
+    assert result.returncode == 0, result.stderr
+    token = (tmp_path / "c" / "tokens").read_text().strip()
+    assert len(token) >= 40 and token not in result.stdout
+    assert stat.S_IMODE(os.stat(tmp_path / "c" / "tokens").st_mode) == 0o600
+
+
 def test_mtls_and_a_token_are_both_required(secured: RunningService, certs: Path,
                                             caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.DEBUG)
