@@ -45,7 +45,7 @@ def served(service: str, *args: str) -> Iterator[tuple[str, subprocess.Popen[byt
         stop(process)
 
 
-def stop(process: subprocess.Popen[bytes], timeout: float = 30) -> None:
+def stop(process: subprocess.Popen[Any], timeout: float = 30) -> None:
     """SIGTERM (the process drains), SIGKILL if it takes longer than timeout."""
     process.terminate()
     try:

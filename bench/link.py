@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from oricf.bench.common import load_frames, print_table
+from oricf.bench.common import load_frames, print_table, stop
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.bench.relay import DelayRelay
 from oricf.config import deep_merge
@@ -66,8 +66,7 @@ def served(argv: list[str], address: str) -> Iterator[None]:
         wait_serving(address, timeout=120, process=process)
         yield
     finally:
-        process.terminate()
-        process.wait(timeout=30)
+        stop(process)
 
 
 def oricf(*args: str) -> list[str]:

@@ -13,6 +13,7 @@ from pathlib import Path
 import grpc
 import pytest
 
+from oricf.bench.common import stop
 from oricf.gateway.endpoints import Target
 from oricf.gateway.methods import METHODS, health_check
 from oricf.oip import open_inference_grpc_pb2 as oip
@@ -53,12 +54,7 @@ def kserve_address() -> Iterator[str]:
         wait_ready(address, process)
         yield address
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
 
 
 def test_gateway_counts_people_through_kserve_as_through_oricf(kserve_address: str) -> None:

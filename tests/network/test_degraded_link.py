@@ -11,6 +11,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from oricf.bench.common import stop
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.bench.relay import DelayRelay
 from oricf.gateway.pipeline import Pipeline
@@ -35,12 +36,7 @@ def edge_detector(edge: EdgeHost) -> Iterator[str]:
         wait_serving(address, timeout=120, process=process)
         yield address
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
 
 
 def feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
