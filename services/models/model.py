@@ -89,6 +89,10 @@ class DeclaredModel:
         task = self.declaration.task
         if task is not None:
             name = task.image.input or self.inputs[0].name
+            if name not in {s.name for s in self.inputs}:
+                raise ConfigError(f"model {self.name}: task.image.input: the model has no "
+                                  f"input '{name}' (inputs: "
+                                  f"{', '.join(s.name for s in self.inputs)})")
             spec = self.input(name)
             try:
                 self.head = make_head(task, name, spec.shape)
@@ -107,9 +111,8 @@ class DeclaredModel:
             self.infer(feeds)
             return
         prepared = self.head.prepare(np.zeros((64, 64, 3), np.uint8))
-        outputs = self.infer({**feeds, **prepared.feeds})
-        try:  # a task that does not fit the model's outputs fails here, not on a request
-            self.head.decode(outputs, prepared)
+        try:  # a task that does not fit the model fails here, not on a request
+            self.head.decode(self.infer({**feeds, **prepared.feeds}), prepared)
         except InvalidInput as exc:
             raise ConfigError(f"model {self.name}: task: {exc}") from None
 

@@ -163,3 +163,13 @@ def test_a_decoder_that_does_not_fit_the_model_is_refused_at_load(tmp_path: Path
     path = declared(tmp_path, {"task.labels_file": None, "task.labels": ["a", "b"]})
     with pytest.raises(ConfigError, match="yolox decoder"):
         DeclaredModel(load_declaration(path), ModelStore()).load()
+
+
+def test_an_image_input_the_model_lacks_or_cannot_take_is_refused_at_load(
+        tmp_path: Path) -> None:
+    path = declared(tmp_path, {"task.image.input": "pixels"})
+    with pytest.raises(ConfigError, match=r"task\.image\.input: the model has no input 'pixels'"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
+    path = declared(tmp_path, {"task.image.datatype": "UINT8"})
+    with pytest.raises(ConfigError, match="task: input 'images': datatype UINT8"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
