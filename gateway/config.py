@@ -90,6 +90,11 @@ class InputConfig(Schema):
     topic: str | None = None
     type: InputType | None = None
     product: str | None = Field(None, description="run on every new value of a data product")
+    url: str | None = Field(
+        None, description="a video: a file, rtsp://, http(s)://, or a device /dev/videoN")
+    fps: float | None = Field(None, gt=0, le=240, description="url: at most this many frames/s")
+    loop: bool = Field(False, description="url: a file starts again at its end (else the "
+                                          "route ends)")
     sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
     channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
     keep: Literal["latest", "queue"] | None = Field(
@@ -99,8 +104,12 @@ class InputConfig(Schema):
 
     @model_validator(mode="after")
     def _one_source(self) -> InputConfig:
-        if (self.topic is None) == (self.product is None):
-            raise ValueError("give exactly one of topic or product")
+        if sum(x is not None for x in (self.topic, self.product, self.url)) != 1:
+            raise ValueError("give exactly one of topic, product or url")
+        if self.url is None and (self.fps is not None or self.loop):
+            raise ValueError("fps, loop: only with url")
+        if self.url is not None and self.type is not None:
+            raise ValueError("type: only with topic (a url gives video frames)")
         if self.topic is not None and self.type is None:
             raise ValueError("type: required with topic")
         if self.product is not None and self.type is not None:
@@ -111,13 +120,15 @@ class InputConfig(Schema):
 
     @property
     def field(self) -> str:
+        if self.url is not None:
+            return "image"
         return "value" if self.type is None else INPUT_FIELDS[self.type]
 
     @property
     def mode(self) -> Literal["latest", "queue"]:
         if self.keep is not None:
             return self.keep
-        return "latest" if self.type in IMAGE_INPUTS else "queue"
+        return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
 
 
 class ContextConfig(Schema):
@@ -252,13 +263,15 @@ class OutputConfig(Schema):
     topic: str | None = None
     type: OutputType | None = None
     product: str | None = None
+    jsonl: str | None = Field(
+        None, description="JSON lines: '-' for standard output, or a file (appended to)")
     max_age_s: float = Field(5.0, gt=0, description="product: older values count as stale")
     source: str = Field(alias="from", description="the record field to send")
 
     @model_validator(mode="after")
     def _one_sink(self) -> OutputConfig:
-        if (self.topic is None) == (self.product is None):
-            raise ValueError("give exactly one of topic or product")
+        if sum(x is not None for x in (self.topic, self.product, self.jsonl)) != 1:
+            raise ValueError("give exactly one of topic, product or jsonl")
         if self.topic is not None and self.type is None:
             raise ValueError("type: required with topic")
         return self
@@ -281,6 +294,12 @@ class PipelineConfig(Schema):
     routes: dict[str, RouteConfig] = Field(min_length=1)
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="named overlays chosen with --profile")
+
+    @property
+    def uses_ros(self) -> bool:
+        """Whether any route reads or writes a ROS topic (else the gateway runs without ROS)."""
+        return any(r.input.topic is not None or any(o.topic for o in r.outputs)
+                   for r in self.routes.values())
 
     def method_of(self, endpoint: str) -> str:
         """The method the routes call on an endpoint (one gRPC service per endpoint)."""

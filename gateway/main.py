@@ -122,6 +122,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.config}: OK ({len(config.routes)} routes, "
               f"endpoints {', '.join(config.endpoints)})")
         return 0
+    if not config.uses_ros:
+        from oricf.gateway import standalone
+
+        return standalone.run(config)
     return run(config, ros_args)
 
 

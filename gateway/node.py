@@ -22,6 +22,7 @@ from oricf.gateway import convert
 from oricf.gateway.camera import CameraReceiver
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, OutputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.standalone import Outlets, video_sources
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 
@@ -44,7 +45,9 @@ class GatewayNode(Node):
         self._publishers_by_topic: dict[str, Publisher] = {}
         self._throttle = ThrottledLog(log)
         self._cameras: list[CameraReceiver] = []
+        self._outlets = Outlets()  # outputs that are not topics (JSON lines)
         self.pipeline = Pipeline(config, self._emit)
+        self._videos = video_sources(self.pipeline, lambda route: None)
         for route in config.routes.values():
             for output in route.outputs:
                 if output.topic is not None:
@@ -55,6 +58,8 @@ class GatewayNode(Node):
         self.pipeline.start(inline=[camera.route for camera in self._cameras])
         for camera in self._cameras:
             camera.start()
+        for video in self._videos:
+            video.start()
         if config.stats_interval_s > 0:
             self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
         log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
@@ -93,7 +98,10 @@ class GatewayNode(Node):
                  self.pipeline.config.routes[route].call.method)
 
     def _emit(self, output: OutputConfig, value: Any, record: Record) -> None:
-        assert output.topic is not None and output.type is not None
+        if output.topic is None:
+            self._outlets(output, value, record)
+            return
+        assert output.type is not None
         try:
             msg = convert.to_message(output.type, value, record.get("header"))
         except (TypeError, ValueError) as exc:  # a value that does not fit the topic type
@@ -111,6 +119,9 @@ class GatewayNode(Node):
             log.debug("shutting down: %s not published", output.topic)
 
     def shutdown(self) -> None:
+        for video in self._videos:
+            video.stop()
         for camera in self._cameras:
             camera.stop()
         self.pipeline.stop()
+        self._outlets.jsonl.close()

@@ -58,6 +58,7 @@ class Route:
 
     def run(self, record: Record) -> Record:
         """Call and post-process one record; returns it with every field filled in."""
+        record.setdefault("route", self.name)
         record.update(self._invoke(record))
         self._post(record)
         return record

@@ -8,7 +8,8 @@ import sys
 from oricf.gateway.main import split_ros_args
 
 CORE = ["config", "methods", "values", "calls", "post", "products", "endpoints", "worker",
-        "route", "pipeline", "throttle", "dds", "cdr", "grpc_client", "main"]
+        "route", "pipeline", "throttle", "dds", "cdr", "grpc_client", "main", "sources",
+        "sinks", "standalone"]
 
 
 def test_core_modules_do_not_import_ros() -> None:

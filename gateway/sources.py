@@ -1,0 +1,112 @@
+"""Inputs that are not ROS topics: video from a file, an RTSP or HTTP stream, or a V4L2
+device (FFmpeg through OpenCV), read on a thread of its own.
+
+The newest frame wins: the route takes frames as it can and the rest are dropped (the
+route's worker keeps only the newest). `fps` caps how often frames are handed over: a
+stream's extra frames are skipped, a file is played at that rate (without `fps`, as fast as
+it decodes). A file
+ends the route at its end, or starts again with `loop`; a stream or device that cannot be
+opened or stops sending is reopened with backoff, and each attempt is logged.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from oricf.gateway.config import InputConfig
+from oricf.gateway.route import Loader
+from oricf.gateway.values import Frame
+
+log = logging.getLogger(__name__)
+
+Submit = Callable[[Loader], None]
+RECONNECT_MIN_S = 0.5
+RECONNECT_MAX_S = 10.0
+
+
+def is_live(url: str) -> bool:
+    """A stream or device (reconnect when it drops) rather than a file (it ends)."""
+    return url.startswith(("rtsp://", "rtsps://", "http://", "https://", "/dev/video"))
+
+
+class VideoSource:
+    def __init__(self, route: str, config: InputConfig, submit: Submit,
+                 on_end: Callable[[str], None]) -> None:
+        assert config.url is not None
+        self.route = route
+        self.url = config.url
+        self.config = config
+        self.frames = 0
+        self.reconnects = 0
+        self._submit = submit
+        self._on_end = on_end
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name=f"video-{route}")
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        self._thread.join(timeout)
+
+    def _open(self) -> Any:
+        import cv2
+
+        if self.url.startswith("/dev/video") and self.url[len("/dev/video"):].isdigit():
+            source: Any = int(self.url[len("/dev/video"):])  # V4L2 device N
+        else:
+            source = os.path.expanduser(self.url)
+        capture = cv2.VideoCapture(source)
+        return capture if capture.isOpened() else None
+
+    def _run(self) -> None:
+        backoff = RECONNECT_MIN_S
+        while not self._stop.is_set():
+            capture = self._open()
+            if capture is None:
+                if not is_live(self.url):
+                    log.error("route %s: cannot open %s; the route ends", self.route, self.url)
+                    break
+                self.reconnects += 1
+                log.warning("route %s: cannot open %s; trying again in %.1f s", self.route,
+                            self.url, backoff)
+                self._stop.wait(backoff)
+                backoff = min(backoff * 2, RECONNECT_MAX_S)
+                continue
+            backoff = RECONNECT_MIN_S
+            ended = self._read(capture)
+            capture.release()
+            if ended and not is_live(self.url) and not self.config.loop:
+                log.info("route %s: %s ended after %d frames", self.route, self.url,
+                         self.frames)
+                break
+            if ended and is_live(self.url):
+                self.reconnects += 1
+                log.warning("route %s: %s stopped sending; reconnecting", self.route, self.url)
+        self._on_end(self.route)
+
+    def _read(self, capture: Any) -> bool:
+        """Hands frames over until the source ends (True) or the source is stopped (False)."""
+        period = 1.0 / self.config.fps if self.config.fps else 0.0
+        next_at = time.monotonic()
+        while not self._stop.is_set():
+            ok, pixels = capture.read()
+            if not ok:
+                return True
+            now = time.monotonic()
+            if period and now < next_at:
+                if is_live(self.url):
+                    continue  # over the rate cap: a stream's extra frames are skipped
+                self._stop.wait(next_at - now)  # a file plays at the capped rate
+                now = time.monotonic()
+            next_at = max(next_at + period, now) if period else now
+            frame = Frame.from_pixels(pixels)
+            self.frames += 1
+            self._submit(lambda f=frame: {"image": f})
+        return False

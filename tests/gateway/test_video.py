@@ -1,0 +1,51 @@
+"""The gateway without ROS: a video file in, JSON lines out, rclpy never imported; and the
+video source's bad cases (a file that does not exist ends its route with a clear error)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import yaml
+
+from oricf.config import config_dir
+from oricf.gateway.config import InputConfig
+from oricf.gateway.sources import VideoSource
+from tests.support.data import video_path
+from tests.support.services import running_service
+
+PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
+
+
+def test_people_video_pipeline_writes_counts_as_json_lines_without_ros(tmp_path: Path) -> None:
+    no_ros = tmp_path / "no_ros" / "rclpy"
+    no_ros.mkdir(parents=True)
+    (no_ros / "__init__.py").write_text("raise ImportError('rclpy must not be imported')\n")
+    with running_service("detector") as detector:
+        overlay = tmp_path / "here.yaml"
+        overlay.write_text(yaml.safe_dump({
+            "endpoints": {"detector": {"address": detector.address}},
+            "routes": {"people": {"input": {"url": str(video_path()), "fps": 100}}}}))
+        result = subprocess.run(
+            [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
+             "--overlay", str(overlay)], capture_output=True, text=True, timeout=300,
+            env={"PYTHONPATH": str(no_ros.parent), "PATH": "/usr/bin:/bin",
+                 "HOME": str(Path.home())}, check=False)
+    assert result.returncode == 0, result.stderr
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert len(lines) >= 20, result.stderr
+    assert all(line["route"] == "people" and 1 <= line["count"] <= 15 for line in lines)
+    assert "vtest.avi ended after 795 frames" in result.stderr
+
+
+def test_a_missing_file_ends_its_route_with_a_clear_error(caplog: object) -> None:
+    ended = threading.Event()
+    source = VideoSource("cam", InputConfig(url="/nowhere/video.mp4"), lambda load: None,
+                         lambda route: ended.set())
+    source.start()
+    assert ended.wait(10)
+    assert source.frames == 0
+    assert "cannot open /nowhere/video.mp4; the route ends" in caplog.text  # type: ignore[attr-defined]
