@@ -13,7 +13,7 @@ DEV=0
 VENV="${ORICF_VENV:-.venv}"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
 LLAMA_VERSION="0.3.36"
-MODELS=(yolox-nano yolov8n-fall ppocr-text-direction whisper-tiny-en gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
+MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
 
 step() { printf '\n==> %s\n' "$*"; }
 die() { printf 'setup: %s\n' "$*" >&2; exit 1; }

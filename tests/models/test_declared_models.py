@@ -28,7 +28,7 @@ def loaded(name: str) -> Iterator[DeclaredModel]:
 
 @pytest.fixture(scope="module")
 def fall() -> Iterator[DeclaredModel]:
-    yield from loaded("yolov8n-fall")
+    yield from loaded("yolov8-fall")
 
 
 @pytest.fixture(scope="module")

@@ -214,7 +214,7 @@ def test_not_ready_until_the_models_load() -> None:
         assert error.value.code() == grpc.StatusCode.UNAVAILABLE
 
 
-DECLARED = ["yolox-nano", "yolov8n-fall", "text-direction"]
+DECLARED = ["yolox-nano", "yolov8-fall", "text-direction"]
 
 
 def _valid_input(stub: oip_grpc.GRPCInferenceServiceStub, model: str
