@@ -36,7 +36,7 @@ def test_this_environment_runs_protobuf_6() -> None:
 
 def test_stubs_run_on_protobuf_7_too(tmp_path: Path) -> None:
     """The stubs are generated for protobuf 6 (so ORICF installs beside tritonclient, kserve
-    and mlserver, which need protobuf < 7); they must import on protobuf 7 as well."""
+    or mlserver, which need protobuf < 7); they must import on protobuf 7 as well."""
     import subprocess
     import sys
 
