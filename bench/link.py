@@ -61,6 +61,7 @@ class Counts:
 
 @contextmanager
 def served(argv: list[str], address: str) -> Iterator[None]:
+    """A service process (argv) until the block ends, once `address` answers SERVING."""
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         wait_serving(address, timeout=120, process=process)
@@ -70,6 +71,7 @@ def served(argv: list[str], address: str) -> Iterator[None]:
 
 
 def oricf(*args: str) -> list[str]:
+    """The command line of `oricf ARGS` with this Python."""
     return [sys.executable, "-m", "oricf", "--log-level", "WARNING", *args]
 
 
@@ -88,19 +90,19 @@ def run_profile(edge: EdgeHost, remote: str, onboard: str, frames: list[Frame],
     pipeline.start()
     cut_at = returned_after = 0.0
     try:
-        _feed(pipeline, frames, seconds)
+        feed(pipeline, frames, seconds)
         if cut_s:
             cut_at = time.monotonic()
             edge.cut()
-            _feed(pipeline, frames, cut_s)
+            feed(pipeline, frames, cut_s)
             edge.reconnect()
             back_from = time.monotonic()
             endpoint = pipeline.endpoints["detector"]
             while endpoint.active is not endpoint.primary and \
                     time.monotonic() - back_from < 120:
-                _feed(pipeline, frames, 0.5)
+                feed(pipeline, frames, 0.5)
             returned_after = time.monotonic() - back_from
-            _feed(pipeline, frames, 2)
+            feed(pipeline, frames, 2)
     finally:
         pipeline.stop()
         relay.close()
@@ -108,7 +110,8 @@ def run_profile(edge: EdgeHost, remote: str, onboard: str, frames: list[Frame],
     return counts, pipeline, cut_at, returned_after
 
 
-def _feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
+def feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
+    """Camera frames at FPS for `seconds` to the people route, each stamped `sent_at`."""
     end, i = time.monotonic() + seconds, 0
     while time.monotonic() < end:
         frame = frames[i % len(frames)]

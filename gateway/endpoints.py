@@ -70,7 +70,6 @@ class Target:
         self.address = address
         self.channel = open_channel(address, tls, CHANNEL_OPTIONS)
         self.stub = method.stub(self.channel)
-        self.service = method.service
         self.metadata: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
         self._ready = method.ready
 

@@ -2,9 +2,9 @@
 
 ErrorMappingInterceptor wraps every handler of a server. Requests are parsed inside it, so
 bytes that are not the request message get INVALID_ARGUMENT like any bad input; a servicer
-raises InvalidInput
-(or lets a model raise it) and the caller gets INVALID_ARGUMENT with the message. Anything
-unexpected is logged with its traceback and returned as INTERNAL without internals.
+raises InvalidInput (or lets a model raise it) and the caller gets INVALID_ARGUMENT with the
+message. Anything unexpected is logged with its traceback and returned as INTERNAL without
+internals. Calls over the service's limit are refused here too, with retry pushback.
 """
 
 from __future__ import annotations

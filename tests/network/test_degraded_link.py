@@ -5,49 +5,25 @@ while the link is down, and on the edge again once its health check says SERVING
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from oricf.bench.common import stop
+from oricf.bench.link import EDGE_PORT, feed, oricf, served
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.bench.relay import DelayRelay
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame
-from oricf.launch.health import wait_serving
 from tests.gateway.test_pipeline import Outputs, pipeline_config
 from tests.support.data import video_frames
 from tests.support.services import running_service
-
-EDGE_PORT = 50051
-FPS = 10
 
 
 @contextmanager
 def edge_detector(edge: EdgeHost) -> Iterator[str]:
     address = f"{edge.address}:{EDGE_PORT}"
-    process = subprocess.Popen(
-        edge.exec_argv([sys.executable, "-m", "oricf", "--log-level", "WARNING", "serve",
-                        "detector", "--listen", address]),
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        wait_serving(address, timeout=120, process=process)
+    with served(edge.exec_argv(oricf("serve", "detector", "--listen", address)), address):
         yield address
-    finally:
-        stop(process)
-
-
-def feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
-    """Camera frames at FPS for `seconds`, newest-frame-only as a camera route takes them."""
-    end = time.monotonic() + seconds
-    i = 0
-    while time.monotonic() < end:
-        frame = frames[i % len(frames)]
-        pipeline.submit("people", lambda f=frame: {"image": f})
-        i += 1
-        time.sleep(1 / FPS)
 
 
 def test_counting_survives_a_degraded_and_cut_link() -> None:
