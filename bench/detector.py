@@ -22,8 +22,9 @@ import numpy as np
 
 from oricf.bench.common import load_frames, median_ms, print_table, served
 from oricf.config import load_config, shipped_service_config
+from oricf.models.declaration import DetectionTask
 from oricf.services.detector.config import DetectorConfig
-from oricf.services.detector.service import create_model, detection_task
+from oricf.services.detector.service import create_model
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
@@ -57,7 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     model = create_model(config, ModelStore())
     model.load()
     frames = load_frames(args.frames)
-    min_score = config.detection.min_score or detection_task(config).min_score
+    task = model.declaration.task
+    assert isinstance(task, DetectionTask)
+    min_score = config.detection.min_score or task.min_score
     person = np.array([0])
 
     def in_process(frame: np.ndarray) -> object:

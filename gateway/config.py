@@ -196,8 +196,8 @@ class InferCall(Schema):
         if task is None:
             raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
                              f"to turn its input into tensors and its outputs into fields")
-        unknown = sorted(set(self.labels) - set(task.label_list())) if task.label_list() \
-            else []
+        known = task.label_list()  # reads the labels file, so once
+        unknown = sorted(set(self.labels) - set(known)) if known else []
         if unknown:
             raise ValueError(f"labels: the model has no label(s) {', '.join(unknown)}")
         if self.labels and task.kind != "detection":

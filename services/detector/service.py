@@ -15,21 +15,17 @@ from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 
-def detection_task(config: DetectorConfig) -> DetectionTask:
-    task = load_declaration(config.model).task
-    if not isinstance(task, DetectionTask):
-        raise ConfigError(f"{config.model}: task.kind: the detector serves detection models")
-    return task
-
-
 def create_model(config: DetectorConfig, store: ModelStore) -> DeclaredModel:
-    detection_task(config)
-    return DeclaredModel(load_declaration(config.model), store)
+    declaration = load_declaration(config.model)
+    if not isinstance(declaration.task, DetectionTask):
+        raise ConfigError(f"{config.model}: task.kind: the detector serves detection models")
+    return DeclaredModel(declaration, store)
 
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
                  config: DetectorConfig) -> None:
-    task = detection_task(config)
+    task = slot.peek().declaration.task  # create_model checked it is a detection task
+    assert isinstance(task, DetectionTask)
     detection = config.detection
     labels = LabelSpace(task.label_list(), detection.label_map, detection.labels)
     min_score = detection.min_score or task.min_score
