@@ -181,5 +181,5 @@ def test_the_typed_detector_refuses_a_model_that_is_not_a_detector() -> None:
 
     config = service_config("detector", {"model": str(REPO_ROOT / "configs/models/"
                                                       "text-direction.yaml")})
-    with pytest.raises(ConfigError, match="task.kind: the detector serves detection models"):
+    with pytest.raises(ConfigError, match=r"task\.kind: the detector serves detection models"):
         create_model(config, ModelStore())
