@@ -40,7 +40,7 @@ from oricf.config import (
 from oricf.errors import ConfigError
 from oricf.gateway.methods import METHODS
 from oricf.models.declaration import ModelDeclaration, load_declaration
-from oricf.tls import ClientTls, TokenSource
+from oricf.tls import ClientTls, ServerTls, TokenSource
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
@@ -52,6 +52,10 @@ INPUT_FIELDS: dict[str, str] = {
 }
 # Camera inputs: newest frame only, sensor_data QoS.
 IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
+# The keys of InputConfig that name a source; a route has exactly one.
+SOURCE_KEYS = ("topic", "product", "url", "audio", "text")
+# The keys of OutputConfig that name a sink; an output has exactly one.
+SINK_KEYS = ("topic", "product", "jsonl", "text", "frames")
 
 
 class ImageTransport(Schema):
@@ -86,7 +90,25 @@ class EndpointConfig(Schema):
         return None if value is None else check_address(value)
 
 
+class VadConfig(Schema):
+    """How an audio input is cut into utterances (Silero VAD, 32 ms windows at 16 kHz); the
+    same settings as the ASR service's `endpointing:`."""
+
+    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts it")
+    min_silence_ms: int = Field(
+        400, ge=32, le=10_000, description="this much silence ends an utterance")
+    speech_pad_ms: int = Field(
+        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
+    min_speech_ms: int = Field(
+        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
+    max_utterance_s: float = Field(
+        20.0, gt=1, le=60, description="an utterance this long is cut and sent (keep it under "
+                                       "the ASR service's audio.max_audio_s)")
+
+
 class InputConfig(Schema):
+    """Where a route's items come from: exactly one of topic, product, url, audio, text."""
+
     topic: str | None = None
     type: InputType | None = None
     product: str | None = Field(None, description="run on every new value of a data product")
@@ -95,40 +117,78 @@ class InputConfig(Schema):
     fps: float | None = Field(None, gt=0, le=240, description="url: at most this many frames/s")
     loop: bool = Field(False, description="url: a file starts again at its end (else the "
                                           "route ends)")
+    audio: str | None = Field(
+        None, description="utterances from an audio device ('default', a name or an index) "
+                          "or a .wav file, cut by voice activity")
+    text: str | None = Field(
+        None, description="lines of text: '-' for standard input, or a channel's name")
     sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
     channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
+    vad: VadConfig | None = Field(None, description="audio: voice activity settings")
     keep: Literal["latest", "queue"] | None = Field(
         None, description="latest: newest only, older ones dropped (always for images); "
                           "queue: keep up to queue_size in order (default otherwise)")
     queue_size: int = Field(8, ge=1, le=1000)
 
+    @field_validator("audio")
+    @classmethod
+    def _wav_beside_yaml(cls, value: str | None, info: Any) -> str | None:
+        """A .wav file resolves against the YAML file like every path; a device name stays."""
+        if value is None or not value.lower().endswith(".wav"):
+            return value
+        path = Path(value).expanduser()
+        base = (info.context or {}).get("base_dir")
+        return str(path if base is None or path.is_absolute() else Path(base) / path)
+
     @model_validator(mode="after")
     def _one_source(self) -> InputConfig:
-        if sum(x is not None for x in (self.topic, self.product, self.url)) != 1:
-            raise ValueError("give exactly one of topic, product or url")
+        if sum(getattr(self, key) is not None for key in SOURCE_KEYS) != 1:
+            raise ValueError(f"give exactly one of {', '.join(SOURCE_KEYS)}")
         if self.url is None and (self.fps is not None or self.loop):
             raise ValueError("fps, loop: only with url")
-        if self.url is not None and self.type is not None:
-            raise ValueError("type: only with topic (a url gives video frames)")
+        if self.audio is None and self.vad is not None:
+            raise ValueError("vad: only with audio")
+        if self.topic is None and self.type is not None:
+            raise ValueError("type: only with topic (the other inputs carry their own kind)")
         if self.topic is not None and self.type is None:
             raise ValueError("type: required with topic")
-        if self.product is not None and self.type is not None:
-            raise ValueError("type: only with topic (a product carries its own value)")
         if self.type in IMAGE_INPUTS and self.keep == "queue":
             raise ValueError("keep: camera inputs keep only the newest frame (latest)")
         return self
 
     @property
+    def source(self) -> str:
+        """The key that names this input's source: topic, product, url, audio or text."""
+        return next(key for key in SOURCE_KEYS if getattr(self, key) is not None)
+
+    @property
     def field(self) -> str:
-        if self.url is not None:
-            return "image"
-        return "value" if self.type is None else INPUT_FIELDS[self.type]
+        if self.topic is not None:
+            return INPUT_FIELDS[str(self.type)]
+        return {"url": "image", "audio": "audio", "text": "text"}.get(self.source, "value")
 
     @property
     def mode(self) -> Literal["latest", "queue"]:
         if self.keep is not None:
             return self.keep
         return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
+
+
+class ChannelConfig(Schema):
+    """A line-based text channel on a TCP port: clients send questions as lines and receive
+    the outputs written to the channel. TLS (mTLS with client_ca) and bearer tokens as for
+    the services; with `auth`, a client's first line is `authorization: Bearer TOKEN`."""
+
+    listen: str = Field(description="host:port; 127.0.0.1 keeps it on this machine")
+    tls: ServerTls | None = None
+    auth: TokenSource | None = None
+    max_clients: int = Field(16, ge=1, le=1024)
+    max_line_bytes: int = Field(4096, ge=16, le=1 << 20)
+
+    @field_validator("listen")
+    @classmethod
+    def _host_port(cls, value: str) -> str:
+        return check_address(value)
 
 
 class ContextConfig(Schema):
@@ -265,13 +325,18 @@ class OutputConfig(Schema):
     product: str | None = None
     jsonl: str | None = Field(
         None, description="JSON lines: '-' for standard output, or a file (appended to)")
+    text: str | None = Field(
+        None, description="the value as a line of text: '-' for standard output, or a channel")
+    frames: str | None = Field(
+        None, description="images to a folder (numbered JPEGs), a .jpg/.png file (the newest "
+                          "frame), or a video file (.mp4, .avi, .mkv)")
     max_age_s: float = Field(5.0, gt=0, description="product: older values count as stale")
     source: str = Field(alias="from", description="the record field to send")
 
     @model_validator(mode="after")
     def _one_sink(self) -> OutputConfig:
-        if sum(x is not None for x in (self.topic, self.product, self.jsonl)) != 1:
-            raise ValueError("give exactly one of topic, product or jsonl")
+        if sum(getattr(self, key) is not None for key in SINK_KEYS) != 1:
+            raise ValueError(f"give exactly one of {', '.join(SINK_KEYS)}")
         if self.topic is not None and self.type is None:
             raise ValueError("type: required with topic")
         return self
@@ -291,6 +356,8 @@ class PipelineConfig(Schema):
         1, ge=1, le=64, description="ROS executor threads; callbacks only hand off to the "
                                     "routes' worker threads, so 1 suffices")
     endpoints: dict[str, EndpointConfig] = Field(default_factory=dict)
+    channels: dict[str, ChannelConfig] = Field(
+        default_factory=dict, description="text channels that inputs and outputs name")
     routes: dict[str, RouteConfig] = Field(min_length=1)
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="named overlays chosen with --profile")
@@ -325,6 +392,17 @@ def _route_problems(name: str, route: RouteConfig) -> Iterator[str]:
                    f"(fields: {', '.join(sorted(fields))})")
 
 
+def _channel_problems(config: PipelineConfig) -> Iterator[str]:
+    """Text inputs and outputs name a channel of `channels:` or '-' (standard in/out)."""
+    for name, route in config.routes.items():
+        texts = [("input.text", route.input.text)] + [
+            (f"outputs[{i}].text", o.text) for i, o in enumerate(route.outputs)]
+        for key, text in texts:
+            if text not in (None, "-") and text not in config.channels:
+                yield (f"routes.{name}.{key}: no channel '{text}' (channels: "
+                       f"{', '.join(sorted(config.channels)) or 'none'}; or '-')")
+
+
 def _reference_problems(config: PipelineConfig) -> Iterator[str]:
     """Endpoints, data products and fields that routes name must exist."""
     produced = {o.product for r in config.routes.values() for o in r.outputs if o.product}
@@ -357,17 +435,19 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
 def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:
     """Validates parsed YAML, then every cross-reference; errors name source and key."""
     config = validate(data, PipelineConfig, source, base_dir)
-    problems = [f"{source}: {problem}" for problem in _reference_problems(config)]
+    problems = [f"{source}: {problem}" for problem in
+                (*_reference_problems(config), *_channel_problems(config))]
     if problems:
         raise ConfigError("\n".join(problems))
     return config
 
 
 def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
-                  profile: str | None = None) -> PipelineConfig:
-    """The pipeline file, overlays merged on top in order, then the named profile."""
+                  profile: str | None = None, sets: Iterable[str] = ()) -> PipelineConfig:
+    """The pipeline file, overlays merged on top in order, `--set KEY=VALUE` assignments,
+    then the named profile."""
     path = Path(path)
-    data, sources = read_with_overlays(path, overlays)
+    data, sources = read_with_overlays(path, overlays, sets)
     if profile is not None:
         profiles = (data or {}).get("profiles") or {}
         if profile not in profiles:

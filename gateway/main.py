@@ -2,6 +2,7 @@
 
     oricf gateway --config configs/pipelines/people_qa.yaml \\
         [--overlay configs/pipelines/placement/edge.yaml ...] [--profile edge] \\
+        [--set routes.people.input.url=rtsp://camera.local/stream ...] \\
         [--ros-args -r __node:=my_gateway ...]
 
 Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`.
@@ -52,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--overlay", type=Path, action="append", default=[],
                         help="YAML merged on top, e.g. a placement file (repeatable)")
     parser.add_argument("--profile", help="a named entry of the pipeline's `profiles:`")
+    parser.add_argument("--set", dest="sets", action="append", default=[],
+                        metavar="KEY=VALUE",
+                        help="override any pipeline key, e.g. routes.people.input.url=rtsp://"
+                             "cam/stream (VALUE is YAML; repeatable; validated like the file)")
     parser.add_argument("--check", action="store_true",
                         help="validate the configuration and exit")
     return parser
@@ -117,7 +122,7 @@ def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
 def main(argv: list[str] | None = None) -> int:
     ours, ros_args = split_ros_args(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(ours)
-    config = load_pipeline(args.config, args.overlay, args.profile)
+    config = load_pipeline(args.config, args.overlay, args.profile, args.sets)
     if args.check:
         print(f"{args.config}: OK ({len(config.routes)} routes, "
               f"endpoints {', '.join(config.endpoints)})")

@@ -22,7 +22,8 @@ from oricf.gateway import convert
 from oricf.gateway.camera import CameraReceiver
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, OutputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.standalone import Outlets, video_sources
+from oricf.gateway.sinks import Outlets
+from oricf.gateway.standalone import pipeline_sources
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 
@@ -45,9 +46,9 @@ class GatewayNode(Node):
         self._publishers_by_topic: dict[str, Publisher] = {}
         self._throttle = ThrottledLog(log)
         self._cameras: list[CameraReceiver] = []
-        self._outlets = Outlets()  # outputs that are not topics (JSON lines)
+        self._outlets = Outlets(config)  # outputs that are not topics (JSON lines, files)
         self.pipeline = Pipeline(config, self._emit)
-        self._videos = video_sources(self.pipeline, lambda route: None)
+        self._sources = pipeline_sources(self.pipeline, self._outlets, lambda route: None)
         for route in config.routes.values():
             for output in route.outputs:
                 if output.topic is not None:
@@ -58,8 +59,9 @@ class GatewayNode(Node):
         self.pipeline.start(inline=[camera.route for camera in self._cameras])
         for camera in self._cameras:
             camera.start()
-        for video in self._videos:
-            video.start()
+        self._outlets.start()
+        for source in self._sources:
+            source.start()
         if config.stats_interval_s > 0:
             self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
         log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
@@ -119,9 +121,9 @@ class GatewayNode(Node):
             log.debug("shutting down: %s not published", output.topic)
 
     def shutdown(self) -> None:
-        for video in self._videos:
-            video.stop()
+        for source in self._sources:
+            source.stop()
         for camera in self._cameras:
             camera.stop()
         self.pipeline.stop()
-        self._outlets.jsonl.close()
+        self._outlets.close()

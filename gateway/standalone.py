@@ -1,48 +1,32 @@
 """The gateway without ROS: for pipelines whose inputs and outputs are no ROS topics (video
-URLs, data products, JSON lines). rclpy is never imported, so it runs where ROS is not
-installed. Stops on SIGTERM/SIGINT, or when every video input has ended.
+URLs, microphones, text channels, data products, JSON lines). rclpy is never imported, so it
+runs where ROS is not installed. Stops on SIGTERM/SIGINT, or when every source has ended.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
-from typing import Any
 
-from oricf.gateway.config import OutputConfig, PipelineConfig
+from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import JsonLines
-from oricf.gateway.sources import VideoSource
-from oricf.gateway.values import Record
+from oricf.gateway.sinks import Outlets
+from oricf.gateway.sources import OnEnd, Source, Submit, make_sources
 from oricf.signals import stop_on_signals
 
 log = logging.getLogger(__name__)
 
 
-class Outlets:
-    """Where a pipeline's non-product outputs go: JSON lines here; topics only in the node."""
-
-    def __init__(self) -> None:
-        self.jsonl = JsonLines()
-
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
-        if output.jsonl is not None:
-            self.jsonl.write(str(record.get("route", "")), output, value)
-        else:
-            raise RuntimeError(f"output topic {output.topic} needs the ROS node")
-
-
-def video_sources(pipeline: Pipeline, on_end: Any) -> list[VideoSource]:
-    return [VideoSource(name, route.input, _submitter(pipeline, name), on_end)
-            for name, route in pipeline.config.routes.items() if route.input.url is not None]
-
-
-def _submitter(pipeline: Pipeline, route: str) -> Any:
-    return lambda load: pipeline.submit(route, load)
+def pipeline_sources(pipeline: Pipeline, outlets: Outlets, on_end: OnEnd) -> list[Source]:
+    """The pipeline's non-topic sources, each feeding its route."""
+    submit: dict[str, Submit] = {name: functools.partial(pipeline.submit, name)
+                                 for name in pipeline.config.routes}
+    return make_sources(pipeline.config, submit, on_end, outlets.channels)
 
 
 def run(config: PipelineConfig) -> int:
-    outlets = Outlets()
+    outlets = Outlets(config)
     pipeline = Pipeline(config, outlets)
     ended: set[str] = set()
     lock = threading.Lock()
@@ -53,17 +37,19 @@ def run(config: PipelineConfig) -> int:
                 if ended >= {s.route for s in sources}:
                     stop.set()
 
-        sources = video_sources(pipeline, on_end)
+        sources = pipeline_sources(pipeline, outlets, on_end)
+        outlets.start()
         pipeline.start()
         for source in sources:
             source.start()
-        log.info("gateway (no ROS): %d routes, %d video inputs", len(config.routes),
-                 len(sources))
+        log.info("gateway (no ROS): %d routes, sources: %s", len(config.routes),
+                 ", ".join(f"{s.route} ({config.routes[s.route].input.source})"
+                           for s in sources) or "none")
         while not stop.wait(0.5):
             pass
         for source in sources:
             source.stop()
         pipeline.idle(10)
         pipeline.stop()
-    outlets.jsonl.close()
+    outlets.close()
     return 0

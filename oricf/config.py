@@ -94,6 +94,41 @@ def deep_merge(base: Any, overlay: Any) -> Any:
     return overlay
 
 
+def apply_set(data: Any, assignment: str) -> Any:
+    """`KEY.PATH=VALUE` (a command line's --set) applied to parsed YAML; VALUE is read as YAML
+    (`3`, `true`, `[a, b]`, `{x: 1}`); a number indexes into an existing list. Returns a
+    copy; the caller validates the result like the file."""
+    path, sep, text = assignment.partition("=")
+    keys = path.strip().split(".")
+    if not sep or not all(keys):
+        raise ConfigError(f"--set {assignment}: expected KEY.PATH=VALUE")
+    try:
+        value = yaml.safe_load(text) if text.strip() else ""
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"--set {path}: the value is not valid YAML: {exc}") from None
+    return _set(data, keys, value, path)
+
+
+def _set(node: Any, keys: list[str], value: Any, path: str) -> Any:
+    if not keys:
+        return value
+    key, rest = keys[0], keys[1:]
+    if isinstance(node, list):
+        if not key.isdigit() or int(key) >= len(node):
+            raise ConfigError(f"--set {path}: '{key}' is not an index of a list of "
+                              f"{len(node)} items")
+        copy = list(node)
+        copy[int(key)] = _set(node[int(key)], rest, value, path)
+        return copy
+    if node is None:
+        node = {}
+    if not isinstance(node, Mapping):
+        raise ConfigError(f"--set {path}: '{key}' is under a value that is not a mapping")
+    merged = dict(node)
+    merged[key] = _set(node.get(key), rest, value, path)
+    return merged
+
+
 def validate(data: Any, schema: type[T], source: str, base_dir: Path | None = None) -> T:
     """Validates already-parsed data; errors are ConfigError naming source and key."""
     if data is None:
@@ -126,14 +161,20 @@ def _message(error: Mapping[str, Any]) -> str:
     return message.removeprefix("Value error, ")
 
 
-def read_with_overlays(path: Path, overlays: Iterable[Path | str] = ()
-                       ) -> tuple[Any, list[str]]:
-    """A YAML file with overlay files merged on top in order, and the names of all of them."""
+def read_with_overlays(path: Path, overlays: Iterable[Path | str] = (),
+                       sets: Iterable[str] = ()) -> tuple[Any, list[str]]:
+    """A YAML file with overlay files merged on top in order, then `KEY=VALUE` assignments
+    (apply_set), and the names of all of them."""
     data = read_yaml(path)
     sources = [str(path)]
     for overlay in overlays:
         data = deep_merge(data, read_yaml(Path(overlay)))
         sources.append(str(overlay))
+    sets = list(sets)
+    for assignment in sets:
+        data = apply_set(data, assignment)
+    if sets:
+        sources.append("--set")
     return data, sources
 
 

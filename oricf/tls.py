@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import hmac
 import ipaddress
 import os
 import secrets
@@ -104,6 +105,14 @@ class TokenSource(Schema):
         if not tokens:
             raise ConfigError(f"no token in {where}")
         return tokens
+
+
+def token_matches(given: str, tokens: Sequence[bytes]) -> bool:
+    """Whether `given` is one of `tokens`. Every token is compared in constant time, so the
+    time taken says nothing about which one was close."""
+    given_bytes = given.encode()
+    matches = [hmac.compare_digest(given_bytes, known) for known in tokens]
+    return any(matches)
 
 
 def open_channel(address: str, tls: ClientTls | None,

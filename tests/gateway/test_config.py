@@ -90,7 +90,7 @@ BAD = [
     ({"routes": {"people": {"input": {"type": "sensor_msgs/PointCloud2"}}}},
      "routes.people.input.type"),
     ({"routes": {"people": {"input": {"product": "frames"}}}},
-     "give exactly one of topic, product or url"),
+     "give exactly one of topic, product, url, audio, text"),
     ({"routes": {"people": {"input": {"keep": "queue"}}}},
      "routes.people.input: keep: camera inputs keep only the newest frame"),
     ({"routes": {"people": {"post": [{"count": {}, "annotate": {}}]}}},

@@ -1,5 +1,5 @@
-"""Inputs that are not ROS topics: video from a file, an RTSP or HTTP stream, or a V4L2
-device (FFmpeg through OpenCV), read on a thread of its own.
+"""Video from a file, an RTSP or HTTP stream, or a V4L2 device (FFmpeg through OpenCV),
+read on a thread of its own.
 
 The newest frame wins: the route takes frames as it can and the rest are dropped (the
 route's worker keeps only the newest). `fps` caps how often frames are handed over: a
@@ -19,12 +19,11 @@ from collections.abc import Callable
 from typing import Any
 
 from oricf.gateway.config import InputConfig
-from oricf.gateway.route import Loader
+from oricf.gateway.sources.base import Submit
 from oricf.gateway.values import Frame
 
 log = logging.getLogger(__name__)
 
-Submit = Callable[[Loader], None]
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 10.0
 

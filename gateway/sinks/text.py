@@ -1,0 +1,36 @@
+"""Outputs as lines of text: standard output (`text: "-"`) or a text channel, where a value
+goes back to the client whose line started the record (else to every client)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+from typing import Any
+
+from oricf.gateway.channels import Channels
+from oricf.gateway.config import OutputConfig
+from oricf.gateway.sinks.jsonl import jsonable
+from oricf.gateway.values import Record
+
+
+def as_line(value: Any) -> str:
+    if isinstance(value, str):
+        return value
+    return json.dumps(jsonable(value))
+
+
+class TextLines:
+    def __init__(self, channels: Channels) -> None:
+        self._channels = channels
+        self._lock = threading.Lock()
+
+    def write(self, output: OutputConfig, value: Any, record: Record) -> None:
+        assert output.text is not None
+        line = as_line(value).replace("\n", " ")
+        if output.text == "-":
+            with self._lock:
+                sys.stdout.write(line + "\n")
+                sys.stdout.flush()
+        else:
+            self._channels.get(output.text).send(line, record.get("reply_to"))

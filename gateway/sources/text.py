@@ -1,0 +1,56 @@
+"""Lines of text as route inputs: standard input (`text: "-"`), or a text channel of the
+pipeline (`text: NAME`, gateway.channels). Each non-empty line is one item of the route;
+an answer written to the same channel goes back to the client that asked (`reply_to`).
+Standard input ends the route at its end; a channel serves until the gateway stops.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import threading
+from typing import TextIO
+
+from oricf.gateway.channels import Channels, Client
+from oricf.gateway.config import InputConfig
+from oricf.gateway.sources.base import OnEnd, Submit
+
+log = logging.getLogger(__name__)
+
+
+class TextSource:
+    def __init__(self, route: str, config: InputConfig, submit: Submit, on_end: OnEnd,
+                 channels: Channels, stdin: TextIO | None = None) -> None:
+        assert config.text is not None
+        self.route = route
+        self.name = config.text
+        self.lines = 0
+        self._submit = submit
+        self._on_end = on_end
+        self._channels = channels
+        self._stdin = stdin or sys.stdin
+        self._thread = threading.Thread(target=self._read_stdin, daemon=True,
+                                        name=f"text-{route}")
+
+    def start(self) -> None:
+        if self.name == "-":
+            self._thread.start()
+        else:
+            self._channels.get(self.name).read_by(self._take)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        # Standard input cannot be interrupted portably: its daemon thread ends with the
+        # process; a channel is closed by its owner (Channels.close).
+        pass
+
+    def _take(self, line: str, client: Client | None = None) -> None:
+        self.lines += 1
+        self._submit(lambda: {"text": line, "reply_to": client})
+
+    def _read_stdin(self) -> None:
+        for raw in self._stdin:
+            line = raw.strip()
+            if line:
+                self._take(line)
+        log.info("route %s: standard input ended after %d lines", self.route, self.lines)
+        self._on_end(self.route)
