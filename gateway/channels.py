@@ -48,12 +48,19 @@ class Client:
             except RuntimeError:  # the loop has closed
                 self.open = False
 
+    def reply(self, line: str) -> None:
+        """On the loop itself (the channel's own messages), ahead of anything scheduled."""
+        self._write((line + "\n").encode())
+
+    def drop(self) -> None:
+        self.open = False
+        self._writer.transport.abort()
+
     def _write(self, data: bytes) -> None:
         # A client that stops reading is closed rather than buffered for without end.
         if self._writer.transport.get_write_buffer_size() > MAX_UNSENT_BYTES:
             log.warning("text channel: %s reads nothing; closing it", self.peer)
-            self.open = False
-            self._writer.transport.abort()
+            self.drop()
         elif self.open:
             self._writer.write(data)
 
@@ -113,12 +120,24 @@ class TextChannel:
             client.send(line)
 
     def close(self) -> None:
+        """Stops listening and drops every client (on the loop: asyncio is not thread-safe)."""
+        if not self._thread.is_alive():
+            return
+        try:
+            asyncio.run_coroutine_threadsafe(self._shutdown(), self._loop).result(5)
+        finally:
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(5)
+
+    async def _shutdown(self) -> None:
         if self._server is not None:
             self._server.close()
         for client in list(self.clients):
-            client.open = False
-        self._loop.call_soon_threadsafe(self._loop.stop)
-        self._thread.join(5)
+            client.drop()
+        tasks = [task for task in asyncio.all_tasks() if task is not asyncio.current_task()]
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         host, port = writer.get_extra_info("peername")[:2]
@@ -151,7 +170,7 @@ class TextChannel:
                 raw = await reader.readuntil(b"\n")
             except asyncio.LimitOverrunError as exc:
                 await reader.readexactly(exc.consumed)  # drop what came so far, go on
-                client.send(f"error: a line is at most {self.config.max_line_bytes} bytes")
+                client.reply(f"error: a line is at most {self.config.max_line_bytes} bytes")
                 await self._skip_line(reader)
                 continue
             except asyncio.IncompleteReadError:
@@ -159,8 +178,8 @@ class TextChannel:
             line = raw.decode("utf-8", "replace").strip()
             if not authenticated:
                 if not self._check_token(line):
-                    client.send("error: the first line must be 'authorization: Bearer TOKEN' "
-                                "with a token this channel accepts")
+                    client.reply("error: the first line must be 'authorization: Bearer TOKEN' "
+                                 "with a token this channel accepts")
                     return
                 authenticated = True
             elif line and self._on_line is not None:

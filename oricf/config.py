@@ -96,8 +96,9 @@ def deep_merge(base: Any, overlay: Any) -> Any:
 
 def apply_set(data: Any, assignment: str) -> Any:
     """`KEY.PATH=VALUE` (a command line's --set) applied to parsed YAML; VALUE is read as YAML
-    (`3`, `true`, `[a, b]`, `{x: 1}`); a number indexes into an existing list. Returns a
-    copy; the caller validates the result like the file."""
+    (`3`, `true`, `[a, b]`, `{x: 1}`), except that only `[...]` and `{...}` make a list or a
+    mapping (so `-` stays a string); a number indexes into an existing list. Returns a copy;
+    the caller validates the result like the file."""
     path, sep, text = assignment.partition("=")
     keys = path.strip().split(".")
     if not sep or not all(keys):
@@ -106,6 +107,8 @@ def apply_set(data: Any, assignment: str) -> Any:
         value = yaml.safe_load(text) if text.strip() else ""
     except yaml.YAMLError as exc:
         raise ConfigError(f"--set {path}: the value is not valid YAML: {exc}") from None
+    if isinstance(value, list | dict) and not text.strip().startswith(("[", "{")):
+        value = text
     return _set(data, keys, value, path)
 
 

@@ -1,11 +1,12 @@
 """The shared YAML loader: errors name the file and the key path."""
 
+import re
 from pathlib import Path
 
 import pytest
 from pydantic import Field
 
-from oricf.config import FilePath, Schema, load_config
+from oricf.config import FilePath, Schema, apply_set, load_config
 from oricf.errors import ConfigError
 
 
@@ -64,3 +65,29 @@ def test_overlay_merges_on_top(tmp_path: Path) -> None:
     config = load_config(base, Pipeline, overlays=[overlay])
     assert config.name == "edge"
     assert config.routes[0].topic == "a"
+
+
+def test_set_assignments_reach_any_key_as_yaml_values() -> None:
+    data = {"routes": {"people": {"input": {"url": "a.mp4"}, "outputs": [{"jsonl": "x"}]}}}
+    data = apply_set(data, "routes.people.input.url=rtsp://cam.local/stream")
+    data = apply_set(data, "routes.people.input.fps=5")
+    data = apply_set(data, "routes.people.outputs.0.jsonl=-")
+    data = apply_set(data, "routes.people.post=[{count: {}}]")
+    data = apply_set(data, "endpoints.detector.address=10.0.0.2:50051")
+    assert data["routes"]["people"]["input"] == {"url": "rtsp://cam.local/stream", "fps": 5}
+    assert data["routes"]["people"]["outputs"] == [{"jsonl": "-"}]
+    assert data["routes"]["people"]["post"] == [{"count": {}}]
+    assert data["endpoints"] == {"detector": {"address": "10.0.0.2:50051"}}
+
+
+@pytest.mark.parametrize(("assignment", "message"), [
+    ("routes.people", "expected KEY.PATH=VALUE"),
+    ("routes..url=x", "expected KEY.PATH=VALUE"),
+    ("routes.people.outputs.3.jsonl=-", "'3' is not an index of a list of 1 items"),
+    ("routes.people.outputs.0.jsonl.x=-", "'x' is under a value that is not a mapping"),
+    ("routes.people.post=[a, b", "the value is not valid YAML"),
+])
+def test_bad_set_assignments_are_refused_clearly(assignment: str, message: str) -> None:
+    data = {"routes": {"people": {"outputs": [{"jsonl": "x"}]}}}
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        apply_set(data, assignment)

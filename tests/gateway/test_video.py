@@ -9,6 +9,7 @@ import sys
 import threading
 from pathlib import Path
 
+import cv2
 import yaml
 
 from oricf.config import config_dir
@@ -49,3 +50,39 @@ def test_a_missing_file_ends_its_route_with_a_clear_error(caplog: object) -> Non
     assert ended.wait(10)
     assert source.frames == 0
     assert "cannot open /nowhere/video.mp4; the route ends" in caplog.text  # type: ignore[attr-defined]
+
+
+def test_annotated_frames_go_to_a_folder_a_video_and_a_latest_image(tmp_path: Path) -> None:
+    """--set replaces the route's post-processing and outputs (YAML values, validated)."""
+    folder, video, latest = tmp_path / "frames", tmp_path / "out.avi", tmp_path / "latest.jpg"
+    with running_service("detector") as detector:
+        result = subprocess.run(
+            [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
+             "--set", f"endpoints.detector.address={detector.address}",
+             "--set", f"routes.people.input.url={video_path()}",
+             "--set", "routes.people.input.fps=100",
+             "--set", "routes.people.post=[{count: {label: person}}, {annotate: {}}]",
+             "--set", f"routes.people.outputs=[{{jsonl: '-', from: count}}, "
+                      f"{{frames: '{folder}', from: annotated}}, "
+                      f"{{frames: '{video}', from: annotated}}, "
+                      f"{{frames: '{latest}', from: annotated}}]"],
+            capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    counted = len(result.stdout.splitlines())
+    images = sorted(folder.glob("people-*.jpg"))
+    assert counted >= 20 and len(images) == counted, (counted, len(images))
+    first = cv2.imread(str(images[0]))
+    assert first is not None and first.shape == (576, 768, 3)
+    capture = cv2.VideoCapture(str(video))
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == counted
+    assert cv2.imread(str(latest)).shape == (576, 768, 3)
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_a_set_with_a_bad_value_is_refused_naming_the_key() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE), "--check",
+         "--set", "routes.people.input.fps=fast"], capture_output=True, text=True,
+        timeout=60, check=False)
+    assert result.returncode == 2
+    assert "people_video.yaml + --set: routes.people.input.fps" in result.stderr
