@@ -6,7 +6,7 @@
     oricf up DEPLOYMENT.yaml
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
-    oricf bench detector|asr|llm|gateway|models|link [...]
+    oricf bench detector|asr|llm|gateway|models|link|rtsp [...]
 
 Verbs with options of their own hand the rest of the command line to their module's main().
 """
@@ -33,7 +33,7 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.launch.demo",
 }
-BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link")
+BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link", "rtsp")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:

@@ -4,9 +4,9 @@ read on a thread of its own.
 The newest frame wins: the route takes frames as it can and the rest are dropped (the
 route's worker keeps only the newest). `fps` caps how often frames are handed over: a
 stream's extra frames are skipped, a file is played at that rate (without `fps`, as fast as
-it decodes). A file
-ends the route at its end, or starts again with `loop`; a stream or device that cannot be
-opened or stops sending is reopened with backoff, and each attempt is logged.
+it decodes). A file ends the route at its end, or starts again with `loop`; a stream or device that cannot be
+opened or stops sending is reopened with backoff, and each attempt is logged. RTSP runs over
+TCP unless OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g. "rtsp_transport;udp").
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ log = logging.getLogger(__name__)
 
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 10.0
+STREAM_TIMEOUT_MS = 5000
 
 
 def is_live(url: str) -> bool:
@@ -58,10 +59,19 @@ class VideoSource:
         import cv2
 
         if self.url.startswith("/dev/video") and self.url[len("/dev/video"):].isdigit():
-            source: Any = int(self.url[len("/dev/video"):])  # V4L2 device N
+            capture = cv2.VideoCapture(int(self.url[len("/dev/video"):]))  # V4L2 device N
+        elif is_live(self.url):
+            # RTSP over TCP: no frames lost to UDP, and a server that goes away is noticed at
+            # once; a stream that stalls is given up after the read timeout. One decoder
+            # thread: FFmpeg's frame threading holds back a frame per thread, which a
+            # robot feels as latency (`oricf bench rtsp` measures it).
+            os.environ.setdefault("OPENCV_FFMPEG_CAPTURE_OPTIONS", "rtsp_transport;tcp")
+            capture = cv2.VideoCapture(self.url, cv2.CAP_FFMPEG, [
+                cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, STREAM_TIMEOUT_MS,
+                cv2.CAP_PROP_READ_TIMEOUT_MSEC, STREAM_TIMEOUT_MS,
+                cv2.CAP_PROP_N_THREADS, 1])
         else:
-            source = os.path.expanduser(self.url)
-        capture = cv2.VideoCapture(source)
+            capture = cv2.VideoCapture(os.path.expanduser(self.url))
         return capture if capture.isOpened() else None
 
     def _run(self) -> None:
@@ -78,6 +88,8 @@ class VideoSource:
                 self._stop.wait(backoff)
                 backoff = min(backoff * 2, RECONNECT_MAX_S)
                 continue
+            if self.reconnects or is_live(self.url):
+                log.info("route %s: %s opened", self.route, self.url)
             backoff = RECONNECT_MIN_S
             ended = self._read(capture)
             capture.release()
