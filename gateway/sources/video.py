@@ -4,9 +4,10 @@ read on a thread of its own.
 The newest frame wins: the route takes frames as it can and the rest are dropped (the
 route's worker keeps only the newest). `fps` caps how often frames are handed over: a
 stream's extra frames are skipped, a file is played at that rate (without `fps`, as fast as
-it decodes). A file ends the route at its end, or starts again with `loop`; a stream or device that cannot be
-opened or stops sending is reopened with backoff, and each attempt is logged. RTSP runs over
-TCP unless OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g. "rtsp_transport;udp").
+it decodes). A file ends the route at its end, or starts again with `loop`; a stream or
+device that cannot be opened or stops sending is reopened with backoff, and each attempt is
+logged. RTSP runs over TCP unless OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g.
+"rtsp_transport;udp").
 """
 
 from __future__ import annotations
