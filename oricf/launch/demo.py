@@ -2,7 +2,8 @@
 
 Starts the services and the gateway of a deployment (configs/deployments/local.yaml, or
 robot.yaml with --placement edge: the services of an edge server such as compose/edge.yaml),
-replays a pedestrian video (vtest.avi) on camera/image_raw at its frame rate, speaks each
+publishes a camera on camera/image_raw (a pedestrian video, vtest.avi, at its frame rate;
+or --source: a video file, an RTSP or HTTP stream, a /dev/videoN device), speaks each
 question (espeak-ng) on /audio/utterance, and prints for each question the transcript, the
 person count, the answer, and the latency of each stage:
 
@@ -41,7 +42,9 @@ PLACEMENTS = {"onboard": "local.yaml", "edge": "robot.yaml"}
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="oricf demo", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--video", type=Path, help="video file (default: vtest.avi from the "
+    parser.add_argument("--source", "--video", dest="source",
+                        help="the camera: a video file (played at its frame rate, looped), "
+                        "rtsp://..., http(s)://... or /dev/videoN (default: vtest.avi from the "
                         "model store)")
     parser.add_argument("--question", action="append", dest="questions",
                         help="a question to speak (repeatable; default: three questions)")
@@ -85,20 +88,20 @@ def main(argv: list[str]) -> int:
     if args.frames is not None and args.frames < 1:
         print("--frames must be at least 1", file=sys.stderr)
         return 2
-    if args.video is None:
+    if args.source is None:
         from oricf.store import ModelStore
 
-        args.video = ModelStore().path("vtest-video", "vtest.avi")
+        args.source = str(ModelStore().path("vtest-video", "vtest.avi"))
     log_path = args.log or Path(tempfile.mkstemp(prefix="oricf-demo-", suffix=".log")[1])
     # SIGTERM ends the demo like Ctrl-C: everything it started is stopped.
     previous = signal.signal(signal.SIGTERM, raise_interrupt)
     try:
         path, deployment = pick_deployment(args)
         options = DemoOptions(
-            video=args.video, questions=args.questions or DEFAULT_QUESTIONS,
+            source=args.source, questions=args.questions or DEFAULT_QUESTIONS,
             max_frames=args.frames, voice=args.voice, stage_timeout_s=args.timeout,
             log_path=log_path, verbose=args.verbose)
-        print(f"ORICF demo: deployment {path}, video {args.video.name}, "
+        print(f"ORICF demo: deployment {path}, camera {args.source}, "
               f"log {log_path}", flush=True)
         return run_demo(deployment, options, ProgressLine(sys.stdout))
     except (LaunchFailed, TimeoutError) as exc:

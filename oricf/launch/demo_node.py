@@ -1,4 +1,4 @@
-"""The demo's ROS 2 side: a node that replays a video on camera/image_raw at its frame rate,
+"""The demo's ROS 2 side: a node that publishes a camera source on camera/image_raw,
 publishes spoken questions on /audio/utterance (typed ones on /question), and timestamps
 every output of the gateway (/human_counter, /speech/transcript, /answer) as it arrives.
 
@@ -25,8 +25,10 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
+from oricf.gateway.config import InputConfig
 from oricf.gateway.convert import image_from_pixels
 from oricf.gateway.dds import use_dds_profile
+from oricf.gateway.sources.video import VideoSource, is_live
 
 log = logging.getLogger(__name__)
 
@@ -40,59 +42,49 @@ class Received:
     at: float  # time.monotonic() on arrival
 
 
-class VideoReplay:
-    """Publishes the frames of a video at its own frame rate, looping, until stopped or
-    max_frames were sent; remembers when each frame left."""
+class CameraFeed:
+    """Publishes the frames of a camera source (a video file at its own frame rate, looped;
+    an RTSP or HTTP stream or a /dev/videoN device as fast as it sends) until stopped or
+    max_frames were sent; remembers when each frame left. Reads with the gateway's own video
+    source, so streams reconnect the same way."""
 
-    def __init__(self, publish: Any, video: Path, max_frames: int | None) -> None:
-        import cv2
-
-        self.capture = cv2.VideoCapture(str(video))
-        if not self.capture.isOpened():
-            raise RuntimeError(f"cannot open video {video}")
-        fps = self.capture.get(cv2.CAP_PROP_FPS)
-        self.fps = fps if fps and fps > 0 else 10.0
+    def __init__(self, publish: Any, source: str, max_frames: int | None) -> None:
+        self.source = source
+        self.fps = None if is_live(source) else _file_fps(source)
         self.publish = publish
         self.max_frames = max_frames
         self.sent_at: list[float] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="video-replay", daemon=True)
+        self._reader = VideoSource("camera", InputConfig(url=source, fps=self.fps, loop=True),
+                                   self._send, lambda route: None)
 
     def start(self) -> None:
-        self._thread.start()
+        self._reader.start()
 
-    def _next_frame(self) -> np.ndarray:
-        import cv2
-
-        ok, frame = self.capture.read()
-        if not ok:  # end of the video: from the start again
-            self.capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-            ok, frame = self.capture.read()
-            if not ok:
-                raise RuntimeError("the video has no readable frame")
-        return np.asarray(frame)
-
-    def _run(self) -> None:
-        period = 1.0 / self.fps
-        next_at = time.monotonic()
-        while not self._stop.is_set():
-            if self.max_frames is not None and len(self.sent_at) >= self.max_frames:
-                return
-            message = image_from_pixels(self._next_frame(), "bgr8")
-            self.sent_at.append(time.monotonic())
-            self.publish(message)
-            next_at += period
-            self._stop.wait(max(0.0, next_at - time.monotonic()))
+    def _send(self, load: Any) -> None:
+        if self.max_frames is not None and len(self.sent_at) >= self.max_frames:
+            return
+        frame = load()["image"]
+        message = image_from_pixels(frame.pixels(), "bgr8")
+        self.sent_at.append(time.monotonic())
+        self.publish(message)
 
     def last_sent_before(self, moment: float) -> float | None:
         index = bisect.bisect_right(self.sent_at, moment)
         return self.sent_at[index - 1] if index else None
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=5)
-        self.capture.release()
+        self._reader.stop()
+
+
+def _file_fps(path: str) -> float:
+    import cv2
+
+    capture = cv2.VideoCapture(str(Path(path).expanduser()))
+    if not capture.isOpened():
+        raise RuntimeError(f"cannot open video {path}")
+    fps = capture.get(cv2.CAP_PROP_FPS)
+    capture.release()
+    return fps if fps and fps > 0 else 10.0
 
 
 class DemoNode:

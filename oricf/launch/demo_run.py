@@ -1,4 +1,4 @@
-"""The demo's sequence: launch, connect, replay the video, ask each question, report."""
+"""The demo's sequence: launch, connect, start the camera, ask each question, report."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ CONNECT_TIMEOUT_S = 60.0
 
 @dataclass(frozen=True)
 class DemoOptions:
-    video: Path
+    source: str  # a video file, rtsp://, http(s):// or /dev/videoN
     questions: list[str]
     max_frames: int | None
     voice: str
@@ -78,15 +78,16 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
               progress: ProgressLine) -> list[Result]:
     import rclpy
 
-    from oricf.launch.demo_node import COUNT, DemoNode, VideoReplay, ros_context
+    from oricf.launch.demo_node import COUNT, CameraFeed, DemoNode, ros_context
 
     context = ros_context()
     node = DemoNode(context)
-    replay = VideoReplay(node.camera.publish, options.video, options.max_frames)
+    replay = CameraFeed(node.camera.publish, options.source, options.max_frames)
     try:
         _wait_connected(node, launcher, progress)
         replay.start()
-        progress(f"replaying {options.video.name} at {replay.fps:.0f} fps; "
+        rate = f"at {replay.fps:.0f} fps" if replay.fps else "as it sends"
+        progress(f"camera {options.source} {rate}; "
                  "waiting for the first person count", False)
         if node.next(COUNT, options.stage_timeout_s) is None:
             raise LaunchFailed("no /human_counter message: the people route does not answer")

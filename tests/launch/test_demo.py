@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from oricf.bench.rtsp_camera import RtspCamera
 from tests.launch.helpers import (
     OricfCommand,
     alive,
@@ -14,6 +15,7 @@ from tests.launch.helpers import (
     shipped_pipeline,
     write_deployment,
 )
+from tests.support.data import video_path
 from tests.support.processes import free_port
 from tests.support.services import running_service
 
@@ -53,6 +55,24 @@ def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
         assert not any(alive(pid) or group_members(pid) for pid in pids), started
     log = (tmp_path / "demo.log").read_text()
     assert "gateway  | " in log and "detector | " in log
+
+
+def test_demo_takes_its_camera_from_an_rtsp_stream(tmp_path: Path) -> None:
+    with RtspCamera() as camera:
+        camera.play_file(video_path())
+        command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
+                               "--source", camera.url, "--question",
+                               "How many people do you see?", env=private_ros_env())
+        try:
+            code = command.finish(timeout=600)
+        finally:
+            command.kill()
+    output = command.output
+    assert code == 0, output
+    assert f"camera {camera.url}" in output
+    people = re.search(r"people     : (\d+)", output)
+    assert people and 1 <= int(people.group(1)) <= 15, output
+    assert "1/1 questions answered" in output
 
 
 def test_demo_refuses_a_deployment_without_gateway(tmp_path: Path) -> None:
