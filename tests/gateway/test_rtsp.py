@@ -1,7 +1,8 @@
-"""A real RTSP camera (GStreamer's RTSP server, fed vtest.avi as H.264 by FFmpeg) into the
-gateway without ROS: people are counted from the stream, the gateway survives the server
-being killed and started again (a logged reconnect, counts resume), and an address where
-no server answers is retried, logged, and never ends the gateway."""
+"""Streams into the gateway without ROS: a real RTSP camera (GStreamer's RTSP server, fed
+vtest.avi as H.264 by FFmpeg) and an HLS stream from a real HTTP server. People are counted
+from them; the gateway survives the RTSP server being killed and started again (a logged
+reconnect, counts resume); an address where no server answers is retried, logged, and
+never ends the gateway."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import IO
 
 from oricf.bench.rtsp_camera import RtspCamera
@@ -96,3 +98,23 @@ def test_an_address_where_no_camera_answers_is_retried_and_the_gateway_stays() -
         text = "".join(log)
     assert text.count(f"cannot open {url}; trying again in") >= 3, text
     assert "Traceback" not in text
+
+
+def test_people_are_counted_from_an_hls_stream_over_http(tmp_path: Path) -> None:
+    """FFmpeg cuts vtest.avi into HLS segments; a real HTTP server serves them."""
+    subprocess.run(["ffmpeg", "-hide_banner", "-loglevel", "error", "-t", "10", "-i",
+                    str(video_path()), "-an", "-c:v", "libx264", "-preset", "ultrafast",
+                    "-g", "10", "-hls_time", "2", "-hls_playlist_type", "vod",
+                    str(tmp_path / "cam.m3u8")], check=True, timeout=120)
+    port = free_port()
+    server = subprocess.Popen([sys.executable, "-m", "http.server", str(port), "--bind",
+                               "127.0.0.1", "--directory", str(tmp_path)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        with running_service("detector") as detector, \
+                gateway(detector.address, f"http://127.0.0.1:{port}/cam.m3u8") as (lines, log):
+            found = counts(lines, 10, timeout=60)
+    finally:
+        server.kill()
+        server.wait()
+    assert len(found) == 10 and all(1 <= c <= 15 for c in found), "".join(log)
