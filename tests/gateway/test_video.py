@@ -7,9 +7,11 @@ import json
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import cv2
+import pytest
 import yaml
 
 from oricf.config import config_dir
@@ -86,3 +88,20 @@ def test_a_set_with_a_bad_value_is_refused_naming_the_key() -> None:
         timeout=60, check=False)
     assert result.returncode == 2
     assert "people_video.yaml + --set: routes.people.input.fps" in result.stderr
+
+
+def test_a_camera_device_that_does_not_exist_is_retried_with_a_logged_error(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A USB camera may be plugged in later: the route waits for it, saying so."""
+    ended = threading.Event()
+    source = VideoSource("cam", InputConfig(url="/dev/video63"), lambda load: None,
+                         lambda route: ended.set())
+    source.start()
+    try:
+        deadline = time.monotonic() + 20
+        while source.reconnects < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)
+    finally:
+        source.stop()
+    assert source.reconnects >= 2 and source.frames == 0
+    assert "cannot open /dev/video63; trying again in 0.5 s" in caplog.text
