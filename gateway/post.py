@@ -5,30 +5,34 @@
     count: {label: person, into: count}
     annotate: {into: annotated}        draw the detections on the input image
     template: {text: "I see {count} people.", into: text}
+
+A step that changes the detections recounts `counts` (the call's per-label counts) from
+them, so later steps and outputs never see counts of detections renamed or dropped.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 
 from oricf.errors import InvalidInput
 from oricf.gateway.config import AnnotateStep, CountStep, FilterStep, PostStep, TemplateStep
 from oricf.gateway.values import Frame, Record
-from oricf.imaging import draw_detections
+from oricf.imaging import draw_detections, label_counts
 
 Step = Callable[[Record], None]
+
+
+def _recount(record: Record, labels: Iterable[str]) -> None:
+    """`counts` from the record's detections; each of `labels` kept, at 0 if none is left."""
+    record["counts"] = label_counts(record["detections"], labels)
 
 
 def map_labels(mapping: dict[str, str]) -> Step:
     def run(record: Record) -> None:
         record["detections"] = [replace(d, label=mapping.get(d.label, d.label))
                                 for d in record["detections"]]
-        counts: dict[str, int] = {}
-        for label, n in record.get("counts", {}).items():
-            new = mapping.get(label, label)
-            counts[new] = counts.get(new, 0) + n
-        record["counts"] = counts
+        _recount(record, [mapping.get(label, label) for label in record.get("counts", {})])
 
     return run
 
@@ -39,14 +43,16 @@ def filter_detections(step: FilterStep) -> Step:
     def run(record: Record) -> None:
         record["detections"] = [d for d in record["detections"]
                                 if (not labels or d.label in labels) and d.score >= step.min_score]
+        _recount(record, record.get("counts", {}))
 
     return run
 
 
 def count(step: CountStep) -> Step:
     def run(record: Record) -> None:
-        record[step.into] = sum(1 for d in record["detections"]
-                                if step.label is None or d.label == step.label)
+        detections = record["detections"]
+        record[step.into] = (len(detections) if step.label is None
+                             else label_counts(detections, [step.label])[step.label])
 
     return run
 

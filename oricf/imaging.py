@@ -8,6 +8,7 @@ Internally images are BGR uint8 arrays (OpenCV's order, and YOLOX's input order)
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -37,6 +38,17 @@ class Detection:
     class_id: int
     score: float
     box: Box
+
+
+def label_counts(detections: Iterable[Detection], labels: Iterable[str] = ()) -> dict[str, int]:
+    """Detections per label; each of `labels` is present, at 0 when none was found.
+
+    The one way detections are counted: the detector's response and the gateway's
+    post-processors both count with this, so counts agree with the detections beside them.
+    """
+    counts = dict.fromkeys(labels, 0)
+    counts.update(Counter(d.label for d in detections))
+    return counts
 
 
 def check_size(width: int, height: int, max_pixels: int = MAX_PIXELS) -> None:

@@ -1,9 +1,8 @@
-"""Label mapping, label filters and per-label counts for the detector."""
+"""Label mapping and label filters for the detector."""
 
 from __future__ import annotations
 
 import difflib
-from collections import Counter
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -59,10 +58,3 @@ class LabelSpace:
             Detection(self.names[int(c)], int(c), float(s), Box(*map(float, b)))
             for b, s, c in zip(raw.boxes, raw.scores, raw.class_ids, strict=True)
         ]
-
-    @staticmethod
-    def counts(detections: Sequence[Detection], labels: Sequence[str]) -> dict[str, int]:
-        """Count per label; every requested label is present, at 0 when nothing was found."""
-        counts = dict.fromkeys(labels, 0)
-        counts.update(Counter(d.label for d in detections))
-        return counts

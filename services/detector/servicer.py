@@ -15,7 +15,7 @@ import grpc
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.imaging import Detection, decode_image, draw_detections, encode_image
+from oricf.imaging import Detection, decode_image, draw_detections, encode_image, label_counts
 from oricf.models.heads import Prepared
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
@@ -139,7 +139,7 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         image = frame.image
         response = detector_pb2.DetectResponse(
             detections=[_detection_pb(d) for d in detections],
-            counts=LabelSpace.counts(detections, frame.labels),
+            counts=label_counts(detections, frame.labels),
             frame_id=frame.frame_id,
             image_width=image.shape[1],
             image_height=image.shape[0],

@@ -6,7 +6,7 @@ import contextlib
 import socket
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import grpc
 import pytest
@@ -96,16 +96,45 @@ def test_fails_over_when_unavailable_and_returns_when_serving(
         ep.close()
 
 
-def test_a_primary_not_serving_yet_is_not_returned_to(request_0: detector_pb2.DetectRequest
-                                                       ) -> None:
+def counting_probes(ep: Endpoint) -> list[bool]:
+    """Records every answer of the primary's health probe (the real probe, still called)."""
+    answers: list[bool] = []
+    serving = ep.primary.serving
+
+    def probe() -> bool:
+        answers.append(serving())
+        return answers[-1]
+
+    ep.primary.serving = probe  # type: ignore[method-assign]
+    return answers
+
+
+def wait_until(condition: Callable[[], bool], timeout: float = 10) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "not reached within the timeout"
+        time.sleep(0.02)
+
+
+def test_a_primary_is_returned_to_once_serving_and_not_before(
+        request_0: detector_pb2.DetectRequest) -> None:
     port = free_port()
     with running_service("detector") as fallback:
         ep = endpoint(f"127.0.0.1:{port}", fallback.address)
+        probes = counting_probes(ep)
         ep.call("Detect", request_0)
+        assert ep.active is ep.fallback
         with running_service("detector", {"server": {"listen": f"127.0.0.1:{port}"}},
-                             load=False):  # up, but health NOT_SERVING: model not loaded
-            time.sleep(0.5)
-            assert ep.active is ep.fallback and ep.recoveries == 0
+                             load=False) as primary:  # up, but NOT_SERVING: no model yet
+            # The probe keeps asking the server that is up; each answer is "not serving".
+            asked = len(probes)
+            wait_until(lambda: len(probes) >= asked + 5 or ep.active is ep.primary)
+            assert ep.active is ep.fallback and ep.recoveries == 0 and True not in probes
+            primary.host.load_model()
+            wait_until(lambda: ep.active is ep.primary)
+            assert ep.recoveries == 1 and probes[-1] is True
+            fallback.host.stop(grace=0)
+            assert ep.call("Detect", request_0).counts["person"] == 4  # the primary answers
         ep.close()
 
 
@@ -115,7 +144,9 @@ def test_deadline_exceeded_fails_over(hung_address: str, request_0: detector_pb2
         ep = endpoint(hung_address, fallback.address, deadline_ms=300)
         started = time.monotonic()
         assert ep.call("Detect", request_0).counts["person"] == 4
-        assert 0.3 <= time.monotonic() - started < 2.0
+        # The hung primary had its whole deadline (no earlier give-up); how long a
+        # failover takes is `oricf bench link`'s figure (the longest gap between counts).
+        assert time.monotonic() - started >= 0.3
         assert ep.active is ep.fallback
         assert "failed (DEADLINE_EXCEEDED); using fallback" in caplog.text
         ep.close()

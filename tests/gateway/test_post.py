@@ -34,8 +34,27 @@ def test_map_filter_count_template_in_order() -> None:
     result = record()
     run(result)
     assert [d.label for d in result["detections"]] == ["human"]
-    assert result["counts"] == {"human": 2, "bicycle": 1}
+    # The call's counts follow the detections: renamed, then the filtered ones taken off.
+    assert result["counts"] == {"human": 1, "bicycle": 0}
     assert (result["humans"], result["count"], result["said"]) == (1, 1, "I see 1 human(s).")
+
+
+@pytest.mark.parametrize(("steps", "counts"), [
+    ([{"filter": {"min_score": 0.5}}], {"person": 1, "bicycle": 1}),
+    ([{"filter": {"labels": ["bicycle"]}}], {"person": 0, "bicycle": 1}),
+    ([{"map_labels": {"bicycle": "person"}}], {"person": 3}),
+    ([{"map_labels": {"person": "human", "bicycle": "human"}},
+      {"filter": {"min_score": 0.6}}], {"human": 2}),
+], ids=["by-score", "by-label", "merged-labels", "merged-then-filtered"])
+def test_counts_always_agree_with_the_detections(steps: list[dict[str, object]],
+                                                 counts: dict[str, int]) -> None:
+    """The labels the call counted stay (at 0 when none is left), as in its response."""
+    result = record()
+    post.chain([*(step(**s) for s in steps),
+                *(step(count={"label": label, "into": label}) for label in counts)])(result)
+    assert result["counts"] == counts
+    assert {label: result[label] for label in counts} == counts  # the count step agrees
+    assert sum(counts.values()) == len(result["detections"])
 
 
 def test_annotate_draws_on_the_input_image() -> None:

@@ -62,9 +62,20 @@ def test_pcm_at_any_rate_and_channel_count(stub: speech_pb2_grpc.SpeechRecognize
     assert {"many", "people", "see"} <= set(words(transcript.text)), transcript.text
 
 
-def test_explicit_language(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
-    transcript = stub.Transcribe(pcm_request(speech(QUESTION), language="en"), timeout=30)
-    assert "people" in words(transcript.text)
+def test_the_request_language_reaches_the_recognizer(
+        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
+    samples = speech(QUESTION)
+    default = stub.Transcribe(pcm_request(samples), timeout=30)
+    english = stub.Transcribe(pcm_request(samples, language="en"), timeout=30)
+    assert (english.text, english.language) == (default.text, "en")
+    assert "people" in words(english.text)
+    # tiny.en knows English only: another language is refused, never decoded as English.
+    for language in ("de", "fr", "ja"):
+        with pytest.raises(grpc.RpcError) as error:
+            stub.Transcribe(pcm_request(samples, language=language), timeout=30)
+        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert f"language '{language}' is not supported by whisper-tiny-en (supported: en)" \
+            in (error.value.details() or "")
 
 
 def test_silence_gives_no_words(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
@@ -106,14 +117,6 @@ def test_bad_input_is_invalid_argument_and_the_service_goes_on(
     good = speech_pb2.Audio(data=good_wav(), encoding="wav")
     transcript = stub.Transcribe(speech_pb2.TranscribeRequest(audio=good), timeout=30)
     assert "people" in words(transcript.text)
-
-
-def test_unsupported_language_is_invalid_argument(
-        stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
-    with pytest.raises(grpc.RpcError) as error:
-        stub.Transcribe(pcm_request(speech(QUESTION), language="de"), timeout=30)
-    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
-    assert "language 'de' is not supported by whisper-tiny-en" in error.value.details()
 
 
 def test_health_is_serving(asr: RunningService) -> None:

@@ -2,9 +2,11 @@
 
 import json
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
 import grpc
+import llama_cpp
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
@@ -151,10 +153,38 @@ def test_a_request_stop_sequence_ends_the_answer(
     assert cut.text == full.text[:full.text.index("people")]  # "I see 4 "
 
 
-def test_temperature_is_accepted(stub: language_pb2_grpc.LanguageModelStub) -> None:
-    answer = generate(stub, "How many people do you see?", context={"people_count": "3"},
-                      temperature=0.7)
-    assert answer.text and answer.finish_reason in ("stop", "length")
+@contextmanager
+def sampler_seed(service: RunningService, seed: int) -> Iterator[None]:
+    """llama.cpp seeds each generation's sampler with this (by default a random seed each
+    time), so sampled answers repeat and the test cannot fail by chance."""
+    llm = model_of(service)._llm
+    llm.set_seed(seed)
+    try:
+        yield
+    finally:
+        llm.set_seed(llama_cpp.LLAMA_DEFAULT_SEED)
+
+
+def answers_by_seed(service: RunningService, stub: language_pb2_grpc.LanguageModelStub,
+                    seeds: Sequence[int], **fields: object) -> list[str]:
+    answers = []
+    for seed in seeds:
+        with sampler_seed(service, seed):
+            answers.append(generate(stub, "Tell me about yourself.", **fields).text)
+    return answers
+
+
+def test_the_request_temperature_reaches_the_sampler(
+        llm: RunningService, stub: language_pb2_grpc.LanguageModelStub) -> None:
+    seeds = [1, 2, 3, 4]
+    # The shipped default (0) and an explicit 0 are greedy: the seed changes nothing.
+    greedy = answers_by_seed(llm, stub, seeds) + answers_by_seed(llm, stub, seeds,
+                                                                 temperature=0.0)
+    assert len(set(greedy)) == 1, greedy
+    # Temperature 2 samples: each seed draws its own answer, and the same seed the same one.
+    hot = answers_by_seed(llm, stub, seeds, temperature=2.0)
+    assert len(set(hot)) >= 3, hot
+    assert answers_by_seed(llm, stub, seeds[:1], temperature=2.0) == hot[:1]
 
 
 def test_get_model_info(stub: language_pb2_grpc.LanguageModelStub) -> None:
