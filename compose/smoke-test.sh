@@ -13,14 +13,21 @@
 #    one made from Debian packages by compose/make-base-image.sh (no registry needed).
 # 3. compose/prepare-build.sh fills the build context (cached wheels, this machine's model
 #    store); with a base image of the same Python as .venv the build then uses no index.
-# 4. Builds the image with the build arguments of edge.yaml, starts the stack, waits until
-#    each service reports SERVING (grpc.health.v1, over the published port and through the
-#    container's own health check), then calls each one with grpcurl and checks the answer:
-#    Detect finds a person in darknet's person.jpg, Transcribe of espeak-ng speech gives the
-#    words back, Generate with context people_count=3 answers with the count.
+# 4. Builds the image with the build arguments of edge.yaml, then makes this run's own
+#    certificates and token as edge.yaml's header says (oricf certs, keys and token given to
+#    the services' group 10001 through the engine, so that rootless engines map it too) and
+#    points ORICF_CERTS at them: the stack runs as deployed, with mTLS and tokens.
+# 5. Starts the stack, waits until each service reports SERVING (grpc.health.v1 over mTLS,
+#    on the published port and through the container's own health check), then calls each
+#    one with grpcurl, its client certificate and the token, and checks the answer: Detect
+#    finds a person in darknet's person.jpg, Transcribe of espeak-ng speech gives the words
+#    back, Generate with the fact people_count=3 answers with the count. Then checks that each
+#    service refuses a call without a token (Unauthenticated), with a wrong one
+#    (PermissionDenied), in plaintext, without a client certificate, and reflection.
 #    With --robot: publishes vtest.avi frames and a question from this machine on a private
-#    ROS_DOMAIN_ID and checks the containerized gateway answers on /human_counter and /answer.
-# 5. Tears the stack down (unless --keep) and checks no container is left.
+#    ROS_DOMAIN_ID and checks the containerized gateway, which presents the client
+#    certificate and token (placement/tls.yaml), answers on /human_counter and /answer.
+# 6. Tears the stack down (unless --keep) and checks no container is left.
 #
 # Needs: scripts/setup.sh done (.venv, models, grpcurl), espeak-ng and sox, and either Docker
 # with compose v2 or `apt-get install podman podman-compose runc debootstrap` (as root).
@@ -45,6 +52,7 @@ SERVICES=(detector asr llm)
 declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053)
 declare -A RPCS=([detector]=oricf.v1.Detector/Detect [asr]=oricf.v1.SpeechRecognizer/Transcribe
                  [llm]=oricf.v1.LanguageModel/Generate)
+HEALTH=grpc.health.v1.Health/Check
 
 step() { printf '\n==> %s\n' "$*"; }
 die() { printf 'smoke-test: FAIL: %s\n' "$*" >&2; exit 1; }
@@ -121,6 +129,23 @@ for key in ("EXTRAS", "MODELS"):
         >"$WORK/build.log" 2>&1 || { tail -40 "$WORK/build.log"; die "image build of $tag"; }
 }
 
+make_certs() {  # edge.yaml's two steps, into this run's folder; sets CERTS, TLS, SCHEMA, AUTH
+    CERTS="$WORK/certs"
+    "$PY" -m oricf certs "$CERTS" --host localhost --host 127.0.0.1
+    # chgrp as the engine's root: group 10001 as the containers see it, also when rootless
+    $ENGINE run --rm --no-healthcheck --user 0 --entrypoint chgrp -v "$CERTS:/certs" \
+        "$ORICF_IMAGE" 10001 /certs/server.key /certs/client.key /certs/tokens
+    chmod 640 "$CERTS/server.key" "$CERTS/client.key" "$CERTS/tokens"
+    export ORICF_CERTS="$CERTS"
+    ORICF_SMOKE_TOKEN=$(head -1 "$CERTS/tokens")
+    export ORICF_SMOKE_TOKEN
+    "$PY" compose/smoke_check.py protoset >"$WORK/oricf.protoset"
+    TLS=(-cacert "$CERTS/ca.pem" -cert "$CERTS/client.pem" -key "$CERTS/client.key")
+    SCHEMA=(-protoset "$WORK/oricf.protoset")
+    # grpcurl expands the variable itself: the token stays out of every command line
+    AUTH=(-expand-headers -H 'authorization: Bearer ${ORICF_SMOKE_TOKEN}')
+}
+
 container_of() {  # the container running a compose service
     $ENGINE ps -q --filter "label=com.docker.compose.project=$PROJECT" \
         --filter "label=com.docker.compose.service=$1" | head -1
@@ -139,7 +164,7 @@ container_healthy() {
 
 wait_serving() {
     local name=$1 port=${PORTS[$1]} start=$SECONDS
-    until "$GRPCURL" -plaintext -max-time 3 "127.0.0.1:$port" grpc.health.v1.Health/Check \
+    until "$GRPCURL" "${TLS[@]}" "${SCHEMA[@]}" -max-time 3 "127.0.0.1:$port" "$HEALTH" \
             2>/dev/null | grep -q '"SERVING"'; do
         ((SECONDS - start < TIMEOUT)) || die "$name not SERVING after $TIMEOUT s"
         sleep 2
@@ -154,10 +179,36 @@ wait_serving() {
 call_and_check() {
     local name=$1
     "$PY" compose/smoke_check.py request "$name" >"$WORK/$name.json"
-    "$GRPCURL" -plaintext -max-time 60 -max-msg-sz 67108864 -d @ "127.0.0.1:${PORTS[$name]}" \
-        "${RPCS[$name]}" <"$WORK/$name.json" >"$WORK/$name.reply" \
+    "$GRPCURL" "${TLS[@]}" "${SCHEMA[@]}" "${AUTH[@]}" -max-time 60 -max-msg-sz 67108864 -d @ \
+        "127.0.0.1:${PORTS[$name]}" "${RPCS[$name]}" <"$WORK/$name.json" >"$WORK/$name.reply" \
         || die "$name: grpcurl ${RPCS[$name]} failed"
     "$PY" compose/smoke_check.py check "$name" <"$WORK/$name.reply"
+}
+
+refused() {  # what grpcurl must say, its arguments: the call must fail, for that reason
+    local expected=$1 out
+    shift
+    if out=$("$GRPCURL" -max-time 5 "$@" 2>&1); then
+        echo "answered: $out"; return 1
+    fi
+    grep -q "$expected" <<<"$out" || { echo "$out"; return 1; }
+}
+
+check_refusals() {  # the health RPC needs no token: it fails on the transport alone
+    local name=$1 address=127.0.0.1:${PORTS[$1]} rpc=${RPCS[$1]}
+    refused "Code: Unauthenticated" "${TLS[@]}" "${SCHEMA[@]}" -d '{}' "$address" "$rpc" \
+        || die "$name: a call without a token was not refused as Unauthenticated"
+    refused "Code: PermissionDenied" "${TLS[@]}" "${SCHEMA[@]}" \
+        -H "authorization: Bearer wrong" -d '{}' "$address" "$rpc" \
+        || die "$name: a wrong token was not refused as PermissionDenied"
+    refused "Failed to dial" -plaintext "${SCHEMA[@]}" "$address" "$HEALTH" \
+        || die "$name: answered in plaintext"
+    refused "Failed to dial" -cacert "$CERTS/ca.pem" "${SCHEMA[@]}" "$address" "$HEALTH" \
+        || die "$name: answered a caller without a client certificate"
+    refused "does not support the reflection API" "${TLS[@]}" "${AUTH[@]}" "$address" list \
+        || die "$name: serves reflection"
+    echo "ok   $name refuses: no token (Unauthenticated), a wrong token (PermissionDenied)," \
+        "plaintext, no client certificate, reflection"
 }
 
 step "base image"
@@ -168,6 +219,8 @@ build_image "$BASE" compose/edge.yaml detector "$ORICF_IMAGE"
 ((ROBOT)) && build_image "$BASE" compose/robot.yaml gateway "$ORICF_GATEWAY_IMAGE" ros
 echo "built in $SECONDS s"
 trap cleanup EXIT
+step "certificates and token (mTLS, bearer token)"
+make_certs
 step "start the edge stack"
 STARTED=1
 "${COMPOSE[@]}" up -d >"$WORK/up.log" 2>&1 || { cat "$WORK/up.log"; die "compose up"; }
@@ -176,6 +229,8 @@ for name in "${SERVICES[@]}"; do wait_serving "$name"; done
 step "call each service with grpcurl"
 failed=0
 for name in "${SERVICES[@]}"; do call_and_check "$name" || failed=1; done
+step "refusals"
+for name in "${SERVICES[@]}"; do check_refusals "$name"; done
 if ((ROBOT)); then
     step "the robot side over DDS (ROS_DOMAIN_ID $ROS_DOMAIN_ID)"
     "$PY" compose/smoke_check.py ros || failed=1
@@ -189,4 +244,5 @@ left=$($ENGINE ps -a -q --filter "label=com.docker.compose.project=$PROJECT")
 [[ -z "$left" ]] || die "containers left after down: $left"
 what="edge stack"
 ((ROBOT)) && what="edge stack and gateway"
-echo "PASS: $what built, SERVING, answered correctly and torn down"
+echo "PASS: $what built, SERVING over mTLS, answered correctly with the token," \
+    "refused callers without credentials, and torn down ($SECONDS s)"

@@ -3,10 +3,12 @@
     python compose/smoke_check.py request detector|asr|llm   > request.json
     grpcurl ... -d @ < request.json | python compose/smoke_check.py check detector|asr|llm
     python compose/smoke_check.py ros     (the robot side: a gateway on this DDS domain)
+    python compose/smoke_check.py protoset > oricf.protoset
 
 `check` prints what it found and exits 1 when the answer is wrong. `ros` publishes vtest.avi
 frames on camera/image_raw until /human_counter answers, then a question on /question,
-and checks that /answer states the count.
+and checks that /answer states the count. `protoset` writes the schemas grpcurl needs (the
+three services' and grpc.health.v1), since the services serve no reflection.
 """
 
 from __future__ import annotations
@@ -129,9 +131,34 @@ def typed_answer(node: Any, deadline: float) -> str | None:
     return None
 
 
+def protoset() -> bytes:
+    """A FileDescriptorSet of the three services and grpc.health.v1, dependencies first."""
+    from google.protobuf import descriptor_pb2
+    from grpc_health.v1 import health_pb2
+
+    from oricf.v1 import detector_pb2, language_pb2, speech_pb2
+
+    files = descriptor_pb2.FileDescriptorSet()
+    added: set[str] = set()
+
+    def add(file: Any) -> None:
+        if file.name not in added:
+            for dependency in file.dependencies:
+                add(dependency)
+            added.add(file.name)
+            file.CopyToProto(files.file.add())
+
+    for module in (detector_pb2, speech_pb2, language_pb2, health_pb2):
+        add(module.DESCRIPTOR)
+    return files.SerializeToString()
+
+
 def main(argv: list[str]) -> int:
     if argv == ["ros"]:
         return ros_check()
+    if argv == ["protoset"]:
+        sys.stdout.buffer.write(protoset())
+        return 0
     if len(argv) != 2 or argv[0] not in ("request", "check") or argv[1] not in REQUESTS:
         print(__doc__, file=sys.stderr)
         return 2

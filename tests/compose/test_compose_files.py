@@ -1,6 +1,7 @@
 """The compose files against the Compose specification (its JSON schema, from the model
 store), and against the repository: mounted configs exist, published ports are the ports
-the services listen on, baked models are the ones the services load."""
+the services listen on, baked models are the ones the services load, and every service
+requires mTLS and a token, which its health check and the robot's gateway present."""
 
 from __future__ import annotations
 
@@ -16,12 +17,15 @@ import pytest
 import yaml
 
 from oricf.config import REPO_ROOT, config_dir, read_yaml
+from oricf.gateway.config import load_pipeline
 from oricf.models.declaration import load_declaration
 from oricf.store import ModelStore
 
 COMPOSE = REPO_ROOT / "compose"
 FILES = [COMPOSE / "edge.yaml", COMPOSE / "robot.yaml"]
 CONTAINER_CONFIGS = "/etc/oricf"
+CERTS = "/etc/oricf/certs"                       # where the deployment's certificates are
+CERTS_MOUNT = "${ORICF_CERTS:-./certs}:/etc/oricf/certs:ro"
 VARIABLE = re.compile(r"\$\{(\w+)(?::-([^}]*))?\}")
 
 
@@ -44,7 +48,7 @@ def mounts(service: dict[str, Any]) -> dict[str, Path]:
     """Container path -> host path (resolved against compose/) of each bind mount."""
     result = {}
     for volume in service.get("volumes", []):
-        host, container = volume.split(":")[:2]
+        host, container = with_defaults(volume).split(":")[:2]
         result[container] = (COMPOSE / host).resolve()
     return result
 
@@ -69,8 +73,9 @@ def test_the_schema_refuses_what_compose_refuses() -> None:
     assert any("fifty" in m for m in messages), messages
 
 
-# Host paths other than configs that a service may mount (the gateway: DDS shared memory).
-SYSTEM_MOUNTS = {"/dev/shm:/dev/shm"}
+# Host paths other than configs that a service may mount (the gateway: DDS shared memory;
+# the certificates, tested below).
+SYSTEM_MOUNTS = {"/dev/shm:/dev/shm", CERTS_MOUNT}
 
 
 @pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
@@ -120,9 +125,8 @@ def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
         assert host == "0.0.0.0", f"{name}: a container must listen on every interface"
         assert port == read_yaml(host_config)["server"]["listen"].rpartition(":")[2]
         assert service["ports"] == [f"{port}:{port}"]
-        assert service["healthcheck"]["test"][-1] == f"127.0.0.1:{port}"
-        assert service["healthcheck"]["test"][1:4] == [
-            "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health"]
+        assert service["healthcheck"]["test"][1:5] == [
+            "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health", f"127.0.0.1:{port}"]
         assert service["restart"] in ("always", "unless-stopped", "on-failure")
 
 
@@ -154,6 +158,8 @@ def test_dockerfile_follows_the_container_rules() -> None:
     json.loads(found["ENTRYPOINT"])  # exec form: JSON arrays, no shell between
     json.loads(found["CMD"])         # the HEALTHCHECK line's CMD is on its next line
     assert found["USER"] not in ("root", "0")
+    # fixed ids: the deployment gives the keys and token to group 10001 (compose/edge.yaml)
+    assert "--uid 10001 --gid 10001" in text and "groupadd --system --gid 10001" in text
     healthcheck = text[text.index("HEALTHCHECK"):].split("CMD", 1)[1].strip()
     assert json.loads(healthcheck.splitlines()[0]) == [
         "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health"]
@@ -165,3 +171,58 @@ def test_robot_gateway_uses_the_host_network_and_no_model_health_check() -> None
     assert "/dev/shm:/dev/shm" in gateway["volumes"]
     assert gateway["healthcheck"] == {"disable": True}
     assert gateway["build"]["args"]["EXTRAS"] == "ros"
+
+
+def flags(command: list[str]) -> dict[str, str | None]:
+    """--flag value pairs of a command line (None for a flag without a value)."""
+    result: dict[str, str | None] = {}
+    for i, part in enumerate(command):
+        if part.startswith("--"):
+            following = command[i + 1] if i + 1 < len(command) else "--"
+            result[part] = None if following.startswith("--") else following
+    return result
+
+
+def test_every_service_requires_mtls_and_a_token_and_serves_no_reflection() -> None:
+    for name, service in model_services(load(COMPOSE / "edge.yaml")).items():
+        assert CERTS_MOUNT in service["volumes"], f"{name}: certificates not mounted read-only"
+        given = flags(service["command"])
+        assert given.get("--tls-cert") == f"{CERTS}/server.pem", name
+        assert given.get("--tls-key") == f"{CERTS}/server.key", name
+        assert given.get("--tls-client-ca") == f"{CERTS}/ca.pem", name
+        assert given.get("--auth-token-file") == f"{CERTS}/tokens", name
+        assert "--no-reflection" in given, name
+
+
+def test_health_checks_present_the_client_certificate() -> None:
+    for name, service in model_services(load(COMPOSE / "edge.yaml")).items():
+        given = flags(service["healthcheck"]["test"])
+        assert given.get("--tls-ca") == f"{CERTS}/ca.pem", name
+        assert given.get("--tls-cert") == f"{CERTS}/client.pem", name
+        assert given.get("--tls-key") == f"{CERTS}/client.key", name
+
+
+def test_robot_gateway_presents_the_certificate_and_token_of_the_same_folder() -> None:
+    gateway = load(COMPOSE / "robot.yaml")["services"]["gateway"]
+    assert CERTS_MOUNT in gateway["volumes"]
+    assert gateway["group_add"] == ["10001"]   # the group the keys and token are given to
+    overlays = [with_defaults(v) for f, v in itertools.pairwise(gateway["command"])
+                if f == "--overlay"]
+    host_files = [resolve_in_mounts(mounts(gateway), overlay) for overlay in overlays]
+    assert all(host is not None for host in host_files)
+    pipeline = load_pipeline(config_dir() / "pipelines" / "people_qa.yaml",
+                             [host for host in host_files if host is not None])
+    for name, endpoint in pipeline.endpoints.items():
+        assert endpoint.tls is not None and endpoint.token is not None, name
+        assert endpoint.token.file is not None
+        paths = [endpoint.tls.ca, endpoint.tls.cert, endpoint.tls.key, endpoint.token.file]
+        assert [str(p) for p in paths] == [f"{CERTS}/{f}" for f in
+                                           ("ca.pem", "client.pem", "client.key", "tokens")]
+
+
+def test_certificates_stay_out_of_git_and_images() -> None:
+    ignored = (COMPOSE / "certs" / ".gitignore").read_text().split()
+    assert "*" in ignored and "!.gitignore" in ignored
+    lines = (COMPOSE / "Dockerfile.dockerignore").read_text().splitlines()
+    rules = [line for line in lines if line and not line.startswith("#")]
+    assert rules[0] == "*" and not any("certs" in rule for rule in rules)  # build context
