@@ -49,10 +49,10 @@ class OwnThreadGroup(CallbackGroup):
 
 class CameraReceiver:
     """Takes serialized frames from one topic and passes them to `receive` with the number of
-    frames missed since the previous one."""
+    frames missed since the previous one and rclpy's message info (its timestamps)."""
 
     def __init__(self, node: Node, route: str, msg_type: Any, topic: str, qos: QoSProfile,
-                 receive: Callable[[bytes, int], None]) -> None:
+                 receive: Callable[[bytes, int, dict[str, Any]], None]) -> None:
         self.route = route
         self._msg_type = msg_type
         self._receive = receive
@@ -80,7 +80,7 @@ class CameraReceiver:
                     taken = subscription.take_message(self._msg_type, True)
                 if taken is not None:
                     serialized, info = taken
-                    self._receive(serialized, self._missed(info))
+                    self._receive(serialized, self._missed(info), info)
         except Exception as exc:  # the context or node went away under the thread
             if not self._stopping.is_set() and self._context.ok():
                 log.exception("camera receiver %s stopped", self._thread.name)

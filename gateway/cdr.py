@@ -1,4 +1,5 @@
-"""sensor_msgs/Image and CompressedImage read straight from their serialized (CDR) bytes.
+"""sensor_msgs/Image and CompressedImage read straight from their serialized (CDR) bytes;
+Image, String and Int32 written (for recordings made without ROS).
 
 Camera routes take frames serialized (rclpy's `raw=True`): rclpy would otherwise build a
 Python message first, copying the pixels into an array.array, and that conversion cost
@@ -9,7 +10,8 @@ Layout (the ROS 2 IDL mapped to plain CDR): a 4-byte encapsulation header whose 
 says the byte order, then every field aligned to its own size, counted from the end of that
 header. Strings are a uint32 length including a final NUL, then the bytes; sequences of
 uint8 are a uint32 count, then the bytes. These messages have no 8-byte fields, so the CDR
-and plain CDR2 encodings lay them out alike.
+and plain CDR2 encodings lay them out alike. Writing produces little-endian XCDR1, as rclpy
+does on x86-64 and ARM.
 """
 
 from __future__ import annotations
@@ -121,3 +123,73 @@ def compressed_image(buffer: bytes) -> CompressedImageFields:
     read = _Reader(buffer, "sensor_msgs/CompressedImage")
     header = read.header()
     return CompressedImageFields(header, read.string(), read.octets())
+
+
+class _Writer:
+    """Little-endian plain CDR, field by field; no padding after the last field (as rclpy)."""
+
+    def __init__(self) -> None:
+        self._parts = [b"\x00\x01\x00\x00"]  # representation XCDR1, little-endian
+        self._size = 0  # bytes after the encapsulation header, for alignment
+
+    def _put(self, data: bytes, align: int = 1) -> None:
+        padding = -self._size % align
+        if padding:
+            self._parts.append(b"\0" * padding)
+        self._parts.append(data)
+        self._size += padding + len(data)
+
+    def uint32(self, value: int) -> None:
+        if not 0 <= value < 2**32:
+            raise ValueError(f"{value} does not fit a uint32")
+        self._put(struct.pack("<I", value), 4)
+
+    def int32(self, value: int) -> None:
+        if not -(2**31) <= value < 2**31:
+            raise ValueError(f"{value} does not fit an int32")
+        self._put(struct.pack("<i", value), 4)
+
+    def uint8(self, value: int) -> None:
+        self._put(bytes((value,)))
+
+    def octets(self, data: bytes) -> None:
+        self.uint32(len(data))
+        self._put(data)
+
+    def string(self, text: str) -> None:
+        self.octets(text.encode() + b"\0")
+
+    def header(self, stamp: Stamp) -> None:
+        self.int32(stamp.sec)
+        self.uint32(stamp.nanosec)
+        self.string(stamp.frame_id)
+
+    def getvalue(self) -> bytes:
+        return b"".join(self._parts)
+
+
+def write_int32(value: int) -> bytes:
+    """std_msgs/Int32, serialized (raises ValueError out of range)."""
+    write = _Writer()
+    write.int32(value)
+    return write.getvalue()
+
+
+def write_string(text: str) -> bytes:
+    """std_msgs/String, serialized."""
+    write = _Writer()
+    write.string(text)
+    return write.getvalue()
+
+
+def write_image(image: ImageFields) -> bytes:
+    """sensor_msgs/Image, serialized: the inverse of image()."""
+    write = _Writer()
+    write.header(image.header)
+    write.uint32(image.height)
+    write.uint32(image.width)
+    write.string(image.encoding)
+    write.uint8(image.is_bigendian)
+    write.uint32(image.step)
+    write.octets(image.data)
+    return write.getvalue()

@@ -2,11 +2,8 @@
 
 Incoming messages become loaders: conversion runs when the route takes the message, so a
 queued message that is dropped is never converted. Camera frames arrive serialized and are
-read by oricf.gateway.cdr; the other inputs arrive as rclpy messages.
-
-Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
-samples interleaved by channel; the sample rate and channel count come from the route's YAML
-(16000 Hz mono by default), `layout` is ignored.
+read by oricf.gateway.cdr; the other inputs arrive as rclpy messages. What a message turns
+into is decided in oricf.gateway.messages, which recordings share without ROS.
 """
 
 from __future__ import annotations
@@ -21,8 +18,9 @@ from std_msgs.msg import Header, Int16MultiArray, Int32, String
 from oricf.errors import InvalidInput
 from oricf.gateway import cdr
 from oricf.gateway.config import InputConfig
+from oricf.gateway.messages import data_record, image_record
 from oricf.gateway.route import Loader
-from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
+from oricf.gateway.values import Frame, Record
 from oricf.imaging import RAW_CHANNELS
 
 MESSAGE_TYPES: dict[str, Any] = {
@@ -34,31 +32,13 @@ MESSAGE_TYPES: dict[str, Any] = {
 }
 
 
-def image_record(type_: str, serialized: bytes) -> Record:
-    """One serialized camera message -> the route's input record (raises InvalidInput)."""
-    if type_ == "sensor_msgs/Image":
-        image = cdr.image(serialized)
-        frame = raw_frame(image.data, image.encoding, image.width, image.height, image.step)
-        return {"image": frame, "header": image.header}
-    compressed = cdr.compressed_image(serialized)
-    return {"image": compressed_frame(compressed.data, compressed.format),
-            "header": compressed.header}
-
-
 def image_loader(type_: str, serialized: bytes) -> Loader:
     return lambda: image_record(type_, serialized)
 
 
 def to_record(config: InputConfig, msg: Any) -> Record:
     """One incoming message (not a camera frame) -> the route's input record."""
-    if isinstance(msg, Int16MultiArray):
-        return {"audio": audio_clip(np.asarray(msg.data, dtype=np.int16), config.sample_rate,
-                                    config.channels)}
-    if isinstance(msg, String):
-        return {"text": msg.data}
-    if isinstance(msg, Int32):
-        return {"value": msg.data}
-    raise InvalidInput(f"unsupported message type {type(msg).__name__}")
+    return data_record(config, msg.data)
 
 
 def loader(config: InputConfig, msg: Any) -> Loader:
@@ -77,8 +57,7 @@ def to_message(type_: str, value: Any, header: cdr.Stamp | None = None) -> Any:
 
 
 def image_message(frame: Frame, header: cdr.Stamp | None = None) -> Image:
-    if frame.encoding not in RAW_CHANNELS:  # an encoded annotation from the service
-        frame = Frame.from_pixels(frame.pixels())
+    frame = frame.as_raw()  # an encoded annotation from the service is decoded
     msg = Image(height=frame.height, width=frame.width, encoding=frame.encoding,
                 is_bigendian=0, step=frame.width * RAW_CHANNELS[frame.encoding])
     if header is not None:  # the input frame's, so the annotation lines up with it

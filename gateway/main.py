@@ -3,6 +3,7 @@
     oricf gateway --config configs/pipelines/people_qa.yaml \\
         [--overlay configs/pipelines/placement/edge.yaml ...] [--profile edge] \\
         [--set routes.people.input.url=rtsp://camera.local/stream ...] \\
+        [--record run.mcap] [--replay run.mcap [--rate 0]] \\
         [--ros-args -r __node:=my_gateway ...]
 
 Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`.
@@ -39,6 +40,7 @@ from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.dds import use_dds_profile
 from oricf.gateway.grpc_client import poll_in_calling_thread
 from oricf.gateway.memory import keep_freed_memory
+from oricf.gateway.record import Recorder, RecordingError
 from oricf.logs import setup_logging
 
 log = logging.getLogger(__name__)
@@ -59,10 +61,30 @@ def build_parser() -> argparse.ArgumentParser:
                              "cam/stream (VALUE is YAML; repeatable; validated like the file)")
     parser.add_argument("--check", action="store_true",
                         help="validate the configuration and exit")
+    parser.add_argument("--record", type=Path, metavar="OUT.mcap",
+                        help="record every topic input and output into this new MCAP file "
+                             "(rosbag2's layout; see docs/record-replay.md)")
+    parser.add_argument("--replay", type=Path, metavar="IN.mcap",
+                        help="take topic inputs from this MCAP recording instead of ROS, "
+                             "without ROS; topic outputs go to --record, else to standard "
+                             "output as JSON lines")
+    parser.add_argument("--rate", type=replay_rate, default=None,
+                        help="--replay: 1 plays at the recorded pace (default), 2 twice as "
+                             "fast; 0 as fast as the routes take every message, none dropped")
     return parser
 
 
-def run(config: PipelineConfig, ros_args: list[str]) -> int:
+def replay_rate(text: str) -> float:
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 <= rate < float("inf"):
+        raise argparse.ArgumentTypeError("must be 0 (as fast as possible) or more")
+    return rate
+
+
+def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None) -> int:
     """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
     poll_in_calling_thread()  # before the node's imports load grpc
     try:
@@ -85,8 +107,9 @@ def run(config: PipelineConfig, ros_args: list[str]) -> int:
     use_dds_profile()
     if not keep_freed_memory():
         log.info("mallopt not available: large frame buffers come from fresh pages")
+    recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
     rclpy.init(args=ros_args)
-    node = GatewayNode(config)
+    node = GatewayNode(config, recorder=recorder)
     # Camera frames never pass through the executor (oricf.gateway.camera); the text and audio
     # callbacks only hand messages to their routes' worker threads and never block, so one
     # executor thread keeps up. executor_threads > 1 selects rclpy's MultiThreadedExecutor.
@@ -108,7 +131,24 @@ def run(config: PipelineConfig, ros_args: list[str]) -> int:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+        if recorder is not None:
+            recorder.close()
     return 0
+
+
+def replay(config: PipelineConfig, args: argparse.Namespace) -> int:
+    """--replay: the pipeline without ROS, its topic inputs from the recording."""
+    from oricf.gateway import standalone
+    from oricf.gateway.sources.replay import Replay
+
+    player = Replay(args.replay, config, 1.0 if args.rate is None else args.rate)
+    try:
+        if args.record is not None:
+            player.recorder = Recorder(args.record, wait_when_full=True)
+    except RecordingError:
+        player.close()
+        raise
+    return standalone.run(config, replay=player)
 
 
 def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
@@ -127,11 +167,27 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.config}: OK ({len(config.routes)} routes, "
               f"endpoints {', '.join(config.endpoints)})")
         return 0
+    try:
+        return start(config, args, ros_args)
+    except RecordingError as exc:  # a recording that cannot be read or written
+        log.error("%s", exc)
+        return 2
+
+
+def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str]) -> int:
+    """With ROS if the pipeline has topics, unless they are replayed from a recording."""
+    if args.replay is not None:
+        return replay(config, args)
+    if args.rate is not None:
+        raise RecordingError("--rate: only with --replay")
     if not config.uses_ros:
+        if args.record is not None:
+            raise RecordingError(f"--record {args.record}: the pipeline reads and writes no "
+                                 f"topic, so there is nothing to record")
         from oricf.gateway import standalone
 
         return standalone.run(config)
-    return run(config, ros_args)
+    return run(config, ros_args, args.record)
 
 
 if __name__ == "__main__":

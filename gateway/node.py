@@ -17,11 +17,13 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import serialize_message
 
 from oricf.gateway import convert
 from oricf.gateway.camera import CameraReceiver
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, OutputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.record import Recorder, message_times
 from oricf.gateway.sinks import Outlets
 from oricf.gateway.standalone import pipeline_sources
 from oricf.gateway.throttle import ThrottledLog
@@ -41,9 +43,12 @@ def input_qos(config: InputConfig) -> QoSProfile:
 
 
 class GatewayNode(Node):
-    def __init__(self, config: PipelineConfig, context: Context | None = None) -> None:
+    def __init__(self, config: PipelineConfig, context: Context | None = None,
+                 recorder: Recorder | None = None) -> None:
         super().__init__(config.node_name, context=context)
         self._publishers_by_topic: dict[str, Publisher] = {}
+        self._recorder = recorder  # --record: every topic input and output into a file
+        self._topic_names: dict[str, str] = {}  # output topic -> its full ROS name
         self._throttle = ThrottledLog(log)
         self._cameras: list[CameraReceiver] = []
         self._outlets = Outlets(config)  # outputs that are not topics (JSON lines, files)
@@ -75,26 +80,38 @@ class GatewayNode(Node):
             publisher = self.create_publisher(convert.MESSAGE_TYPES[output.type], output.topic,
                                               depth)
             self._publishers_by_topic[output.topic] = publisher
+            self._topic_names[output.topic] = publisher.topic_name
         return publisher
 
     def _subscribe(self, route: str, config: InputConfig) -> None:
         assert config.topic is not None and config.type is not None
         msg_type = convert.MESSAGE_TYPES[config.type]
+        recorder, name = self._recorder, self.resolve_topic_name(config.topic)
         if config.type in IMAGE_INPUTS:
             type_, handle_here = config.type, self.pipeline.handle_here
 
-            def on_frame(serialized: bytes, missed: int) -> None:
-                handle_here(route, convert.image_loader(type_, serialized), missed)
+            def on_frame(serialized: bytes, missed: int, info: dict[str, Any]) -> None:
+                load = convert.image_loader(type_, serialized)
+                if recorder is not None:
+                    load = recorder.input(name, type_, serialized, *message_times(info), load)
+                handle_here(route, load, missed)
 
             self._cameras.append(CameraReceiver(self, route, msg_type, config.topic,
                                                 input_qos(config), on_frame))
         else:
             submit = self.pipeline.submit
 
-            def on_message(msg: Any) -> None:
-                submit(route, convert.loader(config, msg))
+            def on_message(msg: Any, info: dict[str, Any]) -> None:
+                load = convert.loader(config, msg)
+                if recorder is not None:
+                    load = recorder.input(name, str(config.type), serialize_message(msg),
+                                          *message_times(info), load)
+                submit(route, load)
 
-            self.create_subscription(msg_type, config.topic, on_message, input_qos(config),
+            # rclpy passes the message info to a callback with two parameters; its type
+            # hint only names the one-parameter form.
+            self.create_subscription(msg_type, config.topic, on_message,  # type: ignore[arg-type]
+                                     input_qos(config),
                                      callback_group=MutuallyExclusiveCallbackGroup())
         log.info("route %s: %s (%s) -> %s", route, config.topic, config.type,
                  self.pipeline.config.routes[route].call.method)
@@ -119,6 +136,8 @@ class GatewayNode(Node):
             if self.context.ok():
                 raise
             log.debug("shutting down: %s not published", output.topic)
+        if self._recorder is not None:
+            self._recorder.output(self._topic_names[output.topic], output.type, value, record)
 
     def shutdown(self) -> None:
         for source in self._sources:

@@ -8,12 +8,17 @@ from __future__ import annotations
 import functools
 import logging
 import threading
+from typing import TYPE_CHECKING
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.record import TopicOutputs
 from oricf.gateway.sinks import Outlets
 from oricf.gateway.sources import OnEnd, Source, Submit, make_sources
 from oricf.signals import stop_on_signals
+
+if TYPE_CHECKING:
+    from oricf.gateway.sources.replay import Replay
 
 log = logging.getLogger(__name__)
 
@@ -25,9 +30,13 @@ def pipeline_sources(pipeline: Pipeline, outlets: Outlets, on_end: OnEnd) -> lis
     return make_sources(pipeline.config, submit, on_end, outlets.channels)
 
 
-def run(config: PipelineConfig) -> int:
+def run(config: PipelineConfig, replay: Replay | None = None) -> int:
+    """Runs until stopped or every source has ended. With `replay` (--replay), topic inputs
+    come from a recording and topic outputs go to its recorder or standard output; the exit
+    code is then the replay's."""
     outlets = Outlets(config)
-    pipeline = Pipeline(config, outlets)
+    pipeline = Pipeline(config, outlets if replay is None
+                        else TopicOutputs(outlets, replay.recorder))
     ended: set[str] = set()
     lock = threading.Lock()
     with stop_on_signals() as stop:
@@ -38,6 +47,8 @@ def run(config: PipelineConfig) -> int:
                     stop.set()
 
         sources = pipeline_sources(pipeline, outlets, on_end)
+        if replay is not None:
+            sources += replay.sources(pipeline, on_end)
         outlets.start()
         pipeline.start()
         for source in sources:
@@ -52,4 +63,6 @@ def run(config: PipelineConfig) -> int:
         pipeline.idle(10)
         pipeline.stop()
     outlets.close()
+    if replay is not None:
+        return replay.close()
     return 0

@@ -43,6 +43,10 @@ class Frame:
         return common_pb2.Image(data=self.data, encoding=self.encoding, width=self.width,
                                 height=self.height)
 
+    def as_raw(self) -> Frame:
+        """This frame as raw pixels: itself, or decoded to bgr8 if encoded (jpeg, png)."""
+        return self if self.encoding in RAW_CHANNELS else Frame.from_pixels(self.pixels())
+
     @classmethod
     def from_pixels(cls, pixels: np.ndarray) -> Frame:
         """From a BGR uint8 array."""

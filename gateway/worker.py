@@ -74,7 +74,9 @@ class RouteWorker(Generic[T]):
             if self._stopping:
                 return None
             self._busy = True
-            return self._pending.popleft()
+            item = self._pending.popleft()
+            self._cond.notify_all()  # room for the next item (wait_room)
+            return item
 
     def _run(self) -> None:
         while (item := self._next()) is not None:
@@ -86,6 +88,14 @@ class RouteWorker(Generic[T]):
         except Exception:  # the route logs its own errors; this is the last guard
             log.exception("route %s: unexpected error", self.name)
         self.stats.handled += 1
+
+    def wait_room(self, timeout: float) -> bool:
+        """Waits until an item can be submitted without dropping one (a replay that must
+        process every message); False if the timeout came first."""
+        with self._cond:
+            return self._cond.wait_for(
+                lambda: self._stopping or len(self._pending) < (self._pending.maxlen or 1),
+                timeout)
 
     @property
     def busy(self) -> bool:

@@ -1,12 +1,14 @@
-"""The camera routes' CDR reader against rclpy's own serializer."""
+"""The camera routes' CDR reader, and the writer of recorded outputs, against rclpy's own
+serializer."""
 
 from __future__ import annotations
 
 import struct
 
 import pytest
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CompressedImage, Image
+from std_msgs.msg import Int32, String
 
 from oricf.errors import InvalidInput
 from oricf.gateway import cdr
@@ -72,3 +74,22 @@ def test_other_encapsulations_and_bad_strings_are_refused() -> None:
     no_nul = whole.replace(b"jpeg\0", b"jpegX")
     with pytest.raises(InvalidInput, match="final NUL"):
         cdr.compressed_image(no_nul)
+
+
+@pytest.mark.parametrize("frame_id", ["", "c", "ca", "cam", "camera_optical_frame"])
+@pytest.mark.parametrize("encoding", ["rgb8", "mono8", "8UC3x"])
+def test_written_images_read_back_in_rclpy(frame_id: str, encoding: str) -> None:
+    fields = cdr.ImageFields(cdr.Stamp(-7, 123_456_789, frame_id), 3, 2, encoding, 1, 8,
+                             bytes(range(24)))
+    written = cdr.write_image(fields)
+    assert cdr.image(written) == fields
+    assert deserialize_message(written, Image) == image_message(frame_id, encoding, 1)
+
+
+@pytest.mark.parametrize("text", ["", "a", "ab", "abc", "how many people?", "née 😀"])
+def test_written_strings_and_numbers_read_back_in_rclpy(text: str) -> None:
+    assert deserialize_message(cdr.write_string(text), String).data == text
+    for number in (0, -1, 2**31 - 1, -(2**31)):
+        assert deserialize_message(cdr.write_int32(number), Int32).data == number
+    with pytest.raises(ValueError, match="does not fit an int32"):
+        cdr.write_int32(2**31)

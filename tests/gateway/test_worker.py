@@ -91,3 +91,23 @@ def test_throttled_log_suppresses_repeats(caplog: pytest.LogCaptureFixture) -> N
     messages = [r.getMessage() for r in caplog.records]
     assert messages == ["service down", "another problem",
                         "service down (1 similar suppressed in the last 10 s)"]
+
+
+
+@pytest.mark.parametrize("mode", ["latest", "queue"])
+def test_waiting_for_room_drops_nothing(mode: str) -> None:
+    worker, handled, release = blocked_worker(mode, size=3)
+    worker.submit(0)
+    assert not worker.idle(0.2)  # 0 is being handled (blocked)
+    room = 1 if mode == "latest" else 3
+    for item in range(1, room + 1):
+        assert worker.wait_room(1)
+        worker.submit(item)
+    assert not worker.wait_room(0.2)  # full: a replay at --rate 0 waits here
+    release.set()
+    for item in range(room + 1, 20):
+        assert worker.wait_room(5)
+        worker.submit(item)
+    assert worker.idle(5)
+    worker.stop()
+    assert handled == list(range(20)) and worker.stats.dropped == 0

@@ -1,0 +1,62 @@
+"""Topic messages <-> route values, without ROS: what the ROS node (through convert.py) and
+recordings (record.py, sources/replay.py) share.
+
+Camera frames are read from their serialized bytes (cdr.py); text, numbers and audio from
+the `data` field of a decoded message, rclpy's or mcap-ros2-support's alike. Output values
+are serialized for recordings by cdr.py, the same messages convert.to_message builds.
+
+Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
+samples interleaved by channel; the sample rate and channel count come from the route's YAML
+(16000 Hz mono by default), `layout` is ignored.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from oricf.errors import InvalidInput
+from oricf.gateway import cdr
+from oricf.gateway.config import InputConfig
+from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
+from oricf.imaging import RAW_CHANNELS
+
+
+def image_record(type_: str, serialized: bytes) -> Record:
+    """One serialized camera message -> the route's input record (raises InvalidInput)."""
+    if type_ == "sensor_msgs/Image":
+        image = cdr.image(serialized)
+        frame = raw_frame(image.data, image.encoding, image.width, image.height, image.step)
+        return {"image": frame, "header": image.header}
+    compressed = cdr.compressed_image(serialized)
+    return {"image": compressed_frame(compressed.data, compressed.format),
+            "header": compressed.header}
+
+
+def data_record(config: InputConfig, data: Any) -> Record:
+    """The `data` of a text, number or audio message -> the route's input record."""
+    field = config.field
+    if field == "audio":
+        return {"audio": audio_clip(np.asarray(data, dtype=np.int16), config.sample_rate,
+                                    config.channels)}
+    if field in ("text", "value"):
+        return {field: data}
+    raise InvalidInput(f"unsupported message type {config.type}")
+
+
+def serialize_output(type_: str, value: Any, header: cdr.Stamp | None = None) -> bytes:
+    """A route value -> the serialized output message of the given type (raises ValueError
+    or TypeError for a value that does not fit, InvalidInput for a type without a writer)."""
+    if type_ == "std_msgs/Int32":
+        return cdr.write_int32(int(value))
+    if type_ == "std_msgs/String":
+        return cdr.write_string(str(value))
+    if type_ == "sensor_msgs/Image":
+        if not isinstance(value, Frame):
+            raise TypeError(f"{type(value).__name__} is not an image")
+        frame = value.as_raw()
+        return cdr.write_image(cdr.ImageFields(
+            header or cdr.Stamp(0, 0, ""), frame.height, frame.width, frame.encoding, 0,
+            frame.width * RAW_CHANNELS[frame.encoding], frame.data))
+    raise InvalidInput(f"unsupported output type {type_}")

@@ -1,0 +1,108 @@
+"""The ROS 2 message definitions of the topic types the gateway reads and writes, in
+rosbag2's `ros2msg` form, without ROS: an MCAP recording names each channel's type and
+carries its complete definition, so tools without the message packages can decode it.
+
+The complete definition of a type is its .msg text, then that of every type it uses, each
+after a line of 80 `=` and a line `MSG: package/Type` (rosbag2's own layout). The text comes
+from the installed ROS packages' share/PACKAGE/msg/TYPE.msg when they are found (the PyPI
+wheels install them under the virtual environment, apt ROS under /opt/ros/DISTRO, named by
+AMENT_PREFIX_PATH), comments and all as rosbag2 writes them, else from DEFINITIONS below:
+the same fields without the comments (a test compares the two, so the table cannot drift).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from pathlib import Path
+
+DEFINITIONS: dict[str, str] = {
+    "builtin_interfaces/Time": "int32 sec\nuint32 nanosec\n",
+    "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
+    "std_msgs/String": "string data\n",
+    "std_msgs/Int32": "int32 data\n",
+    "std_msgs/MultiArrayDimension": "string label\nuint32 size\nuint32 stride\n",
+    "std_msgs/MultiArrayLayout": "MultiArrayDimension[] dim\nuint32 data_offset\n",
+    "std_msgs/Int16MultiArray": "MultiArrayLayout layout\nint16[] data\n",
+    "sensor_msgs/Image": ("std_msgs/Header header\nuint32 height\nuint32 width\n"
+                          "string encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n"),
+    "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data\n",
+}
+SEPARATOR = "=" * 80
+PRIMITIVES = frozenset({"bool", "byte", "char", "float32", "float64", "int8", "uint8",
+                        "int16", "uint16", "int32", "uint32", "int64", "uint64", "string",
+                        "wstring"})
+
+
+def schema_name(type_: str) -> str:
+    """"sensor_msgs/Image" -> "sensor_msgs/msg/Image", the name rosbag2 gives a schema."""
+    package, _, name = type_.partition("/")
+    return f"{package}/msg/{name}"
+
+
+def type_name(schema: str) -> str:
+    """A schema or type name in either form -> "package/Type" (ROS 1 style names pass)."""
+    parts = schema.split("/")
+    return f"{parts[0]}/{parts[-1]}" if len(parts) >= 2 else schema
+
+
+def share_dirs() -> list[Path]:
+    """Where installed ROS packages keep their share/ folders: AMENT_PREFIX_PATH, then this
+    Python's prefix (the PyPI wheels)."""
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return [Path(prefix) / "share" for prefix in [*prefixes, sys.prefix]]
+
+
+def installed_definition(type_: str) -> str | None:
+    """The installed .msg text of a type, or None if no installed package has it."""
+    package, _, name = type_.partition("/")
+    for share in share_dirs():
+        path = share / package / "msg" / f"{name}.msg"
+        if path.is_file():
+            return path.read_text(encoding="utf-8")
+    return None
+
+
+def fields_only(text: str) -> str:
+    """A .msg text without comments, blank lines and alignment spaces (for comparing)."""
+    lines = (" ".join(line.split("#", 1)[0].split()) for line in text.splitlines())
+    return "".join(f"{line}\n" for line in lines if line)
+
+
+def _used_types(type_: str, text: str) -> list[str]:
+    """The message types a definition's fields use, as "package/Type", in order."""
+    package = type_.partition("/")[0]
+    used = []
+    for line in fields_only(text).splitlines():
+        field_type = line.split()[0].split("[")[0].split("<=")[0]
+        if field_type not in PRIMITIVES:  # (constants are always of primitive types)
+            used.append(field_type if "/" in field_type else f"{package}/{field_type}")
+    return used
+
+
+@functools.cache
+def definition(type_: str) -> str:
+    """One type's .msg text: the installed file's if it has the table's fields (so the schema
+    always matches what oricf.gateway.cdr reads and writes), else the table's."""
+    installed = installed_definition(type_)
+    if installed is not None and fields_only(installed) == DEFINITIONS[type_]:
+        return installed
+    return DEFINITIONS[type_]
+
+
+@functools.cache
+def complete_definition(type_: str) -> str:
+    """The type's definition followed by every type it depends on, once each (ros2msg)."""
+    parts = [definition(type_).strip()]
+    seen = {type_}
+    pending = _used_types(type_, definition(type_))
+    while pending:
+        used = pending.pop(0)
+        if used in seen:
+            continue
+        seen.add(used)
+        text = definition(used)
+        parts.append(f"{SEPARATOR}\nMSG: {used}\n{text.strip()}")
+        pending.extend(_used_types(used, text))
+    return "\n".join(parts) + "\n"
