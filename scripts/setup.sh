@@ -20,8 +20,15 @@ die() { printf 'setup: %s\n' "$*" >&2; exit 1; }
 
 step "system packages (espeak-ng and sox synthesize the spoken questions)"
 APT_PACKAGES=(espeak-ng sox)
+# PortAudio, which the gateway's audio inputs (microphones) capture through.
+APT_PACKAGES+=(libportaudio2)
 # The tests degrade a link between network namespaces (iptables drops packets at random).
 ((DEV)) && APT_PACKAGES+=(iptables iproute2)
+# The RTSP tests and `oricf bench rtsp` run a camera: FFmpeg encodes, GStreamer serves RTSP.
+((DEV)) && APT_PACKAGES+=(ffmpeg python3-gi gir1.2-gst-rtsp-server-1.0 gstreamer1.0-plugins-good
+                          gstreamer1.0-plugins-bad)
+# The audio-input tests play speech into a PulseAudio null sink and capture its monitor.
+((DEV)) && APT_PACKAGES+=(pulseaudio pulseaudio-utils)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
@@ -53,7 +60,7 @@ if ! ls "$WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
 fi
 
 step "python packages"
-EXTRAS="asr,llm,ros"
+EXTRAS="asr,llm,ros,audio"
 ((DEV)) && EXTRAS="$EXTRAS,openvino,interop,dev"
 "${PIP[@]}" install --find-links "$WHEELS" -e ".[$EXTRAS]"
 
