@@ -26,6 +26,7 @@ from mcap_ros2.writer import Writer
 from rclpy.context import Context
 from std_msgs.msg import String
 
+from oricf.audio import synthesize
 from oricf.config import config_dir, read_yaml
 from oricf.gateway import msgdefs
 from tests.gateway.ros import Probe, running_probe
@@ -42,7 +43,7 @@ FRAME_PERIOD_NS = 100_000_000  # the rosbag2-style recording: a 10 fps camera
 def services() -> Iterator[dict[str, str]]:
     with ExitStack() as stack:
         yield {name: stack.enter_context(running_service(name)).address
-               for name in ("detector", "llm")}
+               for name in ("detector", "asr", "llm")}
 
 
 def pipeline_file(folder: Path, routes: list[str], services: dict[str, str]) -> Path:
@@ -202,6 +203,27 @@ def test_a_rosbag2_recording_replays_through_a_pipeline(services: dict[str, str]
     # fewer frames may be counted, but in order, and never the newest dropped
     assert counted == sorted(set(counted)) and set(counted) <= set(stamps)
     assert counted[-1] == stamps[-1]
+
+
+def test_a_recorded_utterance_is_transcribed_without_ros(services: dict[str, str],
+                                                         tmp_path: Path) -> None:
+    samples = synthesize(QUESTION)
+    path = tmp_path / "speech.mcap"
+    with path.open("wb") as file:
+        writer = Writer(file)
+        audio = writer.register_msgdef("std_msgs/msg/Int16MultiArray",
+                                       msgdefs.complete_definition("std_msgs/Int16MultiArray"))
+        writer.write_message("/audio/utterance", audio, {
+            "layout": {"dim": [{"label": "samples", "size": len(samples), "stride": 1}],
+                       "data_offset": 0},
+            "data": samples.tolist()}, log_time=5, publish_time=5)
+        writer.finish()
+    config = pipeline_file(tmp_path, ["speech"], services)
+    result = gateway_without_ros(tmp_path, "--config", str(config), "--replay", str(path))
+    assert result.returncode == 0, result.stderr
+    (line,) = [json.loads(text) for text in result.stdout.splitlines()]
+    assert line["topic"] == "/speech/transcript" and line["input_ns"] == 5
+    assert "how many people" in line["transcript"].lower()
 
 
 def wrong_type(path: Path) -> None:
