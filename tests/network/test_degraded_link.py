@@ -60,7 +60,8 @@ def test_counting_survives_a_degraded_and_cut_link() -> None:
             pipeline.stop()
             relay.close()
     counts = [value for topic, value in outputs.sent if topic == "/human_counter"]
-    assert on_edge >= 2 * 4 and during_cut >= 2 * 10 and after >= 2 * 3, (
-        on_edge, during_cut, after)
+    # Counts in every phase: on the edge, on the fallback while cut, on the edge again.
+    # How many per second, and the longest gap, are `oricf bench link`'s figures.
+    assert min(on_edge, during_cut, after) >= 2, (on_edge, during_cut, after)
     assert all(2 <= c <= 12 for c in counts)
     assert endpoint.recoveries >= 1

@@ -1,8 +1,8 @@
 """The language model service with its shipped config: real model, real gRPC, real grpcurl."""
 
 import json
-import threading
-from collections.abc import Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 import grpc
@@ -117,23 +117,24 @@ def test_the_model_is_free_as_soon_as_an_answer_returns(
     assert not model_of(llm).gate.busy
 
 
+def wait_until(condition: Callable[[], bool], timeout: float = DEADLINE_S) -> None:
+    give_up = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < give_up, "condition not reached in time"
+        time.sleep(0.005)
+
+
 def test_concurrent_callers_are_served_one_at_a_time(
-        stub: language_pb2_grpc.LanguageModelStub) -> None:
-    answers: list[language_pb2.GenerateResponse] = []
-
-    def call() -> None:
-        answers.append(generate(stub, "How many people do you see?",
-                                context={"people_count": "6"}))
-
-    threads = [threading.Thread(target=call) for _ in range(3)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=DEADLINE_S)
-    assert len(answers) == 3
-    assert all("6" in a.text for a in answers)
-    # One ran at once; the others waited their turn (the shipped queue holds 4).
-    assert sorted(a.timings.queue_ms > 20 for a in answers) == [False, True, True]
+        llm: RunningService, stub: language_pb2_grpc.LanguageModelStub) -> None:
+    gate = model_of(llm).gate
+    request = language_pb2.GenerateRequest(prompt="Is anyone there?")
+    with gate.turn(lambda: None):  # as a generation in progress holds the model
+        calls = [stub.Generate.future(request, timeout=DEADLINE_S) for _ in range(3)]
+        wait_until(lambda: gate.waiting == 3)  # all wait (the shipped queue holds 4)
+        assert not any(call.done() for call in calls)
+    wait_until(lambda: gate.busy and gate.waiting == 2)  # then one runs, two wait
+    answers = [call.result() for call in calls]
+    assert len({a.text for a in answers}) == 1 and answers[0].finish_reason == "stop"
 
 
 def test_max_tokens_cuts_the_answer(stub: language_pb2_grpc.LanguageModelStub) -> None:

@@ -60,11 +60,11 @@ def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
 
         stream = stub.DetectStream(held_open(), timeout=20)
         assert next(stream).counts["person"] == 1  # the one allowed call is now in flight
-        started = time.monotonic()
         with pytest.raises(grpc.RpcError) as err:
             stub.Detect(person_request(), timeout=10)
+        # Refused while the allowed call is still held open: not queued behind it.
         assert err.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
-        assert time.monotonic() - started < 2  # refused, not queued
+        assert not release.is_set()
         pushback = dict(err.value.trailing_metadata() or ())["grpc-retry-pushback-ms"]
         assert 100 <= int(pushback) <= 200  # retry_after_ms 100, jittered up to 2x
         assert f"retry in {pushback} ms" in (err.value.details() or "")
@@ -162,14 +162,13 @@ def test_sigterm_stop_is_bounded_even_with_streams_held_open(tmp_path: Path) -> 
             pulled.append(threading.Thread(target=lambda r=response: _drain(r), daemon=True))
             pulled[-1].start()
         time.sleep(1.0)
-        started = time.monotonic()
         process.send_signal(signal.SIGTERM)
+        # The streams are held for 60 s: an exit within this wait is one that did not wait
+        # for them.
         code = process.wait(timeout=30)
-        stopped_in = time.monotonic() - started
         release.set()
         channel.close()
         output = process.stdout.read() if process.stdout else ""
-        assert stopped_in < 15, output
         assert code in (0, 1), output
         assert "stopped" in output or "exiting anyway" in output, output
 
