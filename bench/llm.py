@@ -1,7 +1,7 @@
 """`oricf bench llm`: how often the language model states the right people count, and how fast.
 
 Starts the real service in-process on a free port for each model, asks varied count
-questions with the count in the request's context (as the gateway sends it) over
+questions with the count as a typed fact in the request (as the gateway sends it) over
 GenerateStream, and grades each answer: it must state the right count and no other.
 Also measures prompt-prefix reuse: the same questions with the KV cache of the fixed
 prefix kept (the default) and thrown away before every call.
@@ -29,7 +29,7 @@ import grpc
 
 from oricf.config import shipped_service_config
 from oricf.services.runtime.local import local_service, service_config
-from oricf.v1 import language_pb2, language_pb2_grpc
+from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
 MODELS = ("gemma3-270m", "smollm2-135m-instruct")
 PHRASINGS = (
@@ -96,7 +96,7 @@ def is_right(answer: str, count: int) -> bool:
 @dataclass
 class Answer:
     question: str
-    count: int | None      # None: the count is unknown (absent or stale in the context)
+    count: int | None      # None: the count is unknown (absent, or too old in the facts)
     text: str
     first_s: float
     total_s: float
@@ -108,11 +108,16 @@ class Answer:
         return is_right(self.text, self.count)
 
 
+def people_count(count: int, age_s: float = 0.5) -> common_pb2.Fact:
+    """The count as the gateway passes it: an integer with its age (a fresh one by default)."""
+    return common_pb2.Fact(name="people_count", integer=count, age_s=age_s)
+
+
 def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int | None,
-        context: dict[str, str] | None = None) -> Answer:
-    if context is None:
-        context = {"people_count": str(count)}
-    request = language_pb2.GenerateRequest(prompt=question, context=context)
+        facts: list[common_pb2.Fact] | None = None) -> Answer:
+    if facts is None:
+        facts = [] if count is None else [people_count(count)]
+    request = language_pb2.GenerateRequest(prompt=question, facts=facts)
     started = time.perf_counter()
     first = None
     pieces = []
@@ -126,8 +131,8 @@ def ask(stub: language_pb2_grpc.LanguageModelStub, question: str, count: int | N
 
 def ask_unknown(stub: language_pb2_grpc.LanguageModelStub, n: int) -> list[Answer]:
     """Questions whose count is absent or too old: the answer must state no count."""
-    contexts = [{}, {"people_count": "4", "people_count_age_s": "60"}]
-    return [ask(stub, PHRASINGS[i % len(PHRASINGS)], None, contexts[i % 2]) for i in range(n)]
+    facts: list[list[common_pb2.Fact]] = [[], [people_count(4, age_s=60.0)]]
+    return [ask(stub, PHRASINGS[i % len(PHRASINGS)], None, facts[i % 2]) for i in range(n)]
 
 
 @contextmanager

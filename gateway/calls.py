@@ -2,7 +2,8 @@
 
     Detect      image            -> detections, counts, annotated
     Transcribe  audio            -> transcript, duration_s (an empty transcript ends the route)
-    Generate    prompt template  -> answer (context: data products, stale ones never as current)
+    Generate    prompt template  -> answer (context: data products as typed facts, stale ones
+                                    never as current)
     Infer       image            -> detection model: detections, counts
                                     classification model: classes, label, score
 
@@ -12,9 +13,11 @@ returns the function that handles one record.
 
 from __future__ import annotations
 
+import json
 import logging
+import numbers
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
@@ -30,7 +33,7 @@ from oricf.models.heads import (
 )
 from oricf.models.image import geometry
 from oricf.models.wire import infer_request, response_outputs
-from oricf.v1 import detector_pb2, language_pb2, speech_pb2
+from oricf.v1 import common_pb2, detector_pb2, language_pb2, speech_pb2
 
 if TYPE_CHECKING:
     from oricf.gateway.config import (
@@ -41,7 +44,7 @@ if TYPE_CHECKING:
         TranscribeCall,
     )
     from oricf.gateway.endpoints import Endpoint
-    from oricf.gateway.products import ProductStore
+    from oricf.gateway.products import ProductStore, Reading
 
 log = logging.getLogger(__name__)
 
@@ -113,18 +116,54 @@ def generate_request(record: Record, call: GenerateCall, products: ProductStore
         raise InvalidInput(f"prompt template {call.prompt!r}: cannot fill {exc}") from None
     if not prompt:
         raise Skip("empty prompt")
-    context = products.context(call.context.products, call.context.stale) if call.context else {}
-    request = language_pb2.GenerateRequest(prompt=prompt, context=context,
+    readings = products.context(call.context.products, call.context.stale) if call.context \
+        else []
+    request = language_pb2.GenerateRequest(prompt=prompt, facts=[fact(r) for r in readings],
                                            max_tokens=call.max_tokens, stop=call.stop)
     if call.temperature is not None:
         request.temperature = call.temperature
     return request
 
 
+def fact(reading: Reading) -> common_pb2.Fact:
+    """A data product as an oricf.v1.Fact: the value in its own type, its age, whether stale.
+    A value with no typed form (a dict of counts, a list) goes as JSON text; None, or a
+    number that is not finite, as no value (the receiver renders it as unknown)."""
+    message = common_pb2.Fact(name=reading.name, age_s=reading.age_s, stale=reading.stale)
+    value = reading.value
+    if value is None:
+        pass
+    elif isinstance(value, (bool, np.bool_)):
+        message.flag = bool(value)
+    elif isinstance(value, numbers.Integral) and -2**63 <= int(value) < 2**63:
+        message.integer = int(value)
+    elif isinstance(value, numbers.Real):
+        if np.isfinite(float(value)):
+            message.number = float(value)
+    elif isinstance(value, str):
+        message.text = value
+    else:
+        message.text = json.dumps(value, default=str)
+    return message
+
+
+def facts_text(facts: Iterable[common_pb2.Fact]) -> str:
+    """Facts on one line for logs: `people_count=3 (1.2 s)`, `people_count=3 (stale, 12.0 s)`."""
+    parts = []
+    for f in facts:
+        kind = f.WhichOneof("value")
+        value = repr(getattr(f, kind)) if kind else "(no value)"
+        notes = [*(["stale"] if f.stale else []),
+                 *([f"{f.age_s:.1f} s"] if f.HasField("age_s") else [])]
+        parts.append(f"{f.name}={value}" + (f" ({', '.join(notes)})" if notes else ""))
+    return ", ".join(parts) or "none"
+
+
 def generate(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
     def invoke(record: Record) -> Record:
         request = generate_request(record, call, products)
-        log.debug("Generate prompt %r context %s", request.prompt, dict(request.context))
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("Generate prompt %r facts %s", request.prompt, facts_text(request.facts))
         return {"answer": endpoint.call("Generate", request).text.strip()}
 
     return invoke

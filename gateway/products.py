@@ -3,7 +3,8 @@
 One route writes a product (`outputs: - {product: people_count, max_age_s: 5}`); others
 read it as context for a call, or run on each new value (`input: {product: ...}`). A value
 older than max_age_s is stale: readers see that, it is never passed off as current.
-As call context a product goes with its age, and stale values are left out or flagged.
+As call context a product goes with its age, and stale values are left out or flagged
+(calls.py turns the readings into oricf.v1.Fact messages).
 """
 
 from __future__ import annotations
@@ -12,9 +13,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
-
-from oricf.context import AGE_SUFFIX, STALE_SUFFIX
+from typing import Any, Literal
 
 Listener = Callable[[Any], None]
 
@@ -67,17 +66,10 @@ class ProductStore:
             value, stamp = self._latest[name]
             return Reading(name, value, self._clock() - stamp, self._max_age[name])
 
-    def context(self, names: list[str], stale: str) -> dict[str, str]:
-        """Products as call context, in the language service's convention: `name` the value,
-        `name_age_s` its age in seconds; a stale value is left out (stale="omit") or sent
-        with `name_stale: "true"` (stale="mark"). A product never written is left out."""
-        context: dict[str, str] = {}
-        for name in names:
-            reading = self.read(name)
-            if reading is None or (reading.stale and stale == "omit"):
-                continue
-            context[name] = str(reading.value)
-            context[name + AGE_SUFFIX] = f"{reading.age_s:.1f}"
-            if reading.stale:
-                context[name + STALE_SUFFIX] = "true"
-        return context
+    def context(self, names: list[str], stale: Literal["omit", "mark"]) -> list[Reading]:
+        """The readings to pass as call context, in the order named: a product never written
+        is left out; a stale one is left out (stale="omit") or kept, its `stale` true for the
+        receiver to see (stale="mark")."""
+        readings = [self.read(name) for name in names]
+        return [r for r in readings
+                if r is not None and not (r.stale and stale == "omit")]

@@ -41,9 +41,9 @@ class GenerationSettings(Schema):
 
 class InputLimits(Schema):
     max_prompt_chars: int = Field(2000, ge=1)
-    max_context_keys: int = Field(32, ge=0)
-    max_key_chars: int = Field(64, ge=1)
-    max_value_chars: int = Field(256, ge=1)
+    max_facts: int = Field(32, ge=0, description="facts in one request")
+    max_name_chars: int = Field(64, ge=1, description="characters in a fact's name")
+    max_text_chars: int = Field(256, ge=1, description="characters in a fact's text value")
     max_stop_sequences: int = Field(4, ge=0)
     max_stop_chars: int = Field(32, ge=1)
 

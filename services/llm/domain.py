@@ -2,18 +2,32 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TypeAlias
 
 # Raises Cancelled or DeadlineExceeded when the caller no longer wants the answer. Called
 # between tokens and while waiting for the model, so the model never needs to know gRPC.
 StillWanted = Callable[[], None]
 
 
+FactValue: TypeAlias = str | int | float | bool
+
+
+@dataclass(frozen=True)
+class Fact:
+    """A fact from another model (oricf.v1.Fact), checked: a unique name, a finite value."""
+
+    name: str
+    value: FactValue | None = None   # None: the producer has no value
+    age_s: float | None = None       # None: the age is not known
+    stale: bool = False              # the producer says it is out of date
+
+
 @dataclass(frozen=True)
 class GenerationRequest:
     prompt: str
-    context: Mapping[str, str] = field(default_factory=dict)
+    facts: tuple[Fact, ...] = ()
     max_tokens: int = 48
     temperature: float = 0.0
     stop: tuple[str, ...] = ()

@@ -125,8 +125,9 @@ class LlamaModel:
         """
         started = time.perf_counter()
         llm = self._require_loaded()
-        self._refuse_control_text([request.prompt, *request.context.values()])
-        rendered = self.renderer.render(request.prompt, request.context)
+        self._refuse_control_text(
+            [request.prompt, *(f.value for f in request.facts if isinstance(f.value, str))])
+        rendered = self.renderer.render(request.prompt, request.facts)
         tokens = self._tokenize(rendered.text, add_bos=True)
         self._check_fits(len(tokens), request.max_tokens)
         log.debug("prompt facts: %s", rendered.facts)
@@ -196,7 +197,7 @@ class LlamaModel:
         """Caller text must not smuggle in the model's control tokens (e.g. <end_of_turn>)."""
         for text in texts:
             if self._tokenize(text, special=True) != self._tokenize(text, special=False):
-                raise InvalidInput("the prompt or a context value contains the model's control "
+                raise InvalidInput("the prompt or a fact's text contains the model's control "
                                    "token text (such as <end_of_turn> or <|im_end|>)")
 
     def _check_fits(self, prompt_tokens: int, max_tokens: int) -> None:
@@ -205,7 +206,7 @@ class LlamaModel:
             raise InvalidInput(
                 f"the prompt ({prompt_tokens} tokens with the template) plus max_tokens "
                 f"({max_tokens}) exceeds the model's context window of {n_ctx} tokens; "
-                f"shorten the prompt or context, or ask for fewer tokens")
+                f"shorten the prompt or the facts, or ask for fewer tokens")
 
     @staticmethod
     def _cached_prefix(llm: Any, tokens: list[int]) -> int:

@@ -5,27 +5,34 @@ request's part (its facts and question). The fixed part comes first on purpose: 
 keeps the KV cache of the longest common token prefix, so only the request's part is
 evaluated on each call.
 
-Facts come from the request's context map. A fact the template names renders with its
-`known` text; when the key is absent, empty or "unknown" it renders as `unknown`; when the
-caller marks it stale (`<key>_stale: "true"`) or says it is older than `max_age_s`
-(`<key>_age_s: "12.5"`) it renders as `stale`, so the model can say it does not know.
+Facts come from the request's typed facts (oricf.v1.Fact). A fact the template names
+renders with its `known` text; when the request does not give it, gives it without a value
+or with a blank text, it renders as `unknown`; when the producer marks it stale, or its
+age_s is over the template's `max_age_s`, it renders as `stale`, so the model can say it
+does not know. A fact of unknown age is never too old. Values render as text: integers as
+digits, numbers in up to 15 significant digits, flags as "yes" or "no".
 """
 
 from __future__ import annotations
 
 import math
 import string
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import (
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    field_validator,
+    model_validator,
+)
 
 from oricf.config import Schema
-from oricf.context import AGE_SUFFIX, STALE_SUFFIX
-from oricf.errors import InvalidInput
-
-UNKNOWN_VALUES = frozenset({"", "unknown", "none", "null", "n/a"})
-TRUE_VALUES = frozenset({"1", "true", "yes"})
+from oricf.services.llm.domain import Fact, FactValue
 
 
 def _check_fields(template: str, allowed: Iterable[str]) -> str:
@@ -61,9 +68,9 @@ class PromptFormat(Schema):
 
 
 class FactTemplate(Schema):
-    key: str = Field(min_length=1, description="context key, e.g. people_count")
+    name: str = Field(min_length=1, description="the fact's name, e.g. people_count")
     known: str = Field(description="{value}")
-    unknown: str = Field(description="when the key is absent or empty")
+    unknown: str = Field(description="when the fact is absent or has no value")
     stale: str | None = Field(None, description="{value}, {age_s}; unset: the unknown text")
     max_age_s: float | None = Field(None, gt=0, description="older values count as stale")
 
@@ -77,9 +84,21 @@ class FactTemplate(Schema):
 
 
 class Example(Schema):
-    context: dict[str, str] = Field(default_factory=dict)
+    facts: dict[str, StrictStr | StrictInt | StrictFloat | StrictBool] = Field(
+        default_factory=dict, description="name -> value, current and of unknown age")
     question: str = Field(min_length=1)
     answer: str = Field(min_length=1)
+
+    @field_validator("facts", mode="before")
+    @classmethod
+    def _typed_values(cls, value: Any) -> Any:
+        """One clear message instead of one per member of the value union."""
+        for name, item in (value.items() if isinstance(value, dict) else ()):
+            if not isinstance(item, (str, int, float, bool)) or (
+                    isinstance(item, float) and not math.isfinite(item)):
+                raise ValueError(f"{name}: {item!r} is not a text, an integer, a finite "
+                                 f"number or a flag")
+        return value
 
 
 class PromptTemplate(Schema):
@@ -89,8 +108,8 @@ class PromptTemplate(Schema):
     fact_separator: str = "; "
     no_facts: str = Field("none", description="{facts} when nothing at all is known")
     other_facts: str | None = Field(
-        None, description="'{key}: {value}' renders context keys the template does not name; "
-                          "unset: they are ignored")
+        None, description="'{name}: {value}' renders facts the template does not name (a "
+                          "stale one or one without a value as 'unknown'); unset: ignored")
     examples: list[Example] = Field(default_factory=list)
     collapse_whitespace: bool = Field(
         True, description="questions become one line (a newline would end the turn early)")
@@ -98,15 +117,15 @@ class PromptTemplate(Schema):
     @field_validator("other_facts")
     @classmethod
     def _other_placeholders(cls, value: str | None) -> str | None:
-        return None if value is None else _check_fields(value, ["key", "value"])
+        return None if value is None else _check_fields(value, ["name", "value"])
 
     @field_validator("facts")
     @classmethod
-    def _unique_keys(cls, value: list[FactTemplate]) -> list[FactTemplate]:
-        keys = [f.key for f in value]
-        duplicates = sorted({k for k in keys if keys.count(k) > 1})
+    def _unique_names(cls, value: list[FactTemplate]) -> list[FactTemplate]:
+        names = [f.name for f in value]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
-            raise ValueError(f"fact key(s) listed twice: {', '.join(duplicates)}")
+            raise ValueError(f"fact name(s) listed twice: {', '.join(duplicates)}")
         return value
 
 
@@ -114,7 +133,7 @@ class PromptTemplate(Schema):
 class RenderedPrompt:
     text: str
     prefix: str        # the fixed part, identical for every request
-    facts: str         # what the request's context rendered to (for logs)
+    facts: str         # what the request's facts rendered to (for logs)
 
 
 class PromptRenderer:
@@ -122,11 +141,12 @@ class PromptRenderer:
 
     def __init__(self, template: PromptTemplate) -> None:
         self.template = template
-        self._named = {f.key for f in template.facts}
+        self._named = {f.name for f in template.facts}
         fmt = template.format
         parts = [fmt.header.format(system=template.system)]
         for example in template.examples:
-            parts.append(self._turn(example.question, example.context))
+            facts = [Fact(name, value) for name, value in example.facts.items()]
+            parts.append(self._turn(example.question, facts))
             parts.append(fmt.answer.format(answer=example.answer))
         self.prefix = "".join(parts)
 
@@ -134,53 +154,60 @@ class PromptRenderer:
     def stop(self) -> list[str]:
         return list(self.template.format.stop)
 
-    def render(self, question: str, context: Mapping[str, str]) -> RenderedPrompt:
-        facts = self.render_facts(context)
-        turn = self.template.format.turn.format(facts=facts, question=self._question(question))
-        return RenderedPrompt(self.prefix + turn, self.prefix, facts)
+    def render(self, question: str, facts: Sequence[Fact]) -> RenderedPrompt:
+        rendered = self.render_facts(facts)
+        turn = self.template.format.turn.format(facts=rendered, question=self._question(question))
+        return RenderedPrompt(self.prefix + turn, self.prefix, rendered)
 
-    def render_facts(self, context: Mapping[str, str]) -> str:
-        lines = [_render_fact(fact, context) for fact in self.template.facts]
+    def render_facts(self, facts: Sequence[Fact]) -> str:
+        by_name: Mapping[str, Fact] = {fact.name: fact for fact in facts}
+        lines = [_render_fact(template, by_name.get(template.name))
+                 for template in self.template.facts]
         if self.template.other_facts is not None:
-            lines += [self.template.other_facts.format(key=key, value=value)
-                      for key, value in sorted(context.items()) if self._is_other(key)]
+            lines += [self.template.other_facts.format(name=fact.name, value=_other_value(fact))
+                      for fact in sorted(facts, key=lambda f: f.name)
+                      if fact.name not in self._named]
         return self.template.fact_separator.join(lines) or self.template.no_facts
 
-    def _turn(self, question: str, context: Mapping[str, str]) -> str:
-        return self.template.format.turn.format(facts=self.render_facts(context),
+    def _turn(self, question: str, facts: Sequence[Fact]) -> str:
+        return self.template.format.turn.format(facts=self.render_facts(facts),
                                                 question=self._question(question))
 
     def _question(self, question: str) -> str:
         return " ".join(question.split()) if self.template.collapse_whitespace else question
 
-    def _is_other(self, key: str) -> bool:
-        base = key.removesuffix(AGE_SUFFIX).removesuffix(STALE_SUFFIX)
-        return key not in self._named and base not in self._named
+
+def value_text(value: FactValue | None) -> str:
+    """A value as the prompt shows it; "" when there is nothing to state."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.15g}"
+    return str(value).strip()
 
 
-def _render_fact(fact: FactTemplate, context: Mapping[str, str]) -> str:
-    value = context.get(fact.key, "").strip()
-    if value.lower() in UNKNOWN_VALUES:
-        return fact.unknown
-    age = _age(context, fact.key)
-    stale_flag = context.get(fact.key + STALE_SUFFIX, "").strip().lower() in TRUE_VALUES
-    too_old = age is not None and fact.max_age_s is not None and age > fact.max_age_s
-    if stale_flag or too_old:
-        if fact.stale is None:
-            return fact.unknown
-        return fact.stale.format(value=value, age_s=f"{age:.0f}" if age is not None else "?")
-    return fact.known.format(value=value)
+def _is_out_of_date(template: FactTemplate, fact: Fact) -> bool:
+    too_old = (fact.age_s is not None and template.max_age_s is not None
+               and fact.age_s > template.max_age_s)
+    return fact.stale or too_old
 
 
-def _age(context: Mapping[str, str], key: str) -> float | None:
-    text = context.get(key + AGE_SUFFIX)
-    if text is None or not text.strip():
-        return None
-    try:
-        age = float(text)
-    except ValueError:
-        raise InvalidInput(f"context '{key}{AGE_SUFFIX}' must be a number of seconds, "
-                           f"got {text!r}") from None
-    if not math.isfinite(age) or age < 0:
-        raise InvalidInput(f"context '{key}{AGE_SUFFIX}' must be >= 0 seconds, got {text!r}")
-    return age
+def _render_fact(template: FactTemplate, fact: Fact | None) -> str:
+    value = "" if fact is None else value_text(fact.value)
+    if fact is None or not value:
+        return template.unknown
+    if _is_out_of_date(template, fact):
+        if template.stale is None:
+            return template.unknown
+        age = "?" if fact.age_s is None else f"{fact.age_s:.0f}"
+        return template.stale.format(value=value, age_s=age)
+    return template.known.format(value=value)
+
+
+def _other_value(fact: Fact) -> str:
+    """A fact the template does not name has no age limit; only the producer's flag counts."""
+    if fact.stale:
+        return "unknown"
+    return value_text(fact.value) or "unknown"

@@ -50,7 +50,18 @@ BYTES = st.one_of(st.binary(max_size=512),
 INTS = st.one_of(st.integers(-3, 70_000), st.sampled_from([-(2**31), 2**31 - 1, 1, 0]))
 
 
+# Fields drawn in every message, from values of their own: random ones would almost never
+# be valid, and the checks behind them would go untried. Fact names: mostly the one the
+# prompt template renders (often twice in a request), sometimes empty or hostile.
+FIELD_VALUES: dict[str, st.SearchStrategy[Any]] = {
+    "oricf.v1.Fact.name": st.one_of(st.sampled_from(["people_count", "people_count", "dogs",
+                                                     ""]), TEXTS),
+}
+
+
 def scalar(field: FieldDescriptor) -> st.SearchStrategy[Any]:
+    if field.full_name in FIELD_VALUES:
+        return FIELD_VALUES[field.full_name]
     kind = field.type
     if kind == FieldDescriptor.TYPE_STRING:
         return TEXTS
@@ -72,7 +83,8 @@ def scalar(field: FieldDescriptor) -> st.SearchStrategy[Any]:
 
 
 def message(descriptor: Descriptor, depth: int = 0) -> st.SearchStrategy[dict[str, Any]]:
-    """A random message of this type, as a dict of field values (each field optional)."""
+    """A random message of this type, as a dict of field values (each field optional but
+    those of FIELD_VALUES)."""
     fields: dict[str, st.SearchStrategy[Any]] = {}
     for field in descriptor.fields:
         if field.message_type is not None and field.message_type.GetOptions().map_entry:
@@ -89,7 +101,9 @@ def message(descriptor: Descriptor, depth: int = 0) -> st.SearchStrategy[dict[st
             one = scalar(field)
         repeated = field.is_repeated
         fields[field.name] = st.lists(one, max_size=4) if repeated else one
-    return st.fixed_dictionaries({}, optional=fields)
+    required = {f.name: fields.pop(f.name) for f in descriptor.fields
+                if f.full_name in FIELD_VALUES}
+    return st.fixed_dictionaries(required, optional=fields)
 
 
 def serialized(descriptor: Descriptor) -> st.SearchStrategy[bytes]:

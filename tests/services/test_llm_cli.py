@@ -8,7 +8,7 @@ from pathlib import Path
 import grpc
 
 from oricf.config import config_dir
-from oricf.v1 import language_pb2, language_pb2_grpc
+from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 from tests.support.processes import free_port, oricf_process, wait_serving
 
 
@@ -18,8 +18,9 @@ def test_serve_answers_and_sigterm_lets_the_answer_finish() -> None:
         wait_serving(address, timeout=120, process=process)
         with grpc.insecure_channel(address) as channel:
             stub = language_pb2_grpc.LanguageModelStub(channel)
+            count = common_pb2.Fact(name="people_count", integer=3)
             request = language_pb2.GenerateRequest(prompt="How many people do you see?",
-                                                   context={"people_count": "3"})
+                                                   facts=[count])
             stream = stub.GenerateStream(request, timeout=30)
             first = next(stream)
             process.send_signal(signal.SIGTERM)  # drains: the answer in flight completes

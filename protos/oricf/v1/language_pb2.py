@@ -25,21 +25,17 @@ _sym_db = _symbol_database.Default()
 from oricf.v1 import common_pb2 as oricf_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17oricf/v1/language.proto\x12\x08oricf.v1\x1a\x15oricf/v1/common.proto\"\xd6\x01\n\x0fGenerateRequest\x12\x0e\n\x06prompt\x18\x01 \x01(\t\x12\x37\n\x07\x63ontext\x18\x02 \x03(\x0b\x32&.oricf.v1.GenerateRequest.ContextEntry\x12\x12\n\nmax_tokens\x18\x03 \x01(\r\x12\x18\n\x0btemperature\x18\x04 \x01(\x02H\x00\x88\x01\x01\x12\x0c\n\x04stop\x18\x05 \x03(\t\x1a.\n\x0c\x43ontextEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\t:\x02\x38\x01\x42\x0e\n\x0c_temperature\"\x8d\x01\n\x10GenerateResponse\x12\x0c\n\x04text\x18\x01 \x01(\t\x12\x15\n\rfinish_reason\x18\x02 \x01(\t\x12\x15\n\rprompt_tokens\x18\x03 \x01(\r\x12\x19\n\x11\x63ompletion_tokens\x18\x04 \x01(\r\x12\"\n\x07timings\x18\x05 \x01(\x0b\x32\x11.oricf.v1.Timings2\xec\x01\n\rLanguageModel\x12\x41\n\x08Generate\x12\x19.oricf.v1.GenerateRequest\x1a\x1a.oricf.v1.GenerateResponse\x12I\n\x0eGenerateStream\x12\x19.oricf.v1.GenerateRequest\x1a\x1a.oricf.v1.GenerateResponse0\x01\x12M\n\x0cGetModelInfo\x12\x1d.oricf.v1.GetModelInfoRequest\x1a\x1e.oricf.v1.GetModelInfoResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17oricf/v1/language.proto\x12\x08oricf.v1\x1a\x15oricf/v1/common.proto\"\x9b\x01\n\x0fGenerateRequest\x12\x0e\n\x06prompt\x18\x01 \x01(\t\x12\x12\n\nmax_tokens\x18\x03 \x01(\r\x12\x18\n\x0btemperature\x18\x04 \x01(\x02H\x00\x88\x01\x01\x12\x0c\n\x04stop\x18\x05 \x03(\t\x12\x1d\n\x05\x66\x61\x63ts\x18\x06 \x03(\x0b\x32\x0e.oricf.v1.FactB\x0e\n\x0c_temperatureJ\x04\x08\x02\x10\x03R\x07\x63ontext\"\x8d\x01\n\x10GenerateResponse\x12\x0c\n\x04text\x18\x01 \x01(\t\x12\x15\n\rfinish_reason\x18\x02 \x01(\t\x12\x15\n\rprompt_tokens\x18\x03 \x01(\r\x12\x19\n\x11\x63ompletion_tokens\x18\x04 \x01(\r\x12\"\n\x07timings\x18\x05 \x01(\x0b\x32\x11.oricf.v1.Timings2\xec\x01\n\rLanguageModel\x12\x41\n\x08Generate\x12\x19.oricf.v1.GenerateRequest\x1a\x1a.oricf.v1.GenerateResponse\x12I\n\x0eGenerateStream\x12\x19.oricf.v1.GenerateRequest\x1a\x1a.oricf.v1.GenerateResponse0\x01\x12M\n\x0cGetModelInfo\x12\x1d.oricf.v1.GetModelInfoRequest\x1a\x1e.oricf.v1.GetModelInfoResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'oricf.v1.language_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_GENERATEREQUEST_CONTEXTENTRY']._loaded_options = None
-  _globals['_GENERATEREQUEST_CONTEXTENTRY']._serialized_options = b'8\001'
   _globals['_GENERATEREQUEST']._serialized_start=61
-  _globals['_GENERATEREQUEST']._serialized_end=275
-  _globals['_GENERATEREQUEST_CONTEXTENTRY']._serialized_start=213
-  _globals['_GENERATEREQUEST_CONTEXTENTRY']._serialized_end=259
-  _globals['_GENERATERESPONSE']._serialized_start=278
-  _globals['_GENERATERESPONSE']._serialized_end=419
-  _globals['_LANGUAGEMODEL']._serialized_start=422
-  _globals['_LANGUAGEMODEL']._serialized_end=658
+  _globals['_GENERATEREQUEST']._serialized_end=216
+  _globals['_GENERATERESPONSE']._serialized_start=219
+  _globals['_GENERATERESPONSE']._serialized_end=360
+  _globals['_LANGUAGEMODEL']._serialized_start=363
+  _globals['_LANGUAGEMODEL']._serialized_end=599
 # @@protoc_insertion_point(module_scope)
