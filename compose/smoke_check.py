@@ -43,7 +43,7 @@ def asr_request() -> dict[str, Any]:
 
 
 def llm_request() -> dict[str, Any]:
-    return {"prompt": QUESTION, "context": {"people_count": str(PEOPLE)}}
+    return {"prompt": QUESTION, "facts": [{"name": "people_count", "integer": PEOPLE}]}
 
 
 def detector_check(reply: dict[str, Any]) -> str | None:

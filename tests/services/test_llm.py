@@ -35,6 +35,11 @@ def model_of(service: RunningService) -> LlamaModel:
     return model
 
 
+def people(count: int | None = None, **fields: object) -> common_pb2.Fact:
+    """The people count as a typed fact, as the gateway sends it (None: no value)."""
+    return common_pb2.Fact(name="people_count", integer=count, **fields)
+
+
 def generate(stub: language_pb2_grpc.LanguageModelStub, prompt: str,
              **fields: object) -> language_pb2.GenerateResponse:
     request = language_pb2.GenerateRequest(prompt=prompt, **fields)
@@ -43,7 +48,7 @@ def generate(stub: language_pb2_grpc.LanguageModelStub, prompt: str,
 
 
 def test_the_answer_states_the_people_count(stub: language_pb2_grpc.LanguageModelStub) -> None:
-    answer = generate(stub, "How many people do you see?", context={"people_count": "3"})
+    answer = generate(stub, "How many people do you see?", facts=[people(3, age_s=0.4)])
     assert "3" in answer.text, answer.text
     assert answer.finish_reason == "stop"
     assert "\n" not in answer.text and answer.text == answer.text.strip()
@@ -55,40 +60,40 @@ def test_the_answer_states_the_people_count(stub: language_pb2_grpc.LanguageMode
 
 
 @pytest.mark.parametrize(("count", "question", "expected"), [
-    ("0", "Is anyone there?", "no one"),
-    ("1", "Are you alone?", "1 person"),
-    ("12", "How many humans are in the room?", "12"),
+    (0, "Is anyone there?", "no one"),
+    (1, "Are you alone?", "1 person"),
+    (12, "How many humans are in the room?", "12"),
 ])
-def test_other_counts_and_phrasings(stub: language_pb2_grpc.LanguageModelStub, count: str,
+def test_other_counts_and_phrasings(stub: language_pb2_grpc.LanguageModelStub, count: int,
                                     question: str, expected: str) -> None:
-    answer = generate(stub, question, context={"people_count": count})
+    answer = generate(stub, question, facts=[people(count)])
     assert expected in answer.text.lower(), answer.text
 
 
-@pytest.mark.parametrize("context", [
-    {},
-    {"people_count": ""},
-    {"people_count": "unknown"},
-    {"people_count": "3", "people_count_stale": "true"},
-    {"people_count": "3", "people_count_age_s": "60"},
-], ids=["absent", "empty", "unknown", "marked-stale", "too-old"])
+@pytest.mark.parametrize("facts", [
+    [],
+    [people()],
+    [common_pb2.Fact(name="people_count", text="")],
+    [people(3, age_s=2.0, stale=True)],
+    [people(3, age_s=60.0)],
+], ids=["absent", "no-value", "empty-text", "marked-stale", "too-old"])
 def test_an_unknown_or_stale_count_is_not_stated(stub: language_pb2_grpc.LanguageModelStub,
-                                                 context: dict[str, str]) -> None:
-    answer = generate(stub, "How many people do you see?", context=context)
+                                                 facts: list[common_pb2.Fact]) -> None:
+    answer = generate(stub, "How many people do you see?", facts=facts)
     assert "know" in answer.text, answer.text
     assert not any(ch.isdigit() for ch in answer.text), answer.text
 
 
 def test_a_recent_count_is_used(stub: language_pb2_grpc.LanguageModelStub) -> None:
     answer = generate(stub, "How many people do you see?",
-                      context={"people_count": "5", "people_count_age_s": "1.5"})
+                      facts=[people(5, age_s=1.5)])
     assert "5" in answer.text, answer.text
 
 
 def test_stream_yields_the_answer_in_several_chunks(
         stub: language_pb2_grpc.LanguageModelStub) -> None:
     request = language_pb2.GenerateRequest(prompt="How many people do you see?",
-                                           context={"people_count": "7"})
+                                           facts=[people(7)])
     messages = list(stub.GenerateStream(request, timeout=DEADLINE_S))
     assert len([m for m in messages if m.text]) >= 3
     assert all(not m.finish_reason for m in messages[:-1])
@@ -97,7 +102,7 @@ def test_stream_yields_the_answer_in_several_chunks(
     assert last.completion_tokens >= 3 and last.prompt_tokens > 100
     assert 0 < last.timings.first_token_ms < last.timings.total_ms
     streamed = "".join(m.text for m in messages)
-    assert streamed == generate(stub, request.prompt, context=request.context).text
+    assert streamed == generate(stub, request.prompt, facts=request.facts).text
     assert "7" in streamed
 
 
@@ -105,15 +110,15 @@ def test_the_fixed_prompt_prefix_is_reused(llm: RunningService,
                                            stub: language_pb2_grpc.LanguageModelStub) -> None:
     model = model_of(llm)
     prefix_tokens = len(model._tokenize(model.renderer.prefix, add_bos=True))
-    generate(stub, "Is anyone there?", context={"people_count": "2"})
-    generate(stub, "How many visitors are there?", context={"people_count": "8"})
+    generate(stub, "Is anyone there?", facts=[people(2)])
+    generate(stub, "How many visitors are there?", facts=[people(8)])
     assert model.stats.last_cached_tokens >= prefix_tokens - 1
     assert model.stats.last_prompt_tokens - model.stats.last_cached_tokens < 30
 
 
 def test_the_model_is_free_as_soon_as_an_answer_returns(
         llm: RunningService, stub: language_pb2_grpc.LanguageModelStub) -> None:
-    generate(stub, "Is anyone there?", context={"people_count": "1"})
+    generate(stub, "Is anyone there?", facts=[people(1)])
     assert not model_of(llm).gate.busy
 
 
@@ -138,18 +143,16 @@ def test_concurrent_callers_are_served_one_at_a_time(
 
 
 def test_max_tokens_cuts_the_answer(stub: language_pb2_grpc.LanguageModelStub) -> None:
-    answer = generate(stub, "How many people do you see?", context={"people_count": "3"},
-                      max_tokens=2)
+    answer = generate(stub, "How many people do you see?", facts=[people(3)], max_tokens=2)
     assert answer.finish_reason == "length"
     assert answer.completion_tokens == 2
 
 
 def test_a_request_stop_sequence_ends_the_answer(
         stub: language_pb2_grpc.LanguageModelStub) -> None:
-    full = generate(stub, "How many people do you see?", context={"people_count": "4"})
+    full = generate(stub, "How many people do you see?", facts=[people(4)])
     assert "people" in full.text
-    cut = generate(stub, "How many people do you see?", context={"people_count": "4"},
-                   stop=["people"])
+    cut = generate(stub, "How many people do you see?", facts=[people(4)], stop=["people"])
     assert cut.finish_reason == "stop"
     assert cut.text == full.text[:full.text.index("people")]  # "I see 4 "
 
@@ -217,11 +220,18 @@ def test_grpcurl_lists_the_service(llm: RunningService) -> None:
 
 def test_grpcurl_generate(llm: RunningService) -> None:
     body = json.dumps({"prompt": "How many people do you see?",
-                       "context": {"people_count": "3"}})
+                       "facts": [{"name": "people_count", "integer": 3, "age_s": 1.2}]})
     answer = json.loads(grpcurl(llm.address, "oricf.v1.LanguageModel/Generate", data=body))
     assert "3" in answer["text"]
     assert answer["finish_reason"] == "stop"
     assert int(answer["completion_tokens"]) > 0
+
+
+def test_grpcurl_a_stale_fact_is_not_stated(llm: RunningService) -> None:
+    body = json.dumps({"prompt": "How many people do you see?",
+                       "facts": [{"name": "people_count", "integer": 3, "stale": True}]})
+    answer = json.loads(grpcurl(llm.address, "oricf.v1.LanguageModel/Generate", data=body))
+    assert "know" in answer["text"] and "3" not in answer["text"], answer["text"]
 
 
 def test_grpcurl_bad_input_is_invalid_argument(llm: RunningService) -> None:
