@@ -17,6 +17,7 @@ import os
 import statistics
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from oricf.bench.common import print_table, served
@@ -30,7 +31,6 @@ from oricf.gateway.sources.video import VideoSource
 from oricf.gateway.values import Record
 from oricf.store import ModelStore
 
-PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
 WARMUP_S = 5.0
 
 
@@ -48,20 +48,26 @@ class Lines:
             self.ages_ms.append(age_ms(record["image"].pixels(), time.time()))
 
 
+def pipeline_path() -> Path:
+    """The pipeline the benchmark runs, its camera replaced by an RTSP stream."""
+    return config_dir() / "pipelines" / "people_video.yaml"
+
+
 def cpu_s() -> float:
     usage = os.times()
     return usage.user + usage.system
 
 
 def measure(detector: str, fps: float, seconds: float) -> list[str]:
-    data = read_yaml(PIPELINE)
+    path = pipeline_path()
+    data = read_yaml(path)
     with RtspCamera() as camera:
         camera.play_stamped(ModelStore().path("vtest-video", "vtest.avi"), fps)
         data["endpoints"]["detector"]["address"] = detector
         route = data["routes"]["people"]
         route["input"] = {"url": camera.url}
         route["outputs"] = [{"jsonl": os.devnull, "from": "count"}]
-        config = parse_pipeline(data, f"{PIPELINE} (bench)", PIPELINE.parent)
+        config = parse_pipeline(data, f"{path} (bench)", path.parent)
         lines = Lines()
         pipeline = Pipeline(config, lines)
         source = VideoSource("people", config.routes["people"].input,

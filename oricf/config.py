@@ -7,6 +7,7 @@ in a file resolve against the folder of that file.
 
 from __future__ import annotations
 
+import importlib.resources
 import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -17,6 +18,8 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, Val
 
 from oricf.errors import ConfigError
 
+# The checkout's root when ORICF runs from one (an editable install); meaningless in an
+# installed wheel, where configs/ ships inside the package instead (see config_dir()).
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -49,8 +52,33 @@ def check_address(value: str) -> str:
 
 
 def config_dir() -> Path:
-    """Where the default configs live: $ORICF_CONFIG_DIR, else the repository's configs/."""
-    return Path(os.environ.get("ORICF_CONFIG_DIR") or REPO_ROOT / "configs")
+    """Where the default configs live: $ORICF_CONFIG_DIR; else, running from a checkout, its
+    configs/; else the copy a wheel installs inside the package (oricf/configs). Raises
+    ConfigError naming what it looked for when none of them is a folder."""
+    chosen = os.environ.get("ORICF_CONFIG_DIR")
+    if chosen:
+        path = Path(chosen).expanduser()
+        if not path.is_dir():
+            raise ConfigError(f"ORICF_CONFIG_DIR={chosen}: no such folder")
+        return path
+    checkout = REPO_ROOT / "configs"
+    if (REPO_ROOT / "pyproject.toml").is_file() and checkout.is_dir():
+        return checkout
+    installed = installed_config_dir()
+    if installed is not None:
+        return installed
+    package = importlib.resources.files("oricf").joinpath("configs")
+    raise ConfigError(f"no configs folder: {package} is missing and {REPO_ROOT} is not a "
+                      f"checkout; reinstall ORICF (a wheel ships configs/ as oricf/configs) "
+                      f"or set ORICF_CONFIG_DIR")
+
+
+def installed_config_dir() -> Path | None:
+    """oricf/configs as a wheel installs it (pyproject.toml maps the repository's configs/
+    onto the package `oricf.configs`), if it is a real folder: YAML files name each other by
+    relative paths, so a copy inside a zip archive would not do."""
+    folder = importlib.resources.files("oricf").joinpath("configs")
+    return folder if isinstance(folder, Path) and folder.is_dir() else None
 
 
 def shipped_service_config(service: str) -> Path:

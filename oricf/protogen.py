@@ -14,7 +14,13 @@ PROTO_ROOT = Path(__file__).resolve().parent.parent / "protos"
 
 
 def proto_files(root: Path = PROTO_ROOT) -> list[Path]:
-    return sorted((root / "oricf").rglob("*.proto"))
+    """Every .proto under root; none is an error (an installed wheel has no protos/ beside
+    it: the stubs are generated in a checkout)."""
+    files = sorted((root / "oricf").rglob("*.proto"))
+    if not files:
+        raise FileNotFoundError(f"no .proto files under {root / 'oricf'}: run "
+                                f"`python -m oricf.protogen` in a checkout of ORICF")
+    return files
 
 
 def generate(out_dir: Path, root: Path = PROTO_ROOT) -> None:

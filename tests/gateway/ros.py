@@ -26,7 +26,7 @@ from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.convert import image_from_pixels
-from oricf.gateway.dds import DDS_PROFILE
+from oricf.gateway.dds import dds_profile
 from oricf.gateway.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
@@ -38,7 +38,7 @@ def private_domain() -> dict[str, str]:
     profile that lets raw camera frames cross processes (see the XML file)."""
     return {"ROS_DOMAIN_ID": str(random.randint(1, 100)),
             "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-            "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)}
+            "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile())}
 
 
 class Probe:

@@ -18,7 +18,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32
 
-from oricf.gateway.dds import DDS_PROFILE, use_dds_profile
+from oricf.errors import ConfigError
+from oricf.gateway.dds import dds_profile, use_dds_profile
 from tests.gateway.ros import spinning
 
 PUBLISHED = 40
@@ -30,7 +31,7 @@ def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
     monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE", raising=False)
     monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
     use_dds_profile()
-    assert os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(DDS_PROFILE)
+    assert os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(dds_profile())
 
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/etc/robot/fastdds.xml")
     use_dds_profile()
@@ -39,6 +40,18 @@ def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
     monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE")
     monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
     use_dds_profile()
+    assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+
+
+
+def test_a_missing_profile_stops_the_gateway_instead_of_being_skipped(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE", raising=False)
+    monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
+    monkeypatch.setenv("ORICF_CONFIG_DIR", str(tmp_path))
+    with pytest.raises(ConfigError, match=f"{tmp_path}/pipelines/dds/fastdds.xml: the Fast "
+                                          f"DDS profile is missing"):
+        use_dds_profile()
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
 
 
@@ -68,7 +81,7 @@ def publish_from_another_process(topic: str, profile: Path) -> tuple[dict[str, i
 
 
 def without_writer_profile(folder: Path) -> Path:
-    tree = ET.parse(DDS_PROFILE)
+    tree = ET.parse(dds_profile())
     root = tree.getroot()
     for writer in root.findall(f"{NAMESPACE}data_writer"):
         root.remove(writer)
@@ -89,7 +102,7 @@ def drain(received: queue.Queue[int]) -> list[int]:
 def test_fast_dds_accepts_the_shipped_profile_and_stays_reliable(
         counts: tuple[str, queue.Queue[int]]) -> None:
     topic, received = counts
-    _, log = publish_from_another_process(topic, DDS_PROFILE)
+    _, log = publish_from_another_process(topic, dds_profile())
     assert "XMLPARSER" not in log, log  # Fast DDS logs a profile it cannot parse, and goes on
     assert drain(received) == list(range(PUBLISHED))  # every sample, in order
 
@@ -102,7 +115,7 @@ def test_reliable_writers_do_not_wake_the_event_thread_for_every_sample(
     `.venv/bin/python -m pytest -m thirdparty`)."""
     topic, received = counts
 
-    shipped, _ = publish_from_another_process(topic, DDS_PROFILE)
+    shipped, _ = publish_from_another_process(topic, dds_profile())
     assert drain(received) == list(range(PUBLISHED))
 
     default, _ = publish_from_another_process(topic, without_writer_profile(tmp_path))
