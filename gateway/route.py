@@ -22,6 +22,7 @@ from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.products import ProductStore
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
+from oricf.metrics import LatencyHistogram
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +39,7 @@ class RouteStats:
     call_errors: int = 0
     errors: dict[str, int] = field(default_factory=dict)  # kind -> count
     last_ms: float = 0.0
+    latency: LatencyHistogram = field(default_factory=LatencyHistogram)  # inputs handled ok
 
     def count_error(self, kind: str) -> None:
         self.errors[kind] = self.errors.get(kind, 0) + 1
@@ -95,8 +97,10 @@ class Route:
             self.stats.count_error("internal")
             log.exception("route %s: unexpected error (message dropped)", self.name)
             return
+        seconds = time.perf_counter() - started
         self.stats.ok += 1
-        self.stats.last_ms = (time.perf_counter() - started) * 1000
+        self.stats.last_ms = seconds * 1000
+        self.stats.latency.observe(seconds)
 
     def _call_failed(self, exc: grpc.RpcError) -> None:
         code = exc.code()

@@ -98,6 +98,12 @@ class RouteWorker(Generic[T]):
                 timeout)
 
     @property
+    def depth(self) -> int:
+        """Items waiting to be handled."""
+        with self._cond:
+            return len(self._pending)
+
+    @property
     def busy(self) -> bool:
         """Whether an item is being handled right now."""
         with self._cond:

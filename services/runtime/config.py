@@ -5,6 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from oricf.config import Schema
+from oricf.metrics import MetricsConfig
 from oricf.tls import ServerTls, TokenSource
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
@@ -20,6 +21,8 @@ class ServerSettings(Schema):
     tls: ServerTls | None = Field(None, description="serve TLS (mTLS with client_ca)")
     auth: TokenSource | None = Field(None, description="require one of these bearer tokens")
     reflection: bool = Field(True, description="serve gRPC reflection (grpcurl without protos)")
+    metrics: MetricsConfig | None = Field(
+        None, description="serve Prometheus metrics at http://LISTEN/metrics (off if absent)")
     retry_after_ms: int = Field(
         100, ge=1, le=60_000,
         description="a refused call is told to wait 1-2x this long (grpc-retry-pushback-ms)")

@@ -33,6 +33,12 @@ class CallLimit:
         with self._lock:
             self._active -= 1
 
+    @property
+    def active(self) -> int:
+        """Calls admitted and not yet finished."""
+        with self._lock:
+            return self._active
+
     def pushback_ms(self) -> int:
         """The suggested wait, with jitter so refused clients do not return in step."""
         return int(self.retry_after_ms * random.uniform(1.0, 2.0))

@@ -17,12 +17,15 @@ from typing import Any
 import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
+from prometheus_client import CollectorRegistry
 
 from oricf.errors import ConfigError
+from oricf.metrics import MetricsServer
 from oricf.services.runtime.auth import TokenAuthInterceptor
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.limits import CallLimit
+from oricf.services.runtime.metrics import service_registry
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.spec import ServiceSpec
 from oricf.signals import stop_on_signals
@@ -47,10 +50,17 @@ class ServiceHost:
         self.slot: ModelSlot[Any] = ModelSlot(model)
         settings = config.server
         limit = settings.max_concurrent_rpcs
+        call_limit = CallLimit(limit, settings.retry_after_ms)
         interceptors: list[grpc.ServerInterceptor] = []
+        self.metrics: CollectorRegistry | None = None
+        self.metrics_server: MetricsServer | None = None
+        if settings.metrics is not None:
+            # First: the outermost interceptor sees every call's final status, refusals too.
+            self.metrics, calls = service_registry(spec.name, self.slot, call_limit)
+            interceptors.append(calls)
         if settings.auth is not None:
             interceptors.append(TokenAuthInterceptor(settings.auth.tokens()))
-        interceptors.append(ErrorMappingInterceptor(CallLimit(limit, settings.retry_after_ms)))
+        interceptors.append(ErrorMappingInterceptor(call_limit))
         self._workers = futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
                                                    thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(
@@ -83,8 +93,11 @@ class ServiceHost:
         self.health.set(self.spec.service_name, status)
 
     def start(self) -> None:
-        self.server.start()
         settings = self.config.server
+        if settings.metrics is not None and self.metrics is not None:
+            # Before the model loads: a scrape shows it loading (oricf_model_ready 0).
+            self.metrics_server = MetricsServer(settings.metrics, self.metrics)
+        self.server.start()
         security = ("mTLS" if settings.tls and settings.tls.client_ca else
                     "TLS" if settings.tls else "plaintext")
         if settings.auth is not None:
@@ -110,6 +123,8 @@ class ServiceHost:
         workers.start()
         workers.join(max(0.0, deadline - time.monotonic()))
         self.slot.close()
+        if self.metrics_server is not None:
+            self.metrics_server.close()
         if stopped and not workers.is_alive():
             log.info("%s stopped", self.spec.name)
             return True

@@ -1,0 +1,126 @@
+"""Prometheus metrics of a pipeline, read at scrape time from the counts its parts keep: the
+route workers (inputs received, replaced, dropped, queued), the routes (outcomes, call errors,
+latency) and the endpoints (failovers, recoveries, retries, the address in use). Nothing is
+counted twice: `oricf gateway`'s periodic stats log line and /metrics read the same numbers.
+
+A `latest` route (camera frames) keeps one pending input, so a newer one replaces it
+(inputs_replaced; for a ROS camera also the frames DDS replaced while the route was busy);
+a `queue` route (text, audio) discards its oldest input when full (inputs_dropped).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+import grpc
+from prometheus_client import CollectorRegistry
+from prometheus_client.metrics_core import (
+    CounterMetricFamily,
+    GaugeMetricFamily,
+    HistogramMetricFamily,
+    Metric,
+)
+from prometheus_client.registry import Collector
+
+from oricf.metrics import new_registry
+
+if TYPE_CHECKING:
+    from oricf.gateway.pipeline import Pipeline
+
+ROUTE = ("route",)
+ENDPOINT = ("endpoint",)
+CALL_CODES = frozenset(grpc.StatusCode.__members__)
+
+
+class PipelineCollector(Collector):
+    def __init__(self, pipeline: Pipeline) -> None:
+        self._pipeline = pipeline
+
+    def collect(self) -> Iterable[Metric]:
+        yield from self._inputs()
+        yield from self._outcomes()
+        yield from self._endpoints()
+
+    def _inputs(self) -> Iterable[Metric]:
+        received = CounterMetricFamily(
+            "oricf_gateway_route_inputs_received", "Inputs (frames, texts, utterances, "
+            "product values) that reached the route.", labels=ROUTE)
+        replaced = CounterMetricFamily(
+            "oricf_gateway_route_inputs_replaced", "Inputs of a `latest` route replaced by a "
+            "newer one before the route took them (camera frames it had no time for).",
+            labels=ROUTE)
+        dropped = CounterMetricFamily(
+            "oricf_gateway_route_inputs_dropped", "Inputs of a `queue` route discarded, "
+            "oldest first, because its queue was full.", labels=ROUTE)
+        depth = GaugeMetricFamily("oricf_gateway_route_queue_depth",
+                                  "Inputs waiting for the route now.", labels=ROUTE)
+        busy = GaugeMetricFamily("oricf_gateway_route_in_progress",
+                                 "1 while the route handles an input.", labels=ROUTE)
+        for name, worker in self._pipeline.workers.items():
+            stats = worker.stats
+            received.add_metric((name,), stats.received)
+            latest = self._pipeline.config.routes[name].input.mode == "latest"
+            replaced.add_metric((name,), stats.dropped if latest else 0)
+            dropped.add_metric((name,), 0 if latest else stats.dropped)
+            depth.add_metric((name,), worker.depth)
+            busy.add_metric((name,), 1 if worker.busy else 0)
+        yield from (received, replaced, dropped, depth, busy)
+
+    def _outcomes(self) -> Iterable[Metric]:
+        handled = CounterMetricFamily(
+            "oricf_gateway_route_inputs_handled", "Inputs the route finished, by outcome: "
+            "ok, skipped (nothing to send), bad_input, call_error, internal.",
+            labels=("route", "outcome"))
+        errors = CounterMetricFamily(
+            "oricf_gateway_route_call_errors", "Calls to the route's service that failed "
+            "(after any failover and retries), by gRPC status code.",
+            labels=("route", "code"))
+        latency = HistogramMetricFamily(
+            "oricf_gateway_route_latency_seconds", "Time from taking an input to sending its "
+            "outputs (call and post-processing included), inputs handled ok.", labels=ROUTE)
+        for name, route in self._pipeline.routes.items():
+            stats = route.stats
+            kinds = dict(stats.errors)
+            outcomes = {"ok": stats.ok, "skipped": stats.skipped,
+                        "bad_input": stats.bad_input, "call_error": stats.call_errors,
+                        "internal": kinds.get("internal", 0)}
+            for outcome, count in outcomes.items():
+                handled.add_metric((name, outcome), count)
+            for code, count in sorted(kinds.items()):
+                if code in CALL_CODES:
+                    errors.add_metric((name, code), count)
+            buckets, total = stats.latency.snapshot()
+            latency.add_metric((name,), buckets, total)
+        yield from (handled, errors, latency)
+
+    def _endpoints(self) -> Iterable[Metric]:
+        failovers = CounterMetricFamily(
+            "oricf_gateway_endpoint_failovers", "Switches from the primary to the fallback "
+            "(the primary answered UNAVAILABLE or DEADLINE_EXCEEDED).", labels=ENDPOINT)
+        recoveries = CounterMetricFamily(
+            "oricf_gateway_endpoint_recoveries", "Returns to the primary once its health "
+            "check said SERVING again.", labels=ENDPOINT)
+        retries = CounterMetricFamily(
+            "oricf_gateway_endpoint_retries", "Calls retried because the service refused them "
+            "as busy (RESOURCE_EXHAUSTED).", labels=ENDPOINT)
+        active = GaugeMetricFamily(
+            "oricf_gateway_endpoint_active", "1 for the address the endpoint calls now, 0 for "
+            "the other.", labels=("endpoint", "role", "address"))
+        for name, endpoint in self._pipeline.endpoints.items():
+            failovers.add_metric((name,), endpoint.failovers)
+            recoveries.add_metric((name,), endpoint.recoveries)
+            retries.add_metric((name,), endpoint.retries)
+            in_use = endpoint.active
+            targets = [("primary", endpoint.primary)]
+            if endpoint.fallback is not None:
+                targets.append(("fallback", endpoint.fallback))
+            for role, target in targets:
+                active.add_metric((name, role, target.address), 1 if target is in_use else 0)
+        yield from (failovers, recoveries, retries, active)
+
+
+def pipeline_registry(pipeline: Pipeline) -> CollectorRegistry:
+    registry = new_registry()
+    registry.register(PipelineCollector(pipeline))
+    return registry
