@@ -54,7 +54,7 @@ def pipeline_file(folder: Path, routes: list[str], services: dict[str, str]) -> 
     used = {data["routes"][name]["call"]["service"] for name in routes}
     data["endpoints"] = {name: {**data["endpoints"][name], "address": services[name],
                                 "deadline_ms": 60_000} for name in used}
-    data.pop("profiles")
+    data.pop("profiles", None)  # named placements: not needed here
     path = folder / f"pipeline-{'-'.join(routes)}.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
