@@ -1,7 +1,8 @@
 """`oricf demo`: the reference pipeline end to end on one machine, with real data.
 
 Starts the services and the gateway of a deployment (configs/deployments/local.yaml, or
-robot.yaml with --placement edge: the services of an edge server such as compose/edge.yaml),
+robot.yaml with --placement edge: detector and language model on an edge server such as
+compose/edge.yaml, with TLS, and onboard fallbacks),
 publishes a camera on camera/image_raw (a pedestrian video, vtest.avi, at its frame rate;
 or --source: a video file, an RTSP or HTTP stream, a /dev/videoN device), speaks each
 question (espeak-ng) on /audio/utterance, and prints for each question the transcript, the
@@ -25,11 +26,14 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from oricf.config import config_dir
 from oricf.launch.demo_run import DemoOptions, run_demo
 from oricf.launch.deployment import Deployment, load_deployment
 from oricf.launch.launcher import LaunchFailed, Stopped
 from oricf.launch.progress import ProgressLine
+from oricf.launch.wiring import edge_host_endpoints
 
 log = logging.getLogger(__name__)
 
@@ -49,12 +53,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--question", action="append", dest="questions",
                         help="a question to speak (repeatable; default: three questions)")
     parser.add_argument("--placement", choices=sorted(PLACEMENTS), default="onboard",
-                        help="onboard: start every service here; edge: use the services of an "
-                        "edge server (configs/deployments/robot.yaml)")
+                        help="onboard: start every service here; edge: detector and language "
+                        "model on an edge server (configs/deployments/robot.yaml)")
     parser.add_argument("--deployment", type=Path,
                         help="deployment YAML to use instead of the placement's")
-    parser.add_argument("--edge-host", help="host of the edge server (replaces the host of "
-                        "every remote service, e.g. 127.0.0.1 for compose/edge.yaml here)")
+    parser.add_argument("--edge-host", help="host of the edge server: replaces the host of "
+                        "every endpoint address not on this machine (edge.local in "
+                        "configs/pipelines/placement/edge.yaml)")
     parser.add_argument("--frames", type=int, help="stop the video after this many frames "
                         "(default: play, looping, until every question is answered)")
     parser.add_argument("--voice", default="en-us", help="espeak-ng voice")
@@ -66,16 +71,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def pick_deployment(args: argparse.Namespace) -> tuple[Path, Deployment]:
+def pick_deployment(args: argparse.Namespace, scratch: Path) -> tuple[Path, Deployment]:
+    """The deployment to run; --edge-host adds an overlay (written in scratch) to its
+    gateway."""
     path = args.deployment or config_dir() / "deployments" / PLACEMENTS[args.placement]
     deployment = load_deployment(path)
-    if args.edge_host:
-        remote = {name: service.model_copy(update={
-            "address": f"{args.edge_host}:{service.address.rpartition(':')[2]}"})
-            for name, service in deployment.remote.items()}
-        deployment = deployment.model_copy(update={"remote": remote})
-    if deployment.gateway is None:
+    gateway = deployment.gateway
+    if gateway is None:
         raise LaunchFailed(f"{path}: the demo needs a deployment with a gateway")
+    if args.edge_host:
+        overlay = scratch / "edge-host.yaml"
+        endpoints = edge_host_endpoints(deployment, args.edge_host)
+        overlay.write_text(yaml.safe_dump({"endpoints": endpoints}))
+        gateway = gateway.model_copy(update={"overlays": [*gateway.overlays, overlay]})
+        deployment = deployment.model_copy(update={"gateway": gateway})
     return path, deployment
 
 
@@ -95,8 +104,9 @@ def main(argv: list[str]) -> int:
     log_path = args.log or Path(tempfile.mkstemp(prefix="oricf-demo-", suffix=".log")[1])
     # SIGTERM ends the demo like Ctrl-C: everything it started is stopped.
     previous = signal.signal(signal.SIGTERM, raise_interrupt)
+    scratch = tempfile.TemporaryDirectory(prefix="oricf-demo-")
     try:
-        path, deployment = pick_deployment(args)
+        path, deployment = pick_deployment(args, Path(scratch.name))
         options = DemoOptions(
             source=args.source, questions=args.questions or DEFAULT_QUESTIONS,
             max_frames=args.frames, voice=args.voice, stage_timeout_s=args.timeout,
@@ -112,3 +122,4 @@ def main(argv: list[str]) -> int:
         return 130
     finally:
         signal.signal(signal.SIGTERM, previous)
+        scratch.cleanup()

@@ -1,6 +1,7 @@
 """Runs a deployment as local processes: services first, each waited for until SERVING
-(grpc.health.v1), remote services checked, then the gateway; supervises them (a crash is
-reported and restarted if the deployment says so); stops them all, gateway first."""
+(grpc.health.v1), remote services checked, then the gateway, pointed at the services started
+here (oricf.launch.wiring); supervises them (a crash is reported and restarted if the
+deployment says so); stops them all, gateway first."""
 
 from __future__ import annotations
 
@@ -15,14 +16,10 @@ from pathlib import Path
 import yaml
 
 from oricf.launch import health
-from oricf.launch.deployment import (
-    Deployment,
-    ProcessPlan,
-    endpoint_addresses,
-    gateway_plan,
-    service_plan,
-)
+from oricf.launch.deployment import Deployment, ProcessPlan, gateway_plan, service_plan
 from oricf.launch.process import LineSink, ManagedProcess, describe_exit, restart, wants_restart
+from oricf.launch.wiring import wire_gateway
+from oricf.tls import ClientTls
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +47,8 @@ class Launcher:
         self._last_waiting_log = 0.0
         self.services: list[ManagedProcess] = []
         self.gateway: ManagedProcess | None = None
-        self.endpoints: dict[str, str] = {}
+        # name -> (address, TLS) of every remote endpoint to find SERVING first
+        self.remote: dict[str, tuple[str, ClientTls | None]] = {}
         self._scratch = tempfile.TemporaryDirectory(prefix="oricf-up-")
 
     @property
@@ -61,30 +59,33 @@ class Launcher:
         """Every command, with every config validated, before anything starts."""
         plans = [service_plan(name, entry, self.deployment)
                  for name, entry in self.deployment.services.items()]
-        self.endpoints = endpoint_addresses(self.deployment, plans)
         if self.deployment.gateway is None:
             return plans, None
-        overlay = Path(self._scratch.name) / "endpoints.yaml"
-        endpoints = {name: {"address": address} for name, address in self.endpoints.items()}
-        overlay.write_text(yaml.safe_dump({"endpoints": endpoints}))
+        wiring = wire_gateway(self.deployment, {p.name: p.health for p in plans if p.health})
+        self.remote = {name: (e.address, e.tls) for name, e in wiring.remote.items()}
+        overlay = None
+        if wiring.endpoints:
+            overlay = Path(self._scratch.name) / "wiring.yaml"
+            overlay.write_text(yaml.safe_dump({"endpoints": wiring.endpoints}))
         return plans, gateway_plan(self.deployment, overlay)
 
     def start(self, stop: threading.Event) -> None:
         """Starts everything; returns once services are SERVING and the gateway runs."""
         service_plans, gateway = self.plan()
+        targets = {p.name: (p.health, self.deployment.tls) for p in service_plans if p.health}
+        targets.update(self.remote)
+        _refuse_unreadable(service_plans, targets)
         _refuse_ports_in_use(service_plans)
         self.services = [ManagedProcess(plan, self.sink) for plan in service_plans]
         for process in self.services:
             process.start()
-        targets = {p.name: p.plan.health for p in self.services if p.plan.health}
-        targets.update({name: remote.address for name, remote in self.deployment.remote.items()
-                        if remote.wait})
         self._wait_serving(targets, stop)
         if gateway is not None:
             self.gateway = ManagedProcess(gateway, self.sink)
             self.gateway.start()
 
-    def _wait_serving(self, targets: dict[str, str], stop: threading.Event) -> None:
+    def _wait_serving(self, targets: dict[str, tuple[str, ClientTls | None]],
+                      stop: threading.Event) -> None:
         """Polls every target until all say SERVING; reports progress about once a second."""
         start = time.monotonic()
         pending = dict(targets)
@@ -93,9 +94,9 @@ class Launcher:
         while pending:
             if stop.is_set():
                 raise Stopped()
-            for name, address in list(pending.items()):
+            for name, (address, tls) in list(pending.items()):
                 self._check_alive(name)
-                states[name] = health.status(address, timeout=1.0, tls=self.deployment.tls)
+                states[name] = health.status(address, timeout=1.0, tls=tls)
                 if states[name] == "SERVING":
                     del pending[name]
                     self.progress(f"{name} SERVING at {address} "
@@ -161,6 +162,21 @@ class Launcher:
     def _report_stop(process: ManagedProcess, code: int | None) -> None:
         if code is not None:
             log.info("%s stopped (%s)", process.name, describe_exit(code))
+
+
+def _refuse_unreadable(plans: list[ProcessPlan],
+                       targets: dict[str, tuple[str, ClientTls | None]]) -> None:
+    """Fails before starting when a certificate, key or token file cannot be read: by a
+    service (it would stop at start, again at every restart) or by a health check."""
+    files = [(plan.name, path) for plan in plans for path in plan.reads]
+    files += [(f"health check of {name}", path) for name, (_, tls) in targets.items() if tls
+              for path in (tls.ca, tls.cert, tls.key) if path]
+    for user, path in files:
+        try:
+            path.open("rb").close()
+        except OSError as exc:
+            raise LaunchFailed(f"{user}: cannot read {path}: {exc.strerror} (make the "
+                               "certificates and token first: docs/security.md)") from None
 
 
 def _refuse_ports_in_use(plans: list[ProcessPlan]) -> None:

@@ -59,18 +59,33 @@ def test_reference_pipeline_keeps_the_fixed_topic_names() -> None:
 
 
 @pytest.mark.parametrize("placement", ["onboard", "edge"])
-def test_placement_by_overlay_or_profile_gives_the_same_result(placement: str) -> None:
-    by_overlay = load_pipeline(PEOPLE_QA, [PIPELINES / "placement" / f"{placement}.yaml"])
-    by_profile = load_pipeline(PEOPLE_QA, profile=placement)
-    assert by_overlay.routes == by_profile.routes == load_pipeline(PEOPLE_QA).routes
-    detector = by_overlay.endpoints["detector"]
+def test_placement_overlays_change_endpoints_only(placement: str) -> None:
+    placed = load_pipeline(PEOPLE_QA, [PIPELINES / "placement" / f"{placement}.yaml"])
+    assert placed.routes == load_pipeline(PEOPLE_QA).routes
+    detector = placed.endpoints["detector"]
     if placement == "edge":
         assert detector.address == "edge.local:50051"
         assert detector.fallback == "127.0.0.1:50051"
         assert detector.image.transport == "jpeg"
-        assert by_profile.endpoints["detector"].address == detector.address
+        assert detector.deadline_ms == 800
     else:
         assert detector.address == "127.0.0.1:50051" and detector.image.transport == "raw"
+
+
+def test_profiles_are_refused_pointing_at_overlay_files(tmp_path: Path) -> None:
+    path = write(tmp_path, {**MINIMAL, "profiles": {"edge": {"endpoints": {
+        "detector": {"address": "edge.local:50051"}}}}})
+    with pytest.raises(ConfigError) as error:
+        load_pipeline(path)
+    assert str(error.value) == (f"{path}: profiles: removed; put placement in an overlay file "
+                                "(configs/pipelines/placement/) and pass it with --overlay")
+
+
+def test_profile_option_is_gone(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["--config", str(PEOPLE_QA), "--profile", "edge", "--check"])
+    assert exit_.value.code == 2
+    assert "unrecognized arguments: --profile edge" in capsys.readouterr().err
 
 
 BAD = [
@@ -144,14 +159,10 @@ def test_overlay_errors_name_every_file(tmp_path: Path) -> None:
     assert f"{base} + {overlay}: endpoints.detector.fallback: 'nowhere'" in str(error.value)
 
 
-def test_unknown_profile_is_refused(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match=r"profiles: no profile 'cloud' \(profiles: edge"):
-        load_pipeline(PEOPLE_QA, profile="cloud")
-
-
 def test_check_option_validates_without_ros(capsys: pytest.CaptureFixture[str],
                                             tmp_path: Path) -> None:
-    assert main(["--config", str(PEOPLE_QA), "--profile", "edge", "--check"]) == 0
+    edge = PIPELINES / "placement" / "edge.yaml"
+    assert main(["--config", str(PEOPLE_QA), "--overlay", str(edge), "--check"]) == 0
     assert "4 routes" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="file not found"):
         main(["--config", str(tmp_path / "missing.yaml"), "--check"])

@@ -34,6 +34,12 @@ def write_deployment(folder: Path, data: dict[str, Any], name: str = "deployment
     return path
 
 
+def write_overlay(folder: Path, endpoints: dict[str, Any], name: str = "placement.yaml",
+                  **sections: Any) -> Path:
+    """A pipeline overlay: these endpoints (and other top-level sections)."""
+    return write_deployment(folder, {"endpoints": endpoints, **sections}, name)
+
+
 def service_entry(port: int, **extra: Any) -> dict[str, Any]:
     return {"listen": f"127.0.0.1:{port}", **extra}
 

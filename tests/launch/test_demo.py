@@ -14,6 +14,7 @@ from tests.launch.helpers import (
     service_entry,
     shipped_pipeline,
     write_deployment,
+    write_overlay,
 )
 from tests.support.data import video_path
 from tests.support.processes import free_port
@@ -118,10 +119,12 @@ def test_demo_with_the_services_on_an_edge(tmp_path: Path) -> None:
     services (real ones, in this test's process, standing in for compose/edge.yaml)."""
     with running_service("detector") as detector, running_service("asr") as asr, \
             running_service("llm") as llm:
+        placement = write_overlay(tmp_path, {"detector": {"address": detector.address},
+                                             "asr": {"address": asr.address},
+                                             "llm": {"address": llm.address}})
         path = write_deployment(tmp_path, {
-            "remote": {"detector": {"address": detector.address},
-                       "asr": {"address": asr.address}, "llm": {"address": llm.address}},
-            "gateway": {"config": shipped_pipeline()}})
+            "remote": ["detector", "asr", "llm"],
+            "gateway": {"config": shipped_pipeline(), "overlays": [str(placement)]}})
         command = OricfCommand("demo", "--deployment", str(path), "--question",
                                "How many people are there?", *STILL_SCENE,
                                env=private_ros_env())

@@ -10,9 +10,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import grpc
 import pytest
 
 from oricf.cli import main as oricf_main
+from oricf.config import config_dir
 from oricf.launch import health
 from tests.launch.helpers import (
     OricfCommand,
@@ -21,7 +23,9 @@ from tests.launch.helpers import (
     service_entry,
     shipped_pipeline,
     write_deployment,
+    write_overlay,
 )
+from tests.support.data import video_path
 from tests.support.processes import free_port
 
 RUNNING = r"deployment \S+ running"
@@ -133,8 +137,10 @@ def test_invalid_service_config_is_refused_before_anything_starts(
 
 def test_unreachable_remote_service_fails_the_launch_in_time(tmp_path: Path) -> None:
     address = f"127.0.0.1:{free_port()}"  # nothing listens there
-    path = write_deployment(tmp_path, {"remote": {"llm": {"address": address}},
-                                       "gateway": {"config": shipped_pipeline()},
+    placement = write_overlay(tmp_path, {"llm": {"address": address}})
+    path = write_deployment(tmp_path, {"remote": ["llm"],
+                                       "gateway": {"config": shipped_pipeline(),
+                                                   "overlays": [str(placement)]},
                                        "startup_timeout_s": 2})
     with oricf_up(path) as up:
         assert up.finish(timeout=60) == 1
@@ -142,27 +148,92 @@ def test_unreachable_remote_service_fails_the_launch_in_time(tmp_path: Path) -> 
     assert "gateway" not in up.started()  # never started without its services
 
 
-def test_up_waits_for_a_service_that_requires_mtls_and_tokens(tmp_path: Path) -> None:
-    from oricf.tls import ClientTls, make_certificates
+def secured(tmp_path: Path) -> tuple[Path, dict[str, str]]:
+    """configs/services/overlays/tls.yaml with certificates of this test (from `oricf
+    certs`'s own function), and the client side: the deployment's `tls:`."""
+    from oricf.tls import make_certificates
 
     certs = tmp_path / "certs"
     make_certificates(certs, ["localhost", "127.0.0.1"])
     (certs / "tokens").write_text("t0ken\n")
-    config = tmp_path / "detector.yaml"
-    config.write_text(
-        f"server:\n  tls: {{cert: {certs}/server.pem, key: {certs}/server.key, "
-        f"client_ca: {certs}/ca.pem}}\n  auth: {{file: {certs}/tokens}}\n")
-    port = free_port()
-    entry = {**service_entry(port), "config": str(config)}
+    shipped = (config_dir() / "services" / "overlays" / "tls.yaml").read_text()
+    overlay = tmp_path / "tls.yaml"
+    overlay.write_text(shipped.replace("/etc/oricf/certs", str(certs)))
     client = {"ca": str(certs / "ca.pem"), "cert": str(certs / "client.pem"),
               "key": str(certs / "client.key")}
+    return overlay, client
+
+
+def test_up_serves_mtls_and_tokens_like_the_edge_deployment(tmp_path: Path) -> None:
+    """configs/deployments/edge.yaml's shape on a free port, with test certificates: the
+    launcher reaches SERVING through TLS health checks; plaintext, and a call without the
+    token, get nowhere."""
+    from oricf.tls import ClientTls, open_channel
+    from oricf.v1 import detector_pb2, detector_pb2_grpc
+
+    overlay, client = secured(tmp_path)
+    port = free_port()
+    entry = {**service_entry(port), "overlays": [str(overlay)]}
     path = write_deployment(tmp_path, {"services": {"detector": entry}, "tls": client,
                                        "stop_grace_s": 5})
     with oricf_up(path) as up:
         up.wait_for(RUNNING, timeout=120)
         address = f"127.0.0.1:{port}"
-        assert health.status(address, tls=ClientTls.model_validate(client)) == "SERVING"
+        tls = ClientTls.model_validate(client)
+        assert health.status(address, tls=tls) == "SERVING"
         assert health.status(address) == "UNREACHABLE"  # plaintext gets nowhere
+        with open_channel(address, tls) as channel, pytest.raises(grpc.RpcError) as refused:
+            detector_pb2_grpc.DetectorStub(channel).Detect(
+                detector_pb2.DetectRequest(), timeout=10)
+        assert refused.value.code() == grpc.StatusCode.UNAUTHENTICATED
         up.process.send_signal(signal.SIGTERM)
         assert up.finish(timeout=30) == 0
     assert "t0ken" not in up.output
+
+
+def test_up_refuses_to_start_without_the_certificates(tmp_path: Path) -> None:
+    overlay, client = secured(tmp_path)
+    (tmp_path / "certs" / "server.key").unlink()
+    entry = {**service_entry(free_port()), "overlays": [str(overlay)]}
+    path = write_deployment(tmp_path, {"services": {"detector": entry}, "tls": client})
+    with oricf_up(path) as up:
+        assert up.finish(timeout=60) == 1
+    assert f"detector: cannot read {tmp_path}/certs/server.key: No such file" in up.output
+    assert "started detector" not in up.output
+
+
+def test_up_refuses_tls_services_it_could_not_health_check(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    overlay, client = secured(tmp_path)
+    entry = {**service_entry(free_port()), "overlays": [str(overlay)]}
+    path = write_deployment(tmp_path, {"services": {"detector": entry},
+                                       "tls": {"ca": client["ca"]}})  # no client certificate
+    assert oricf_main(["up", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: tls: detector serves TLS" in err
+    assert "the health checks need the deployment's tls: ca, cert and key" in err
+    assert "started detector" not in err
+
+
+def test_gateway_uses_the_onboard_fallback_started_here_while_the_edge_is_down(
+        tmp_path: Path) -> None:
+    """Detector on the edge with an onboard fallback that the same deployment starts on
+    another port: the fallback is wired to it, the edge stays the primary."""
+    edge = "192.0.2.1:50051"  # TEST-NET-1: never answers
+    port = free_port()
+    placement = write_overlay(
+        tmp_path, {"detector": {"address": edge, "fallback": "127.0.0.1:50051",
+                                "deadline_ms": 500}},
+        routes={"people": {"input": {"url": str(video_path()), "fps": 5, "loop": True}}})
+    path = write_deployment(tmp_path, {
+        "services": {"detector": service_entry(port)},
+        "gateway": {"config": str(config_dir() / "pipelines" / "people_video.yaml"),
+                    "overlays": [str(placement)]},
+        "stop_grace_s": 5})
+    with oricf_up(path) as up:
+        up.wait_for(RUNNING, timeout=120)
+        up.wait_for(rf"endpoint detector: primary {edge} failed \(\w+\); using fallback "
+                    rf"127.0.0.1:{port} until", timeout=60)
+        up.wait_for(r'gateway +\| \{"route": "people".*"count": [1-9]', timeout=60)
+        up.process.send_signal(signal.SIGTERM)
+        assert up.finish(timeout=60) == 0
