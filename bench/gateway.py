@@ -70,16 +70,20 @@ from oricf.bench.gateway_report import (
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import EndpointConfig, load_pipeline
-from oricf.gateway.dds import DDS_PROFILE
+from oricf.gateway.dds import dds_profile
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 COMPRESSED_TOPIC = "camera/compressed"
 JPEG_QUALITY = 80
-PIPELINE = config_dir() / "pipelines" / "people_qa.yaml"
 CHUNKS = 5  # the CPU phase's frames are measured in this many parts; the median is kept
 _libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+
+
+def pipeline_path() -> Path:
+    """The pipeline the benchmark runs (with placement overlays)."""
+    return config_dir() / "pipelines" / "people_qa.yaml"
 
 
 def cpu_seconds(pid: int) -> float:
@@ -93,12 +97,12 @@ def cpu_seconds(pid: int) -> float:
 
 def placement(name: str) -> Path:
     """A shipped placement overlay: onboard or edge."""
-    return PIPELINE.parent / "placement" / f"{name}.yaml"
+    return pipeline_path().parent / "placement" / f"{name}.yaml"
 
 
 def placement_detector(name: str) -> EndpointConfig:
     """The detector endpoint as a placement leaves it (transport, deadline)."""
-    return load_pipeline(PIPELINE, [placement(name)], None).endpoints["detector"]
+    return load_pipeline(pipeline_path(), [placement(name)]).endpoints["detector"]
 
 
 def overlay(detector: str, compressed: bool) -> dict[str, Any]:
@@ -122,7 +126,7 @@ def gateway(detector: str, where: str, folder: Path, compressed: bool
     path = folder / f"{where}-here.yaml"
     path.write_text(yaml.safe_dump(overlay(detector, compressed)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
-               str(PIPELINE), "--overlay", str(placement(where)), "--overlay", str(path)]
+               str(pipeline_path()), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
     try:
         yield process
@@ -313,13 +317,14 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
 
 def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
     detector = shipped_detector_model()
-    pipeline = read_yaml(PIPELINE)
+    path = pipeline_path()
+    pipeline = read_yaml(path)
     placements = ", ".join(
         f"{where} (detector transport {describe_transport(endpoint)}, deadline "
         f"{endpoint.deadline_ms} ms)"
         for where, endpoint in ((w, placement_detector(w)) for w in ("onboard", "edge")))
     print(f"Configuration: {FRAME_SIZE[0]}x{FRAME_SIZE[1]} vtest.avi frames at {args.fps:g} fps, "
-          f"{args.frames} frames per phase; camera input: {args.input}; gateway: {PIPELINE.name} "
+          f"{args.frames} frames per phase; camera input: {args.input}; gateway: {path.name} "
           f"people route (count only), executor threads "
           f"{pipeline.get('executor_threads', 1)}; placements: {placements}; "
           f"onboard detector: configs/services/detector.yaml (model {detector.name}, "
@@ -332,7 +337,7 @@ def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
 def run(args: argparse.Namespace, folder: Path) -> None:
     os.environ.update({"ROS_DOMAIN_ID": str(random.randint(1, 100)),
                        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-                       "FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE)})
+                       "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile())})
     power = PowerModel(args.watts_per_core, args.nj_per_bit)
     inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
     results = [measure(args, folder, kind == "compressed") for kind in inputs]

@@ -15,14 +15,15 @@
           - {topic: /human_counter, type: std_msgs/Int32, from: count}
           - {product: people_count, from: count, max_age_s: 5}
 
-Placement (onboard or edge) is an overlay file merged on top (`--overlay`), or a named entry of
-`profiles:` in the pipeline file (`--profile`); no code changes. Every cross-reference (an
-endpoint, a data product, a record field) is checked at load time.
+Placement (onboard or edge) is said in one place: an overlay file merged on top (`--overlay
+configs/pipelines/placement/edge.yaml`) that sets the endpoints' addresses, fallbacks,
+deadlines, image transport and TLS; no code changes. Every cross-reference (an endpoint, a
+data product, a record field) is checked at load time.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from functools import cached_property
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -33,12 +34,12 @@ from oricf.config import (
     FilePath,
     Schema,
     check_address,
-    deep_merge,
     read_with_overlays,
     validate,
 )
 from oricf.errors import ConfigError
 from oricf.gateway.methods import METHODS
+from oricf.metrics import MetricsConfig
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.tls import ClientTls, ServerTls, TokenSource
 
@@ -359,8 +360,8 @@ class PipelineConfig(Schema):
     channels: dict[str, ChannelConfig] = Field(
         default_factory=dict, description="text channels that inputs and outputs name")
     routes: dict[str, RouteConfig] = Field(min_length=1)
-    profiles: dict[str, dict[str, Any]] = Field(
-        default_factory=dict, description="named overlays chosen with --profile")
+    metrics: MetricsConfig | None = Field(
+        None, description="serve Prometheus metrics at http://LISTEN/metrics (off if absent)")
 
     @property
     def uses_ros(self) -> bool:
@@ -434,6 +435,9 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
 
 def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:
     """Validates parsed YAML, then every cross-reference; errors name source and key."""
+    if isinstance(data, Mapping) and "profiles" in data:
+        raise ConfigError(f"{source}: profiles: removed; put placement in an overlay file "
+                          f"(configs/pipelines/placement/) and pass it with --overlay")
     config = validate(data, PipelineConfig, source, base_dir)
     problems = [f"{source}: {problem}" for problem in
                 (*_reference_problems(config), *_channel_problems(config))]
@@ -442,17 +446,10 @@ def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> Pipe
     return config
 
 
-def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (),
-                  profile: str | None = None, sets: Iterable[str] = ()) -> PipelineConfig:
-    """The pipeline file, overlays merged on top in order, `--set KEY=VALUE` assignments,
-    then the named profile."""
+def load_pipeline(path: Path | str, overlays: Iterable[Path | str] = (), *,
+                  sets: Iterable[str] = ()) -> PipelineConfig:
+    """The pipeline file, overlays merged on top in order, then `--set KEY=VALUE`
+    assignments."""
     path = Path(path)
     data, sources = read_with_overlays(path, overlays, sets)
-    if profile is not None:
-        profiles = (data or {}).get("profiles") or {}
-        if profile not in profiles:
-            raise ConfigError(f"{' + '.join(sources)}: profiles: no profile '{profile}' "
-                              f"(profiles: {', '.join(sorted(profiles)) or 'none'})")
-        data = deep_merge(data, profiles[profile])
-        sources.append(f"profile {profile}")
     return parse_pipeline(data, " + ".join(sources), path.parent)

@@ -1,7 +1,7 @@
 """`oricf gateway`: the ROS 2 node that routes topics to the model services.
 
     oricf gateway --config configs/pipelines/people_qa.yaml \\
-        [--overlay configs/pipelines/placement/edge.yaml ...] [--profile edge] \\
+        [--overlay configs/pipelines/placement/edge.yaml ...] \\
         [--set routes.people.input.url=rtsp://camera.local/stream ...] \\
         [--record run.mcap] [--replay run.mcap [--rate 0]] \\
         [--ros-args -r __node:=my_gateway ...]
@@ -30,6 +30,7 @@ set per route in the YAML (`input.sample_rate`, `input.channels`; 16000 Hz mono 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from pathlib import Path
@@ -54,13 +55,15 @@ def build_parser() -> argparse.ArgumentParser:
                         help="pipeline YAML (default configs/pipelines/people_qa.yaml)")
     parser.add_argument("--overlay", type=Path, action="append", default=[],
                         help="YAML merged on top, e.g. a placement file (repeatable)")
-    parser.add_argument("--profile", help="a named entry of the pipeline's `profiles:`")
     parser.add_argument("--set", dest="sets", action="append", default=[],
                         metavar="KEY=VALUE",
                         help="override any pipeline key, e.g. routes.people.input.url=rtsp://"
                              "cam/stream (VALUE is YAML; repeatable; validated like the file)")
     parser.add_argument("--check", action="store_true",
                         help="validate the configuration and exit")
+    parser.add_argument("--metrics-listen", metavar="HOST:PORT",
+                        help="serve Prometheus metrics at http://HOST:PORT/metrics (the "
+                             "pipeline's `metrics.listen`; docs/metrics.md)")
     parser.add_argument("--record", type=Path, metavar="OUT.mcap",
                         help="record every topic input and output into this new MCAP file "
                              "(rosbag2's layout; see docs/record-replay.md)")
@@ -162,7 +165,9 @@ def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
 def main(argv: list[str] | None = None) -> int:
     ours, ros_args = split_ros_args(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(ours)
-    config = load_pipeline(args.config, args.overlay, args.profile, args.sets)
+    if args.metrics_listen:  # JSON: a YAML string whatever the address looks like
+        args.sets.append(f"metrics.listen={json.dumps(args.metrics_listen)}")
+    config = load_pipeline(args.config, args.overlay, sets=args.sets)
     if args.check:
         print(f"{args.config}: OK ({len(config.routes)} routes, "
               f"endpoints {', '.join(config.endpoints)})")

@@ -13,10 +13,12 @@ from typing import Any
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.methods import METHODS
+from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
 from oricf.gateway.route import Emit, Loader, Route
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
+from oricf.metrics import MetricsServer
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +38,7 @@ class Pipeline:
             for output in route_config.outputs:
                 if output.product is not None:
                     self.products.declare(output.product, output.max_age_s)
+        self.metrics_server: MetricsServer | None = None
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}
         for name, rc in config.routes.items():
@@ -63,6 +66,8 @@ class Pipeline:
     def start(self, inline: Collection[str] = ()) -> None:
         """Starts the worker threads, except those of `inline` routes: the caller feeds
         those through handle_here from threads of its own."""
+        if self.config.metrics is not None:  # first: an address in use stops the start
+            self.metrics_server = MetricsServer(self.config.metrics, pipeline_registry(self))
         for name, worker in self.workers.items():
             if name not in inline:
                 worker.start()
@@ -89,3 +94,5 @@ class Pipeline:
         for endpoint in self.endpoints.values():
             endpoint.close()
         self.log_stats()
+        if self.metrics_server is not None:
+            self.metrics_server.close()

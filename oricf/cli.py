@@ -1,6 +1,7 @@
 """The `oricf` command.
 
-    oricf serve detector|asr|llm|models [--config FILE] [--listen HOST:PORT]
+    oricf serve detector|asr|llm|models [--config FILE] [--overlay FILE ...] [--listen HOST:PORT]
+                [--metrics-listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
@@ -20,7 +21,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from oricf.config import deep_merge, read_yaml, shipped_service_config, validate
+from oricf.config import deep_merge, read_with_overlays, shipped_service_config, validate
 from oricf.errors import ConfigError, ModelMissing
 from oricf.logs import setup_logging
 
@@ -51,6 +52,13 @@ def security_overrides(args: argparse.Namespace) -> dict[str, object]:
     return {"server": server} if server else {}
 
 
+def metrics_overrides(args: argparse.Namespace) -> dict[str, object]:
+    """--metrics-listen as `server.metrics.listen` (a `tls:` beside it in the YAML stays)."""
+    if not args.metrics_listen:
+        return {}
+    return {"server": {"metrics": {"listen": args.metrics_listen}}}
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     from oricf.services import load_spec
     from oricf.services.runtime import serve
@@ -58,8 +66,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     spec = load_spec(args.service)
     path = Path(args.config or shipped_service_config(args.service))
-    data = deep_merge(read_yaml(path), security_overrides(args))
-    config = validate(data, spec.config_schema, str(path), base_dir=path.parent)
+    data, sources = read_with_overlays(path, args.overlay)
+    data = deep_merge(data, security_overrides(args))
+    data = deep_merge(data, metrics_overrides(args))
+    config = validate(data, spec.config_schema, " + ".join(sources), base_dir=path.parent)
     model = spec.create_model(config, ModelStore())
     return serve(spec, config, model, args.listen)
 
@@ -97,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("service", choices=["detector", "asr", "llm", "models"])
     serve.add_argument("--config", type=Path,
                        help="service YAML (default configs/services/NAME.yaml)")
+    serve.add_argument("--overlay", type=Path, action="append", default=[],
+                       help="YAML merged on top, e.g. configs/services/overlays/tls.yaml "
+                            "(repeatable)")
     serve.add_argument("--listen", help="override the listen address, e.g. 0.0.0.0:50051")
     serve.add_argument("--tls-cert", help="serve TLS with this certificate (PEM)")
     serve.add_argument("--tls-key", help="the certificate's private key (PEM)")
@@ -104,6 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--auth-token-file",
                        help="require `authorization: Bearer TOKEN`, one token per line")
     serve.add_argument("--no-reflection", action="store_true", help="do not serve reflection")
+    serve.add_argument("--metrics-listen", metavar="HOST:PORT",
+                       help="serve Prometheus metrics at http://HOST:PORT/metrics "
+                            "(docs/metrics.md)")
     serve.set_defaults(run=cmd_serve)
 
     models = verbs.add_parser("models", help="list or fetch models into the local model store")
