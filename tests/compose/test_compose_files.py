@@ -124,7 +124,10 @@ def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
         host, _, port = listen.rpartition(":")
         assert host == "0.0.0.0", f"{name}: a container must listen on every interface"
         assert port == read_yaml(host_config)["server"]["listen"].rpartition(":")[2]
-        assert service["ports"] == [f"{port}:{port}"]
+        metrics = service["command"][service["command"].index("--metrics-listen") + 1]
+        mport = metrics.rpartition(":")[2]
+        # gRPC on the network (mTLS); Prometheus metrics published to this host only
+        assert service["ports"] == [f"{port}:{port}", f"127.0.0.1:{mport}:{mport}"]
         assert service["healthcheck"]["test"][1:5] == [
             "/opt/oricf/venv/bin/python", "-m", "oricf.launch.health", f"127.0.0.1:{port}"]
         assert service["restart"] in ("always", "unless-stopped", "on-failure")
