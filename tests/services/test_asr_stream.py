@@ -212,7 +212,7 @@ def test_the_deadline_is_checked_during_voice_activity_detection(
     with pytest.raises(grpc.RpcError) as error:
         list(stub.TranscribeStream(iter([_one_chunk(noise, 8000)]), timeout=1.0))
     assert error.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
-    stopped = time.monotonic() + 20
+    stopped = time.monotonic() + 60  # a bound against a hang, not a timing figure
     while not any("during voice activity detection" in r.getMessage() for r in caplog.records):
         assert time.monotonic() < stopped, "the scan did not stop at the caller's deadline"
         time.sleep(0.05)
