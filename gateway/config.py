@@ -39,6 +39,7 @@ from oricf.config import (
 )
 from oricf.errors import ConfigError
 from oricf.gateway.methods import METHODS
+from oricf.gateway.replicas import check_target, several_addresses
 from oricf.metrics import MetricsConfig
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.tls import ClientTls, ServerTls, TokenSource
@@ -75,7 +76,9 @@ class RetryConfig(Schema):
 
 
 class EndpointConfig(Schema):
-    address: str
+    address: str = Field(description="host:port, or replicas to balance over: "
+                                     "dns:///NAME:PORT, ipv4:IP:PORT,IP:PORT,... "
+                                     "(gateway/replicas.py)")
     fallback: str | None = Field(None, description="used while the primary is unavailable")
     deadline_ms: int = Field(1000, gt=0, le=600_000, description="per call")
     probe_interval_s: float = Field(
@@ -87,8 +90,16 @@ class EndpointConfig(Schema):
 
     @field_validator("address", "fallback")
     @classmethod
-    def _host_port(cls, value: str | None) -> str | None:
-        return None if value is None else check_address(value)
+    def _target(cls, value: str | None) -> str | None:
+        return None if value is None else check_target(value)
+
+    @model_validator(mode="after")
+    def _tls_name(self) -> EndpointConfig:
+        listed = [t for t in (self.address, self.fallback) if t and several_addresses(t)]
+        if self.tls is not None and self.tls.server_name is None and listed:
+            raise ValueError(f"tls.server_name is needed with several addresses in one "
+                             f"target ({listed[0]}): the name the replicas' certificate has")
+        return self
 
 
 class VadConfig(Schema):

@@ -11,6 +11,10 @@ jitter, whichever is longer, while its deadline allows (`retry:` in the endpoint
 
 While on the fallback a background thread asks the primary's grpc.health.v1 service every
 probe_interval_s. Without a fallback, errors go back to the caller (the route logs them).
+
+An address or fallback may name several replicas (dns:///NAME:PORT, ipv4:A:P,B:P): gRPC
+then balances calls over the healthy ones and retries a call on another replica when one
+dies under it (gateway/replicas.py); the endpoint fails over only once none is left.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import grpc
 
 from oricf.gateway.config import EndpointConfig
 from oricf.gateway.methods import Metadata, Method
+from oricf.gateway.replicas import channel_options
 from oricf.tls import ClientTls, open_channel
 
 log = logging.getLogger(__name__)
@@ -68,7 +73,7 @@ class Target:
     def __init__(self, address: str, method: Method, tls: ClientTls | None = None,
                  token: str | None = None) -> None:
         self.address = address
-        self.channel = open_channel(address, tls, CHANNEL_OPTIONS)
+        self.channel = open_channel(address, tls, channel_options(address, CHANNEL_OPTIONS))
         self.stub = method.stub(self.channel)
         self.metadata: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
         self._ready = method.ready
