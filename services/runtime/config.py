@@ -26,6 +26,15 @@ class ServerSettings(Schema):
     retry_after_ms: int = Field(
         100, ge=1, le=60_000,
         description="a refused call is told to wait 1-2x this long (grpc-retry-pushback-ms)")
+    health_listen: str | None = Field(
+        None, description="also answer grpc.health.v1 Check, and nothing else, in plaintext "
+                          "on this host:port: for probes that cannot present a client "
+                          "certificate (Kubernetes' gRPC probes)")
+    max_connection_age_s: float | None = Field(
+        None, gt=0, le=86_400,
+        description="close each client connection this long after it opened (in-flight calls "
+                    "get grace_s to finish), so clients resolving a name again find replicas "
+                    "that were added since")
 
     @property
     def max_message_bytes(self) -> int:
