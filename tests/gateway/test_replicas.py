@@ -126,13 +126,13 @@ def test_only_serving_replicas_get_calls() -> None:
         request = person_request()
         for _ in range(6):
             endpoint.call("Detect", request)
-        assert [detect_calls(u) for u in urls] == [3, 3, 0]
+        calls = [detect_calls(u) for u in urls]
+        assert calls[0] > 0 and calls[1] > 0 and calls[2] == 0 and sum(calls) == 6
         replicas[2].host.load_model()  # SERVING: the channel's health watch learns it
         deadline = time.monotonic() + 10
         while detect_calls(urls[2]) == 0:
             assert time.monotonic() < deadline, "the replica never got a call once SERVING"
             endpoint.call("Detect", request)
-        assert detect_calls(urls[0]) > 3 and detect_calls(urls[1]) > 3
 
 
 def in_progress(metrics_url: str) -> float:
