@@ -6,7 +6,12 @@
         [--record run.mcap] [--replay run.mcap [--rate 0]] \\
         [--ros-args -r __node:=my_gateway ...]
 
-Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`.
+Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`, and as the
+ROS 2 package ros/oricf_gateway: `ros2 run oricf_gateway gateway --ros-args -p config:=...`,
+`ros2 launch oricf_gateway people_qa.launch.py` (docs/ros.md). The flags are the defaults of
+the node's parameters config, placement, overlays and sets (oricf.gateway.rosparams); given
+after --ros-args, a parameter wins. --config and the placement parameter also take the name
+of a shipped file (people_qa, edge). The node's log goes to /rosout (oricf.gateway.roslog).
 
 Where rclpy comes from:
 - x86-64 workstation or CI: the PyPI Jazzy wheels, `pip install "oricf[ros]"` (the `ros` extra:
@@ -42,6 +47,7 @@ from oricf.gateway.dds import use_dds_profile
 from oricf.gateway.grpc_client import poll_in_calling_thread
 from oricf.gateway.memory import keep_freed_memory
 from oricf.gateway.record import Recorder, RecordingError
+from oricf.gateway.rosparams import Settings, declare_settings, read_parameters
 from oricf.logs import setup_logging
 
 log = logging.getLogger(__name__)
@@ -52,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", type=Path,
                         default=config_dir() / "pipelines" / "people_qa.yaml",
-                        help="pipeline YAML (default configs/pipelines/people_qa.yaml)")
+                        help="pipeline YAML, or a shipped pipeline's name (default "
+                             "configs/pipelines/people_qa.yaml)")
     parser.add_argument("--overlay", type=Path, action="append", default=[],
                         help="YAML merged on top, e.g. a placement file (repeatable)")
     parser.add_argument("--set", dest="sets", action="append", default=[],
@@ -87,7 +94,8 @@ def replay_rate(text: str) -> float:
     return rate
 
 
-def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None) -> int:
+def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
+        settings: Settings | None = None) -> int:
     """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
     poll_in_calling_thread()  # before the node's imports load grpc
     try:
@@ -100,7 +108,7 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None)
         )
         from rclpy.impl.implementation_singleton import rclpy_implementation
 
-        from oricf.gateway.node import GatewayNode
+        from oricf.gateway.roslog import GatewayRosNode
 
         RCLError = rclpy_implementation.RCLError
     except ImportError as exc:
@@ -112,7 +120,9 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None)
         log.info("mallopt not available: large frame buffers come from fresh pages")
     recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
     rclpy.init(args=ros_args)
-    node = GatewayNode(config, recorder=recorder)
+    node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
+    if settings is not None:
+        declare_settings(node, settings)
     # Camera frames never pass through the executor (oricf.gateway.camera); the text and audio
     # callbacks only hand messages to their routes' worker threads and never block, so one
     # executor thread keeps up. executor_threads > 1 selects rclpy's MultiThreadedExecutor.
@@ -165,21 +175,28 @@ def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
 def main(argv: list[str] | None = None) -> int:
     ours, ros_args = split_ros_args(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(ours)
+    settings = Settings(config=str(args.config), overlays=tuple(map(str, args.overlay)),
+                        sets=tuple(args.sets))
+    if ros_args:  # the node's ROS parameters, where given, override the flags
+        settings = read_parameters(ros_args, settings)
+    sets = list(settings.sets)
     if args.metrics_listen:  # JSON: a YAML string whatever the address looks like
-        args.sets.append(f"metrics.listen={json.dumps(args.metrics_listen)}")
-    config = load_pipeline(args.config, args.overlay, sets=args.sets)
+        sets.append(f"metrics.listen={json.dumps(args.metrics_listen)}")
+    path, overlays = settings.files()
+    config = load_pipeline(path, overlays, sets=sets)
     if args.check:
-        print(f"{args.config}: OK ({len(config.routes)} routes, "
+        print(f"{path}: OK ({len(config.routes)} routes, "
               f"endpoints {', '.join(config.endpoints)})")
         return 0
     try:
-        return start(config, args, ros_args)
+        return start(config, args, ros_args, settings)
     except RecordingError as exc:  # a recording that cannot be read or written
         log.error("%s", exc)
         return 2
 
 
-def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str]) -> int:
+def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
+          settings: Settings | None = None) -> int:
     """With ROS if the pipeline has topics, unless they are replayed from a recording."""
     if args.replay is not None:
         return replay(config, args)
@@ -192,13 +209,21 @@ def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str])
         from oricf.gateway import standalone
 
         return standalone.run(config)
-    return run(config, ros_args, args.record)
+    return run(config, ros_args, args.record, settings)
+
+
+def ros_main() -> int:
+    """`ros2 run oricf_gateway gateway` (ros/oricf_gateway) and `python -m
+    oricf.gateway.main`: main() with the logging set-up and exit codes of a program."""
+    setup_logging()
+    try:
+        return main()
+    except ConfigError as error:
+        log.error("%s", error)
+        return 2
+    except KeyboardInterrupt:
+        return 130
 
 
 if __name__ == "__main__":
-    setup_logging()
-    try:
-        sys.exit(main())
-    except ConfigError as error:
-        log.error("%s", error)
-        sys.exit(2)
+    sys.exit(ros_main())

@@ -2,9 +2,10 @@
 
 A thread per route, so a slow language-model call never delays the camera route. Camera
 inputs have a receive thread of their own (oricf.gateway.camera) that also runs the route,
-with the sensor_data QoS at depth 1 (best effort, newest frame only); text and audio inputs
-run on the executor, one callback group per route, reliable, queued up to the route's
-queue_size, and are handed to the route's worker thread.
+at depth 1 (newest frame only), best effort like sensor_data until the topic's publishers
+are found, then reliable if every one of them is (camera drivers we did not write); text and
+audio inputs run on the executor, one callback group per route, reliable, queued up to the
+route's queue_size, and are handed to the route's worker thread.
 """
 
 from __future__ import annotations

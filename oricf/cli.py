@@ -7,7 +7,7 @@
     oricf up DEPLOYMENT.yaml
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
-    oricf bench detector|asr|llm|gateway|models|link|rtsp [...]
+    oricf bench detector|asr|llm|gateway|models|link|rtsp|offload|edge [...]
 
 Verbs with options of their own hand the rest of the command line to their module's main().
 """
@@ -34,7 +34,7 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.launch.demo",
 }
-BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link", "rtsp")
+BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link", "rtsp", "offload", "edge")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:

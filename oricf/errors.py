@@ -24,7 +24,11 @@ class NotReady(OricfError):
 
 
 class Overloaded(OricfError):
-    """Too much work queued; the caller should retry later."""
+    """Too much work queued; the caller should retry later (after retry_after_ms if given)."""
+
+    def __init__(self, message: str, retry_after_ms: int | None = None) -> None:
+        super().__init__(message)
+        self.retry_after_ms = retry_after_ms
 
 
 class DeadlineExceeded(OricfError):

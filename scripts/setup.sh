@@ -63,6 +63,9 @@ step "python packages"
 EXTRAS="asr,llm,ros,audio"
 ((DEV)) && EXTRAS="$EXTRAS,openvino,interop,dev"
 "${PIP[@]}" install --find-links "$WHEELS" -e ".[$EXTRAS]"
+# colcon builds ros/oricf_gateway, the ROS 2 package, with this Python, as on a robot
+# (tests/ros; docs/ros.md). colcon-core needs setuptools < 80.
+((DEV)) && "${PIP[@]}" install "colcon-core>=0.15,<0.22" "colcon-ros>=0.4,<0.6"
 
 step "models and sample data (checked by sha256)"
 "$VENV/bin/oricf" models pull "${MODELS[@]}"

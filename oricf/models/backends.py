@@ -8,7 +8,7 @@ a missing one is refused at start with what to install, never at import time.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -24,6 +24,7 @@ class Session(Protocol):
     outputs: list[TensorSpec]
     runtime: str                 # "onnxruntime 1.23.2"
     devices: list[str]           # execution providers or devices in use
+    freed: list[tuple[int, ...]]  # per input, the axes the file fixed and this session frees
 
     def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]: ...
 
@@ -33,7 +34,8 @@ def _dims(shape: Any) -> tuple[int, ...]:
 
 
 class OnnxRuntimeSession:
-    def __init__(self, path: Path, settings: OnnxRuntimeBackend) -> None:
+    def __init__(self, path: Path, settings: OnnxRuntimeBackend,
+                 free: Sequence[Sequence[int]] = ()) -> None:
         try:
             import onnxruntime as ort
         except ImportError:
@@ -53,6 +55,14 @@ class OnnxRuntimeSession:
         options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
         self._session = ort.InferenceSession(str(path), options,
                                              providers=list(settings.providers))
+        # Axes declared free (-1) that the file fixes: freed in the graph.
+        self.freed = [tuple(a for a in axes if a < len(i.shape) and _dims(i.shape)[a] > 0)
+                      for i, axes in zip(self._session.get_inputs(), free, strict=False)]
+        if any(self.freed):
+            from oricf.models.free_dims import free_dimensions
+
+            self._session = ort.InferenceSession(free_dimensions(path, self.freed), options,
+                                                 providers=list(settings.providers))
         self.inputs = [TensorSpec(i.name, by_backend_name("onnx", i.type).name, _dims(i.shape))
                        for i in self._session.get_inputs()]
         self.outputs = [TensorSpec(o.name, by_backend_name("onnx", o.type).name, _dims(o.shape))
@@ -67,7 +77,9 @@ class OnnxRuntimeSession:
 
 
 class OpenVinoSession:
-    def __init__(self, path: Path, settings: OpenVinoBackend) -> None:
+    def __init__(self, path: Path, settings: OpenVinoBackend,
+                 free: Sequence[Sequence[int]] = ()) -> None:
+        self.freed: list[tuple[int, ...]] = []  # OpenVINO runs the file's own dimensions
         try:
             import openvino as ov
         except ImportError:
@@ -101,11 +113,13 @@ class OpenVinoSession:
                     for spec, port in zip(self.outputs, self._compiled.outputs, strict=True)}
 
 
-BACKENDS: dict[str, Callable[[Path, Any], Session]] = {
+BACKENDS: dict[str, Callable[[Path, Any, Sequence[Sequence[int]]], Session]] = {
     "onnxruntime": OnnxRuntimeSession,
     "openvino": OpenVinoSession,
 }
 
 
-def open_session(path: Path, backend: Backend) -> Session:
-    return BACKENDS[backend.engine](path, backend)
+def open_session(path: Path, backend: Backend, free: Sequence[Sequence[int]] = ()) -> Session:
+    """A session of the model file; free[i]: axes of its i-th input to free where the file
+    fixes them (onnxruntime only; the caller checks that the graph still runs right)."""
+    return BACKENDS[backend.engine](path, backend, free)

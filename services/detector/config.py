@@ -9,6 +9,7 @@ from pydantic import Field
 from oricf.config import FilePath, Schema, config_dir
 from oricf.imaging import MAX_PIXELS
 from oricf.services.runtime import ServiceConfig
+from oricf.services.runtime.batching import BatchingSettings
 
 
 class DetectionSettings(Schema):
@@ -32,3 +33,6 @@ class DetectorConfig(ServiceConfig):
                             description="a declared detection model (configs/models/*.yaml)")
     detection: DetectionSettings = DetectionSettings()
     images: ImageSettings = ImageSettings()
+    batching: BatchingSettings | None = Field(
+        None, description="dynamic batching: requests of different callers share one "
+                          "inference (off if absent; the model's batch dimension must be free)")

@@ -11,6 +11,7 @@ from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.servicer import DetectorServicer
 from oricf.services.models.model import DeclaredModel
 from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime.batching import Batcher
 from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
@@ -19,7 +20,7 @@ def create_model(config: DetectorConfig, store: ModelStore) -> DeclaredModel:
     declaration = load_declaration(config.model)
     if not isinstance(declaration.task, DetectionTask):
         raise ConfigError(f"{config.model}: task.kind: the detector serves detection models")
-    return DeclaredModel(declaration, store)
+    return DeclaredModel(declaration, store, batched=config.batching is not None)
 
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
@@ -29,8 +30,14 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
     detection = config.detection
     labels = LabelSpace(task.label_list(), detection.label_map, detection.labels)
     min_score = detection.min_score or task.min_score
+    batcher = None
+    if config.batching is not None:
+        # The model object itself, loaded or not: the batcher drains before it closes.
+        batcher = Batcher(SPEC.name, config.batching, slot.peek().detect_batch,
+                          config.server.retry_after_ms)
+        slot.attach(batcher)
     detector_pb2_grpc.add_DetectorServicer_to_server(
-        DetectorServicer(slot, config, labels, min_score), server)
+        DetectorServicer(slot, config, labels, min_score, batcher), server)
 
 
 SPEC = ServiceSpec(

@@ -16,11 +16,13 @@ import numpy as np
 
 from oricf.errors import InvalidInput
 from oricf.imaging import Detection, decode_image, draw_detections, encode_image, label_counts
-from oricf.models.heads import Prepared
+from oricf.models.heads import Detections, Prepared
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
-from oricf.services.models.model import DeclaredModel
+from oricf.services.models.model import DeclaredModel, DetectArgs
 from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.batch_calls import run_batched
+from oricf.services.runtime.batching import Batcher
 from oricf.services.runtime.errors import status_for
 from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
@@ -52,15 +54,17 @@ StreamItem: TypeAlias = Frame | detector_pb2.DetectResponse | BaseException | No
 
 class DetectorServicer(detector_pb2_grpc.DetectorServicer):
     def __init__(self, slot: ModelSlot[DeclaredModel], config: DetectorConfig,
-                 labels: LabelSpace, default_min_score: float) -> None:
+                 labels: LabelSpace, default_min_score: float,
+                 batcher: Batcher[DetectArgs, Detections] | None = None) -> None:
         self.slot = slot
         self.config = config
         self.labels = labels
         self.default_min_score = default_min_score
+        self.batcher = batcher
 
     def Detect(self, request: detector_pb2.DetectRequest,
                context: grpc.ServicerContext) -> detector_pb2.DetectResponse:
-        return self.detect(request)
+        return self.detect(request, context)
 
     def DetectStream(self, request_iterator: Iterator[detector_pb2.DetectRequest],
                      context: grpc.ServicerContext) -> Iterator[detector_pb2.DetectResponse]:
@@ -76,7 +80,8 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
             while (item := ready.get()) is not None:
                 if isinstance(item, BaseException):
                     raise item
-                yield item if isinstance(item, detector_pb2.DetectResponse) else self.respond(item)
+                yield item if isinstance(item, detector_pb2.DetectResponse) \
+                    else self.respond(item, context, cancel=False)
         finally:
             done.set()  # the call is over: the reader must not wait for room in the queue
 
@@ -116,8 +121,9 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         response.labels[:] = self.labels.labels
         return response
 
-    def detect(self, request: detector_pb2.DetectRequest) -> detector_pb2.DetectResponse:
-        return self.respond(self.prepare(request))
+    def detect(self, request: detector_pb2.DetectRequest,
+               context: grpc.ServicerContext | None = None) -> detector_pb2.DetectResponse:
+        return self.respond(self.prepare(request), context)
 
     def prepare(self, request: detector_pb2.DetectRequest) -> Frame:
         """Everything before the network: checks, image decoding, letterboxing."""
@@ -132,9 +138,10 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         return Frame(request.frame_id, image, model.prepare(image), labels, class_ids,
                      min_score, annotate_encoding, started, decode_ms)
 
-    def respond(self, frame: Frame) -> detector_pb2.DetectResponse:
-        """The network, decoding its output, and the response."""
-        raw = self.slot.get().detect(frame.prepared, frame.min_score, frame.class_ids)
+    def respond(self, frame: Frame, context: grpc.ServicerContext | None = None,
+                cancel: bool = True) -> detector_pb2.DetectResponse:
+        """The network (alone or in a batch), decoding its output, and the response."""
+        raw = self._detections(frame, context, cancel)
         detections = self.labels.detections(raw)
         image = frame.image
         response = detector_pb2.DetectResponse(
@@ -157,6 +164,14 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         timings.postprocess_ms = raw.timings_ms["postprocess_ms"]
         timings.total_ms = (time.perf_counter() - frame.started) * 1e3
         return response
+
+    def _detections(self, frame: Frame, context: grpc.ServicerContext | None,
+                    cancel: bool) -> Detections:
+        args: DetectArgs = (frame.prepared, frame.min_score, frame.class_ids)
+        model = self.slot.get()
+        if self.batcher is None:
+            return model.detect(*args)
+        return run_batched(self.batcher, args, context, cancel)
 
     def _min_score(self, requested: float) -> float:
         if requested == 0:

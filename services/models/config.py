@@ -7,6 +7,7 @@ from pydantic import Field
 from oricf.config import FilePath, Schema
 from oricf.imaging import MAX_PIXELS
 from oricf.services.runtime import ServiceConfig
+from oricf.services.runtime.batching import BatchingSettings
 
 
 class EncodedImageSettings(Schema):
@@ -17,3 +18,6 @@ class ModelsConfig(ServiceConfig):
     models: list[FilePath] = Field(min_length=1,
                                    description="declared model files (configs/models/*.yaml)")
     images: EncodedImageSettings = EncodedImageSettings()
+    batching: dict[str, BatchingSettings] = Field(
+        default_factory=dict,
+        description="model name -> dynamic batching for it (its batch dimension must be free)")

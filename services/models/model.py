@@ -1,8 +1,10 @@
 """A declared model, loaded: its session, its tensors, and its task's head.
 
-The model class of every declared-model service (`load()`, `infer()`, `close()`,
-`info()`); it knows nothing of gRPC. Inputs and outputs may be renamed or reshaped by the
-declaration: callers use the declared names, the session the file's own.
+The model class of every declared-model service (`load()`, `infer()`, `infer_batch()`,
+`close()`, `info()`); it knows nothing of gRPC. Inputs and outputs may be renamed or
+reshaped by the declaration: callers use the declared names, the session the file's own. A
+dimension declared free (-1) that the file fixes is freed in the graph (onnxruntime); a
+freed batch must then give what its items give alone, or the model is refused.
 """
 
 from __future__ import annotations
@@ -24,6 +26,12 @@ from oricf.store import ModelStore, sha256_of
 
 log = logging.getLogger(__name__)
 
+# What detect() takes for one image: the prepared image, the minimum score, the class ids.
+DetectArgs = tuple[Prepared, float, "np.ndarray | None"]
+# A batch's outputs must match its items' alone to this tolerance (of the outputs' range):
+# a freed batch dimension must not change the answers.
+BATCH_TOLERANCE = 1e-4
+
 
 def _override(specs: list[TensorSpec], overrides: list[TensorOverride], where: str
               ) -> list[TensorSpec]:
@@ -44,7 +52,10 @@ def _override(specs: list[TensorSpec], overrides: list[TensorOverride], where: s
 
 
 class DeclaredModel:
-    def __init__(self, declaration: ModelDeclaration, store: ModelStore) -> None:
+    def __init__(self, declaration: ModelDeclaration, store: ModelStore,
+                 batched: bool = False) -> None:
+        """batched: the service batches requests to it, so it must take a batch (checked at
+        load)."""
         if declaration.weights is None:
             raise ConfigError(f"model {declaration.name}: weights: required to serve it")
         self.declaration = declaration
@@ -58,6 +69,7 @@ class DeclaredModel:
         self._output_names: dict[str, str] = {}  # the file's output name -> declared name
         self.sha256 = ""
         self.license = declaration.license
+        self.batched = batched
 
     def weights_path(self) -> Path:
         weights = self.declaration.weights
@@ -79,7 +91,9 @@ class DeclaredModel:
         return weights.path
 
     def load(self) -> None:
-        session = open_session(self.weights_path(), self.declaration.backend)
+        free = [tuple(axis for axis, d in enumerate(o.shape or ()) if d == -1)
+                for o in self.declaration.inputs]
+        session = open_session(self.weights_path(), self.declaration.backend, free)
         self.inputs = _override(session.inputs, self.declaration.inputs, "inputs")
         self.outputs = _override(session.outputs, self.declaration.outputs, "outputs")
         self._file_names = {d.name: f.name for d, f in zip(self.inputs, session.inputs,
@@ -100,6 +114,20 @@ class DeclaredModel:
                 raise ConfigError(f"model {self.name}: task: {exc}") from None
         self._session = session
         self._warm_up()
+        if any(0 in axes for axes in session.freed):
+            check_batching(self)
+        if self.batched and not self.batchable:
+            fixed = ", ".join(f"'{spec.name}' {list(spec.shape)}" for spec in session.inputs)
+            raise ConfigError(f"model {self.name}: batching: its inputs take no batch of any "
+                              f"size ({fixed}); declare the batch dimension free (inputs: "
+                              f"[{{name: ..., shape: [-1, ...]}}]) where the graph allows it")
+
+    @property
+    def batchable(self) -> bool:
+        """Every input of the session takes a batch of any size (its first dimension)."""
+        session = self._session
+        return session is not None and bool(session.inputs) and all(
+            spec.shape[:1] == (-1,) and spec.datatype != "BYTES" for spec in session.inputs)
 
     def _warm_up(self) -> None:
         if any(spec.datatype == "BYTES" for spec in self.inputs):
@@ -151,6 +179,43 @@ class DeclaredModel:
         results = session.run(renamed)
         return {self._output_names[name]: value for name, value in results.items()}
 
+    def infer_batch(self, items: list[dict[str, np.ndarray]]) -> list[dict[str, np.ndarray]]:
+        """One run for several requests' inputs, joined along the batch dimension (every
+        item the same names and shapes but the first dimension); each item's outputs."""
+        if len(items) == 1:
+            return [self.infer(items[0])]
+        rows = [len(next(iter(feeds.values()))) for feeds in items]
+        joined = {name: np.concatenate([feeds[name] for feeds in items])
+                  for name in items[0]}
+        outputs = self.infer(joined)
+        total = sum(rows)
+        for name, value in outputs.items():
+            if value.ndim == 0 or value.shape[0] != total:
+                raise InvalidInput(f"model {self.name}: output '{name}' of shape "
+                                   f"{list(value.shape)} does not follow the batch of {total}")
+        bounds = np.cumsum(rows)[:-1]
+        split = {name: np.split(value, bounds) for name, value in outputs.items()}
+        return [{name: parts[i] for name, parts in split.items()} for i in range(len(items))]
+
+    def detect_batch(self, frames: list[DetectArgs]) -> list[Detections | Exception]:
+        """detect() for several prepared images in one network run; post-processing per
+        image, so one image's error is its own."""
+        head = self._detection_head()
+        started = time.perf_counter()
+        outputs = self.infer_batch([prepared.feeds for prepared, _, _ in frames])
+        inference_ms = (time.perf_counter() - started) * 1e3
+        results: list[Detections | Exception] = []
+        for (prepared, min_score, class_ids), output in zip(frames, outputs, strict=True):
+            try:
+                result = head.decode(output, prepared, min_score, class_ids)
+            except Exception as exc:
+                results.append(exc)
+                continue
+            result.timings_ms.update(preprocess_ms=prepared.preprocess_ms,
+                                     inference_ms=inference_ms)
+            results.append(result)
+        return results
+
     def prepare(self, pixels: np.ndarray) -> Prepared:
         return self._detection_head().prepare(pixels)
 
@@ -170,3 +235,37 @@ class DeclaredModel:
                               f"(task.kind: detection)")
         return self.head
 
+
+
+def check_batching(model: DeclaredModel) -> None:
+    """Refuses a model whose freed batch dimension changes its answers: two different inputs
+    run as one batch must give what each gives alone."""
+    rng = np.random.default_rng(0)
+    items = []
+    for _ in range(2):
+        feeds = {}
+        for spec in model.inputs:
+            shape = [1] + [d if d > 0 else 32 for d in spec.shape[1:]]
+            dtype = np.dtype(DATATYPES[spec.datatype].numpy)
+            feeds[spec.name] = (rng.uniform(0, 255, shape) if dtype.kind == "f"
+                                else rng.integers(0, 2, shape)).astype(dtype)
+        if model.head is not None:  # the image input as the task prepares it
+            noise = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+            feeds.update(model.head.prepare(noise).feeds)
+        items.append(feeds)
+    try:
+        batched = model.infer_batch(items)
+    except Exception as exc:
+        raise ConfigError(f"model {model.name}: inputs declare a free batch dimension, but "
+                          f"the graph does not run a batch of 2: {exc}") from None
+    for i, feeds in enumerate(items):
+        alone = model.infer(feeds)
+        for name, value in alone.items():
+            scale = max(float(np.abs(value).max()), 1.0)
+            if not np.allclose(batched[i][name], value, rtol=0, atol=BATCH_TOLERANCE * scale):
+                raise ConfigError(f"model {model.name}: inputs declare a free batch "
+                                  f"dimension, but the graph does not batch (output '{name}' "
+                                  f"of a batch differs from that of its items run alone); "
+                                  f"declare the batch dimension as 1")
+    log.info("model %s: batch dimension freed; a batch gives what its items give alone",
+             model.name)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 
 from oricf.errors import ConfigError, NotFound
 from oricf.models.declaration import ModelDeclaration
@@ -13,13 +13,19 @@ from oricf.store import ModelStore
 
 
 class ModelRepository:
-    def __init__(self, declarations: Iterable[ModelDeclaration], store: ModelStore) -> None:
+    def __init__(self, declarations: Iterable[ModelDeclaration], store: ModelStore,
+                 batched: Collection[str] = ()) -> None:
         self.models: dict[str, DeclaredModel] = {}
         for declaration in declarations:
             if declaration.name in self.models:
                 raise ConfigError(f"models: two declarations name the model "
                                   f"'{declaration.name}'")
-            self.models[declaration.name] = DeclaredModel(declaration, store)
+            self.models[declaration.name] = DeclaredModel(declaration, store,
+                                                          declaration.name in batched)
+        unknown = sorted(set(batched) - set(self.models))
+        if unknown:
+            raise ConfigError(f"batching: no model '{unknown[0]}' among models "
+                              f"({', '.join(self.models)})")
 
     def get(self, name: str) -> DeclaredModel:
         try:

@@ -7,20 +7,31 @@ import grpc
 from oricf.models.declaration import load_declaration
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services.models.batching import batch_runner
 from oricf.services.models.config import ModelsConfig
 from oricf.services.models.repository import ModelRepository
 from oricf.services.models.servicer import InferenceServicer
 from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime.batching import Batcher
 from oricf.store import ModelStore
 
 
 def create_model(config: ModelsConfig, store: ModelStore) -> ModelRepository:
-    return ModelRepository((load_declaration(path) for path in config.models), store)
+    return ModelRepository((load_declaration(path) for path in config.models), store,
+                           batched=config.batching)
 
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],
                  config: ModelsConfig) -> None:
-    oip_grpc.add_GRPCInferenceServiceServicer_to_server(InferenceServicer(slot, config), server)
+    batchers = {}
+    for name, settings in config.batching.items():
+        model = slot.peek().get(name)
+        batchers[name] = Batcher(f"{SPEC.name}/{name}", settings,
+                                 batch_runner(model, settings.max_batch_size),
+                                 config.server.retry_after_ms)
+        slot.attach(batchers[name])
+    oip_grpc.add_GRPCInferenceServiceServicer_to_server(
+        InferenceServicer(slot, config, batchers), server)
 
 
 SPEC = ServiceSpec(

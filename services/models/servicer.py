@@ -20,10 +20,13 @@ from oricf.models.tensors import clip
 from oricf.models.wire import infer_response, request_inputs
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services.models.batching import Feeds, rows_of
 from oricf.services.models.config import ModelsConfig
 from oricf.services.models.model import DeclaredModel
 from oricf.services.models.repository import ModelRepository
 from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.batch_calls import run_batched
+from oricf.services.runtime.batching import Batcher
 
 log = logging.getLogger(__name__)
 
@@ -32,9 +35,11 @@ PLATFORMS = {"onnxruntime": "onnxruntime_onnx", "openvino": "openvino"}
 
 
 class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
-    def __init__(self, slot: ModelSlot[ModelRepository], config: ModelsConfig) -> None:
+    def __init__(self, slot: ModelSlot[ModelRepository], config: ModelsConfig,
+                 batchers: dict[str, Batcher[Feeds, Feeds]] | None = None) -> None:
         self.slot = slot
         self.config = config
+        self.batchers = batchers or {}
 
     def ServerLive(self, request: oip.ServerLiveRequest, context: grpc.ServicerContext
                    ) -> oip.ServerLiveResponse:
@@ -85,12 +90,20 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
         if unknown:
             raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
                                f"(inputs: {', '.join(s.name for s in model.inputs)})")
-        outputs = model.infer(feeds)
+        batcher = self.batchers.get(model.name)
+        outputs = model.infer(feeds) if batcher is None else \
+            self._batched(batcher, model, feeds, context)
         if wanted:
             outputs = {name: outputs[name] for name in wanted}
         response = infer_response(model.name, outputs, request.id)
         response.model_version = VERSION
         return response
+
+    @staticmethod
+    def _batched(batcher: Batcher[Feeds, Feeds], model: DeclaredModel, feeds: Feeds,
+                 context: grpc.ServicerContext) -> Feeds:
+        rows_of(model, feeds, batcher.settings.max_batch_size)
+        return run_batched(batcher, feeds, context)
 
     def _model(self, name: str, version: str, loaded: bool = True) -> DeclaredModel:
         """The named model (NOT_FOUND for an unknown name or version); UNAVAILABLE while

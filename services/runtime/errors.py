@@ -70,6 +70,11 @@ def _already_aborted(context: grpc.ServicerContext) -> bool:
 def _abort(context: grpc.ServicerContext, exc: Exception, method: str) -> None:
     if _already_aborted(context):
         raise exc
+    if not context.is_active():
+        # The caller cancelled or its deadline passed: there is no one to answer, and
+        # aborting a finished call would only make grpcio log a traceback.
+        log.debug("%s: the call had ended (%s: %s)", method, type(exc).__name__, exc)
+        return
     code, message = status_for(exc, method)
     log.debug("%s -> %s: %s", method, code.name, message)
     context.abort(code, message)
@@ -142,6 +147,13 @@ def _wrap_stream_response(behavior: Callable[..., Any], method: str, parse: Pars
     return handler
 
 
+def streams_by_callback(handler: grpc.RpcMethodHandler) -> bool:
+    """Whether a handler streams through a callback (grpcio's experimental_non_blocking, as
+    grpc_health's Watch does) instead of holding one of the server's threads for as long as
+    its stream is open."""
+    return bool(getattr(handler.unary_stream, "experimental_non_blocking", False))
+
+
 class ErrorMappingInterceptor(grpc.ServerInterceptor):
     """Error mapping and request parsing for every handler; the call limit for every handler
     but health and reflection."""
@@ -157,6 +169,10 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
         handler = continuation(handler_call_details)
         if handler is None:
             return None
+        if streams_by_callback(handler):
+            # Health's Watch, once per client that balances over replicas: a generator
+            # wrapper would hold a thread per watcher until the pool had none left for calls.
+            return handler
         method = handler_call_details.method
         limit = None if exempt(method) else self.limit
         parse = _parser(handler.request_deserializer)

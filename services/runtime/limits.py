@@ -40,8 +40,12 @@ class CallLimit:
             return self._active
 
     def pushback_ms(self) -> int:
-        """The suggested wait, with jitter so refused clients do not return in step."""
-        return int(self.retry_after_ms * random.uniform(1.0, 2.0))
+        return pushback_ms(self.retry_after_ms)
+
+
+def pushback_ms(retry_after_ms: int) -> int:
+    """The suggested wait, with jitter so refused clients do not return in step."""
+    return int(retry_after_ms * random.uniform(1.0, 2.0))
 
 
 def exempt(method: str) -> bool:

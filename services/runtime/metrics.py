@@ -18,20 +18,29 @@ values stay bounded.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 import grpc
 from prometheus_client import CollectorRegistry, Counter, Histogram
-from prometheus_client.metrics_core import GaugeMetricFamily, Metric
+from prometheus_client.metrics_core import (
+    CounterMetricFamily,
+    GaugeMetricFamily,
+    HistogramMetricFamily,
+    Metric,
+)
 from prometheus_client.registry import Collector
 
 from oricf.metrics import LATENCY_BUCKETS_S, new_registry
+from oricf.services.runtime.errors import streams_by_callback
 from oricf.services.runtime.limits import CallLimit
 from oricf.services.runtime.model import ModelSlot
 
 # The handler attribute -> go-grpc-prometheus' grpc_type.
+# Upper bounds of the oricf_batch_size buckets (requests per batch).
+BATCH_SIZE_BUCKETS = (1, 2, 4, 8, 16, 32, 64, 128, 256)
 RPC_TYPES = {"unary_unary": "unary", "unary_stream": "server_stream",
              "stream_unary": "client_stream", "stream_stream": "bidi_stream"}
 CALL_LABELS = ("grpc_type", "grpc_service", "grpc_method")
@@ -118,6 +127,36 @@ def _stream_response(behavior: Callable[..., Any], start: Callable[[], _Call],
     return handler
 
 
+def _callback_stream(behavior: Callable[..., Any], start: Callable[[], _Call]
+                     ) -> Callable[..., None]:
+    """A handler that streams through a callback (health's Watch): counted like the others
+    while still holding no thread for the life of its stream."""
+    def handler(request: Any, context: grpc.ServicerContext,
+                send_response_callback: Callable[[Any], None]) -> None:
+        call = start()
+        call.received()
+        ended = threading.Event()
+
+        def send(response: Any) -> None:
+            if response is not None:
+                call.sent()
+            elif not ended.is_set():  # None ends the stream
+                ended.set()
+                call.done(final_status(context, None))
+            send_response_callback(response)
+
+        try:
+            behavior(request, context, send)
+        except BaseException as exc:
+            if not ended.is_set():
+                ended.set()
+                call.done(final_status(context, exc))
+            raise
+
+    handler.experimental_non_blocking = True  # type: ignore[attr-defined]
+    return handler
+
+
 class CallMetrics(grpc.ServerInterceptor):
     """Counts and times every call of the server it is installed on (first in the list)."""
 
@@ -154,6 +193,8 @@ class CallMetrics(grpc.ServerInterceptor):
             return _Call(self, labels)
 
         behavior = getattr(handler, kind)
+        if streams_by_callback(handler):
+            return handler._replace(unary_stream=_callback_stream(behavior, start))
         stream = kind.startswith("stream")
         wrap = _stream_response if kind.endswith("_stream") else _unary_response
         return handler._replace(**{kind: wrap(behavior, start, stream)})
@@ -194,6 +235,33 @@ class ServiceCollector(Collector):
             labels=("service",))
         limit.add_metric((self._service,), self._limit.limit)
         yield limit
+        if self._slot.batchers:
+            yield from self._batching()
+
+    def _batching(self) -> Iterable[Metric]:
+        labels = ("service", "batcher")
+        sizes = HistogramMetricFamily(
+            "oricf_batch_size", "Requests run together in one inference (dynamic batching).",
+            labels=labels)
+        queued = GaugeMetricFamily("oricf_batch_queue_length",
+                                   "Requests waiting for a batch.", labels=labels)
+        dropped = CounterMetricFamily(
+            "oricf_batch_dropped", "Requests that never reached a batch: deadline (passed "
+            "while queued), cancelled (the caller went away), refused (the queue was full).",
+            labels=(*labels, "reason"))
+        for batcher in self._slot.batchers:
+            values = (self._service, batcher.name)
+            counts, drops, waiting = batcher.snapshot()
+            buckets = [(str(float(bound)),
+                        float(sum(n for size, n in counts.items() if size <= bound)))
+                       for bound in BATCH_SIZE_BUCKETS]
+            buckets.append(("+Inf", float(sum(counts.values()))))
+            sizes.add_metric(values, buckets,
+                             float(sum(size * n for size, n in counts.items())))
+            queued.add_metric(values, waiting)
+            for reason in ("deadline", "cancelled", "refused"):
+                dropped.add_metric((*values, reason), drops.get(reason, 0))
+        yield from (sizes, queued, dropped)
 
 
 def service_registry(service: str, slot: ModelSlot[Any],

@@ -9,9 +9,12 @@ import logging
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 from oricf.errors import NotReady
+
+if TYPE_CHECKING:
+    from oricf.services.runtime.batching import Batcher
 
 log = logging.getLogger(__name__)
 
@@ -43,13 +46,23 @@ M = TypeVar("M", bound=Model)
 
 
 class ModelSlot(Generic[M]):
-    """Holds a model and says whether it may be used yet (NotReady until loaded)."""
+    """Holds a model and says whether it may be used yet (NotReady until loaded), and the
+    batchers that feed it: they drain before it closes."""
 
     def __init__(self, model: M) -> None:
         self._model = model
         self._ready = threading.Event()
         self._closing = False
         self.load_seconds = 0.0
+        self.batchers: list[Batcher[Any, Any]] = []
+
+    def attach(self, batcher: Batcher[Any, Any]) -> None:
+        self.batchers.append(batcher)
+
+    def flush(self) -> None:
+        """The service is draining: batches run with what waits, without waiting to fill."""
+        for batcher in self.batchers:
+            batcher.flush()
 
     @property
     def ready(self) -> bool:
@@ -75,4 +88,6 @@ class ModelSlot(Generic[M]):
     def close(self) -> None:
         self._closing = True
         self._ready.clear()
+        for batcher in self.batchers:
+            batcher.close()
         self._model.close()

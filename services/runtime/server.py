@@ -27,6 +27,7 @@ from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.limits import CallLimit
 from oricf.services.runtime.metrics import service_registry
 from oricf.services.runtime.model import Model, ModelSlot
+from oricf.services.runtime.probe import probe_server
 from oricf.services.runtime.spec import ServiceSpec
 from oricf.signals import stop_on_signals
 
@@ -70,11 +71,14 @@ class ServiceHost:
                 ("grpc.max_receive_message_length", settings.max_message_bytes),
                 ("grpc.max_send_message_length", settings.max_message_bytes),
                 ("grpc.so_reuseport", 0),
+                *_connection_age(settings.max_connection_age_s, settings.grace_s),
             ],
         )
         spec.add_servicer(self.server, self.slot, config)
         self.health = health.HealthServicer(experimental_non_blocking=True)
         health_pb2_grpc.add_HealthServicer_to_server(self.health, self.server)
+        self.probe: tuple[grpc.Server, int] | None = (
+            probe_server(self.health, settings.health_listen) if settings.health_listen else None)
         if settings.reflection:
             reflection.enable_server_reflection(
                 [spec.service_name, health.SERVICE_NAME, reflection.SERVICE_NAME], self.server)
@@ -98,6 +102,10 @@ class ServiceHost:
             # Before the model loads: a scrape shows it loading (oricf_model_ready 0).
             self.metrics_server = MetricsServer(settings.metrics, self.metrics)
         self.server.start()
+        if self.probe is not None:
+            self.probe[0].start()
+            log.info("%s: health checks (Check only, plaintext) on port %d", self.spec.name,
+                     self.probe[1])
         security = ("mTLS" if settings.tls and settings.tls.client_ca else
                     "TLS" if settings.tls else "plaintext")
         if settings.auth is not None:
@@ -115,6 +123,7 @@ class ServiceHost:
         Returns False when calls were still stuck STOP_MARGIN_S after the grace period."""
         grace = self.config.server.grace_s if grace is None else grace
         self.health.enter_graceful_shutdown()
+        self.slot.flush()
         log.info("%s draining (grace %.1f s)", self.spec.name, grace)
         deadline = time.monotonic() + grace + STOP_MARGIN_S
         stopped = self.server.stop(grace).wait(grace + STOP_MARGIN_S)
@@ -123,6 +132,8 @@ class ServiceHost:
         workers.start()
         workers.join(max(0.0, deadline - time.monotonic()))
         self.slot.close()
+        if self.probe is not None:  # answered NOT_SERVING while draining
+            self.probe[0].stop(0)
         if self.metrics_server is not None:
             self.metrics_server.close()
         if stopped and not workers.is_alive():
@@ -131,6 +142,15 @@ class ServiceHost:
         log.warning("%s: calls still running %.1f s after the grace period; exiting anyway",
                     self.spec.name, STOP_MARGIN_S)
         return False
+
+
+def _connection_age(age_s: float | None, grace_s: float) -> list[tuple[str, int]]:
+    """server.max_connection_age_s as grpc options: GOAWAY after that long, then grace_s for
+    the calls in flight."""
+    if age_s is None:
+        return []
+    return [("grpc.max_connection_age_ms", int(age_s * 1000)),
+            ("grpc.max_connection_age_grace_ms", int(grace_s * 1000))]
 
 
 def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | None) -> int:
@@ -142,6 +162,8 @@ def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | 
             host.load_model()
         except Exception:
             host.server.stop(0)
+            if host.probe is not None:
+                host.probe[0].stop(0)
             raise
         while not stop.wait(0.5):
             pass

@@ -9,7 +9,7 @@ from oricf.gateway.main import split_ros_args
 
 CORE = ["config", "methods", "values", "calls", "post", "products", "endpoints", "worker",
         "route", "pipeline", "throttle", "dds", "cdr", "grpc_client", "main", "sources",
-        "sources.video", "sinks", "standalone"]
+        "sources.video", "sinks", "standalone", "rosparams"]
 
 
 def test_core_modules_do_not_import_ros() -> None:

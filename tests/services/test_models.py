@@ -56,9 +56,9 @@ def test_server_and_model_readiness_and_metadata(
     meta = stub.ModelMetadata(oip.ModelMetadataRequest(name="yolox-nano"))
     assert meta.platform == "onnxruntime_onnx" and list(meta.versions) == ["1"]
     assert [(t.name, t.datatype, list(t.shape)) for t in meta.inputs] == [
-        ("images", "FP32", [1, 3, 416, 416])]
+        ("images", "FP32", [-1, 3, 416, 416])]  # declared free: a batch of any size
     assert [(t.name, t.datatype, list(t.shape)) for t in meta.outputs] == [
-        ("output", "FP32", [1, 3549, 85])]
+        ("output", "FP32", [-1, 3549, 85])]
     assert meta.properties["task"] == "detection"
     assert meta.properties["sha256"] == ModelStore().entry("yolox-nano").files[0].sha256
 
@@ -219,10 +219,13 @@ DECLARED = ["yolox-nano", "yolov8-fall", "text-direction"]
 
 def _valid_input(stub: oip_grpc.GRPCInferenceServiceStub, model: str
                  ) -> tuple[str, np.ndarray]:
-    """A zero tensor that fits the model's first input (free dimensions become 64)."""
+    """A zero tensor that fits the model's first input (a batch of 1; other free dimensions
+    become 64)."""
     spec = stub.ModelMetadata(oip.ModelMetadataRequest(name=model)).inputs[0]
     assert spec.datatype == "FP32"
-    return spec.name, np.zeros([d if d > 0 else 64 for d in spec.shape], np.float32)
+    batch, *rest = spec.shape
+    return spec.name, np.zeros([batch if batch > 0 else 1, *(d if d > 0 else 64 for d in rest)],
+                               np.float32)
 
 
 @pytest.mark.parametrize("model", DECLARED)
