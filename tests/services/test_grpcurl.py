@@ -49,8 +49,9 @@ def test_declared_models_answer_grpcurl_over_the_open_inference_protocol() -> No
         assert "inference.GRPCInferenceService" in grpcurl(models.address, "list").split()
         meta = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelMetadata",
                                   data='{"name": "yolox-nano"}'))
+        # The declaration frees the batch dimension (so the service can batch): -1.
         assert meta["inputs"] == [{"name": "images", "datatype": "FP32",
-                                   "shape": ["1", "3", "416", "416"]}]
+                                   "shape": ["-1", "3", "416", "416"]}]
         # An encoded photo as one BYTES element: the server pre-processes it.
         body = json.dumps({"model_name": "yolox-nano", "inputs": [{
             "name": "images", "datatype": "BYTES", "shape": [1],
