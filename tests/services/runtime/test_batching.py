@@ -126,7 +126,7 @@ def test_a_deadline_that_passes_in_the_queue_is_never_run(
     with running_service("detector", batching()) as service:
         stub = detector_pb2_grpc.DetectorStub(service.channel)
         with pytest.raises(grpc.RpcError) as error:
-            stub.Detect(requests[0], timeout=0.5)  # the batch waits for 3 more for 10 s
+            stub.Detect(requests[0], timeout=2)  # the batch waits 10 s for 3 more
         assert error.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
         wait_for_drop(service, "deadline")
         assert batch_metric(service, "oricf_batch_size_count") == 0
