@@ -30,6 +30,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from oricf.audio import VadSettings
 from oricf.config import (
     FilePath,
     Schema,
@@ -102,20 +103,9 @@ class EndpointConfig(Schema):
         return self
 
 
-class VadConfig(Schema):
-    """How an audio input is cut into utterances (Silero VAD, 32 ms windows at 16 kHz); the
-    same settings as the ASR service's `endpointing:`."""
-
-    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts it")
-    min_silence_ms: int = Field(
-        400, ge=32, le=10_000, description="this much silence ends an utterance")
-    speech_pad_ms: int = Field(
-        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
-    min_speech_ms: int = Field(
-        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
-    max_utterance_s: float = Field(
-        20.0, gt=1, le=60, description="an utterance this long is cut and sent (keep it under "
-                                       "the ASR service's audio.max_audio_s)")
+class VadConfig(VadSettings):
+    """How an audio input is cut into utterances: the same settings as the ASR service's
+    `endpointing:`."""
 
 
 class InputConfig(Schema):

@@ -15,7 +15,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from pydantic import Field
 
+from oricf.config import Schema
 from oricf.errors import InvalidInput
 
 ENCODINGS = ("pcm_s16le", "wav")
@@ -281,3 +283,19 @@ def synthesize(text: str, voice: str = "en-us", rate: int = 160,
          "-e", "signed-integer", "-L", "-"],
         input=wav, check=True, capture_output=True).stdout
     return np.frombuffer(raw, dtype="<i2").copy()
+
+
+class VadSettings(Schema):
+    """How audio is cut into utterances by voice activity (Silero VAD, 32 ms windows at
+    16 kHz): the ASR service's `endpointing:` and a gateway audio input's `vad:`."""
+
+    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts speech")
+    min_silence_ms: int = Field(
+        400, ge=32, le=10_000, description="this much silence ends an utterance")
+    speech_pad_ms: int = Field(
+        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
+    min_speech_ms: int = Field(
+        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
+    max_utterance_s: float = Field(
+        20.0, gt=1, le=60, description="an utterance this long is cut and transcribed (keep "
+                                       "it under the ASR service's audio.max_audio_s)")

@@ -6,6 +6,7 @@ from typing import Any
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from oricf.audio import VadSettings
 from oricf.config import Schema, format_location
 from oricf.services.asr.recognizer import backend_class
 from oricf.services.runtime import ServiceConfig
@@ -42,18 +43,9 @@ class AsrModelSettings(Schema):
             raise ValueError(f"{backend} options: {problems}") from None
 
 
-class EndpointingSettings(Schema):
+class EndpointingSettings(VadSettings):
     """Voice-activity endpointing of TranscribeStream (Silero VAD, 32 ms windows)."""
 
-    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts speech")
-    min_silence_ms: int = Field(
-        400, ge=32, le=10_000, description="this much silence ends an utterance")
-    speech_pad_ms: int = Field(
-        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
-    min_speech_ms: int = Field(
-        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
-    max_utterance_s: float = Field(
-        20.0, gt=1, le=60, description="an utterance this long is cut and transcribed")
     vad_threads: int = Field(1, ge=1, le=8, description="onnxruntime threads of the VAD")
 
 
