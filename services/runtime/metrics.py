@@ -210,31 +210,20 @@ class ServiceCollector(Collector):
         self._model = slot.peek().info().model  # from its config: known before the load
 
     def collect(self) -> Iterable[Metric]:
-        model_labels = ("service", "model")
-        values = (self._service, self._model)
-        ready = GaugeMetricFamily("oricf_model_ready",
-                                  "1 while the model is loaded and the service SERVING.",
-                                  labels=model_labels)
-        ready.add_metric(values, 1.0 if self._slot.ready else 0.0)
-        yield ready
+        model = (("service", "model"), (self._service, self._model))
+        service = (("service",), (self._service,))
+        yield _gauge("oricf_model_ready", "1 while the model is loaded and the service SERVING.",
+                     *model, 1.0 if self._slot.ready else 0.0)
         if self._slot.load_seconds > 0:  # absent until loaded, rather than a false 0
-            load = GaugeMetricFamily("oricf_model_load_seconds",
-                                     "How long loading and warming up the model took.",
-                                     labels=model_labels)
-            load.add_metric(values, self._slot.load_seconds)
-            yield load
-        active = GaugeMetricFamily(
-            "oricf_service_calls_in_progress",
-            "Calls running now that count against the limit (health and reflection do not).",
-            labels=("service",))
-        active.add_metric((self._service,), self._limit.active)
-        yield active
-        limit = GaugeMetricFamily(
-            "oricf_service_calls_limit",
-            "server.max_concurrent_rpcs: calls beyond it are refused RESOURCE_EXHAUSTED.",
-            labels=("service",))
-        limit.add_metric((self._service,), self._limit.limit)
-        yield limit
+            yield _gauge("oricf_model_load_seconds",
+                         "How long loading and warming up the model took.",
+                         *model, self._slot.load_seconds)
+        yield _gauge("oricf_service_calls_in_progress",
+                     "Calls running now that count against the limit (health and reflection "
+                     "do not).", *service, self._limit.active)
+        yield _gauge("oricf_service_calls_limit",
+                     "server.max_concurrent_rpcs: calls beyond it are refused "
+                     "RESOURCE_EXHAUSTED.", *service, self._limit.limit)
         if self._slot.batchers:
             yield from self._batching()
 
@@ -262,6 +251,14 @@ class ServiceCollector(Collector):
             for reason in ("deadline", "cancelled", "refused"):
                 dropped.add_metric((*values, reason), drops.get(reason, 0))
         yield from (sizes, queued, dropped)
+
+
+def _gauge(name: str, documentation: str, labels: tuple[str, ...], values: tuple[str, ...],
+           value: float) -> GaugeMetricFamily:
+    """A gauge family holding one sample."""
+    family = GaugeMetricFamily(name, documentation, labels=labels)
+    family.add_metric(values, value)
+    return family
 
 
 def service_registry(service: str, slot: ModelSlot[Any],
