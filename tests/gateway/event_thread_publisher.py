@@ -18,8 +18,8 @@ from rclpy.node import Node
 from std_msgs.msg import Int32
 
 from oricf.bench.wakeups import wakeups
+from tests.gateway.matching import wait_for_subscriber
 
-MATCH_TIMEOUT_S = 30.0
 RATE_HZ = 50.0
 EVENT_THREADS = "dds.ev."  # Fast DDS names its event thread dds.ev.<participant>
 
@@ -28,12 +28,9 @@ def main(topic: str, count: int) -> int:
     rclpy.init()
     node = Node("event_thread_publisher")
     publisher = node.create_publisher(Int32, topic, 10)
-    deadline = time.monotonic() + MATCH_TIMEOUT_S
-    while publisher.get_subscription_count() == 0:
-        if time.monotonic() > deadline:
-            print(json.dumps({"error": "no subscriber matched"}))
-            return 1
-        time.sleep(0.05)
+    if not wait_for_subscriber(publisher):
+        print(json.dumps({"error": "no subscriber matched"}))
+        return 1
     time.sleep(1.0)  # discovery traffic settles
     before = wakeups(os.getpid(), EVENT_THREADS)
     for i in range(count):

@@ -20,9 +20,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
+from tests.gateway.matching import wait_for_subscriber
+
 WIDTH, HEIGHT = 640, 480
 RATE_HZ = 10.0
-MATCH_TIMEOUT_S = 30.0
 DISTINCT_FRAMES = 50  # 46 MB; longer runs cycle through them
 SETTLE_S = 2.0  # discovery completes both ways, and a subscriber adapting its QoS has done so
 
@@ -54,12 +55,9 @@ def main(topic: str, video: str, count: int, reliability: str) -> int:
     rclpy.init()
     node = Node("foreign_camera")
     publisher = node.create_publisher(Image, topic, qos(reliability))
-    deadline = time.monotonic() + MATCH_TIMEOUT_S
-    while publisher.get_subscription_count() == 0:
-        if time.monotonic() > deadline:
-            print(json.dumps({"error": "no subscriber matched"}))
-            return 1
-        time.sleep(0.05)
+    if not wait_for_subscriber(publisher):
+        print(json.dumps({"error": "no subscriber matched"}))
+        return 1
     time.sleep(SETTLE_S)
     start = time.monotonic()
     for i in range(count):
