@@ -45,6 +45,15 @@ def reported(output: str) -> tuple[int, str]:
     return int(people.group(1)), answer.group(1)
 
 
+def run_demo(*args: str, timeout: float = 600) -> tuple[int, OricfCommand]:
+    """`oricf demo ARGS` on a private ROS domain, to its end: (exit code, the command)."""
+    command = OricfCommand("demo", *args, env=private_ros_env())
+    try:
+        return command.finish(timeout=timeout), command
+    finally:
+        command.kill()
+
+
 def demo_deployment(folder: Path) -> Path:
     """local.yaml's shape on free ports, so the test never meets another run's services."""
     return write_deployment(folder, {
@@ -53,13 +62,9 @@ def demo_deployment(folder: Path) -> Path:
 
 
 def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
-    command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
-                           "--question", "How many people do you see?", *STILL_SCENE,
-                           "--log", str(tmp_path / "demo.log"), env=private_ros_env())
-    try:
-        code = command.finish(timeout=600)
-    finally:
-        command.kill()
+    code, command = run_demo("--deployment", str(demo_deployment(tmp_path)), "--question",
+                             "How many people do you see?", *STILL_SCENE,
+                             "--log", str(tmp_path / "demo.log"))
     output = command.output
     assert code == 0, output
     assert "SERVING" in output  # progress while the models load
@@ -82,28 +87,21 @@ def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
 def test_demo_takes_its_camera_from_an_rtsp_stream(tmp_path: Path) -> None:
     with RtspCamera() as camera:
         camera.play_file(video_path())
-        command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
-                               "--source", camera.url, "--question",
-                               "How many people do you see?", env=private_ros_env())
-        try:
-            code = command.finish(timeout=600)
-        finally:
-            command.kill()
+        code, command = run_demo("--deployment", str(demo_deployment(tmp_path)),
+                                 "--source", camera.url, "--question",
+                                 "How many people do you see?")
     output = command.output
     assert code == 0, output
     assert f"camera {camera.url}" in output
-    people = re.search(r"people     : (\d+)", output)
-    assert people and 1 <= int(people.group(1)) <= 15, output
+    people, _ = reported(output)
+    assert 1 <= people <= 15, output
     assert "1/1 questions answered" in output
 
 
 def test_demo_refuses_a_deployment_without_gateway(tmp_path: Path) -> None:
     path = write_deployment(tmp_path, {"services": {"detector": service_entry(free_port())}})
-    command = OricfCommand("demo", "--deployment", str(path), env=private_ros_env())
-    try:
-        assert command.finish(timeout=120) == 1
-    finally:
-        command.kill()
+    code, command = run_demo("--deployment", str(path), timeout=120)
+    assert code == 1
     assert "the demo needs a deployment with a gateway" in command.output
     assert command.started() == {}
 
@@ -125,13 +123,8 @@ def test_demo_with_the_services_on_an_edge(tmp_path: Path) -> None:
         path = write_deployment(tmp_path, {
             "remote": ["detector", "asr", "llm"],
             "gateway": {"config": shipped_pipeline(), "overlays": [str(placement)]}})
-        command = OricfCommand("demo", "--deployment", str(path), "--question",
-                               "How many people are there?", *STILL_SCENE,
-                               env=private_ros_env())
-        try:
-            code = command.finish(timeout=600)
-        finally:
-            command.kill()
+        code, command = run_demo("--deployment", str(path), "--question",
+                                 "How many people are there?", *STILL_SCENE)
     assert code == 0, command.output
     assert set(command.started()) == {"gateway"}
     assert f"llm SERVING at {llm.address}" in command.output
