@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 OnLine = Callable[[str, "Client"], None]
 HANDSHAKE_TIMEOUT_S = 10.0
 MAX_UNSENT_BYTES = 1 << 20
+SHUTDOWN_WAIT_S = 2.0
 
 
 class Client:
@@ -134,10 +135,14 @@ class TextChannel:
             self._server.close()
         for client in list(self.clients):
             client.drop()
+        # Dropped clients end their own tasks (their reads see the end of the stream).
+        # Cancelling those tasks instead would make asyncio's stream protocol log each one
+        # as an error; only a task still running after the wait is cancelled.
         tasks = [task for task in asyncio.all_tasks() if task is not asyncio.current_task()]
-        for task in tasks:
+        _, pending = await asyncio.wait(tasks, timeout=SHUTDOWN_WAIT_S) if tasks else ((), ())
+        for task in pending:
             task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        await asyncio.gather(*pending, return_exceptions=True)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         host, port = writer.get_extra_info("peername")[:2]

@@ -5,6 +5,7 @@ many clients), none of which stops it serving the next client."""
 
 from __future__ import annotations
 
+import logging
 import signal
 import socket
 import ssl
@@ -205,3 +206,18 @@ def test_a_client_that_reads_nothing_is_closed_not_buffered_for(certs: Path) -> 
             assert stop.is_set(), "the client that reads nothing was never closed"
     finally:
         channel.close()
+
+
+def test_closing_a_channel_with_a_client_connected_logs_no_error(
+        caplog: pytest.LogCaptureFixture) -> None:
+    channel = TextChannel("news", ChannelConfig(listen=f"127.0.0.1:{free_port()}"))
+    channel.start()
+    host, port = channel.address.rsplit(":", 1)
+    with socket.create_connection((host, int(port))) as sock:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not channel.clients:
+            time.sleep(0.05)
+        channel.close()
+        assert sock.recv(100) == b""  # the client sees the channel close
+    errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+    assert not errors, [r.getMessage() for r in errors]
