@@ -62,17 +62,21 @@ def to_tensor(image: np.ndarray, settings: ImageInput, size: tuple[int, int]
     if settings.color == "rgb":
         canvas = cv2.cvtColor(canvas, cv2.COLOR_BGR2RGB)
     dtype = np.dtype(DATATYPES[settings.datatype].numpy)
+    planar = settings.layout == "nchw"
+    # Planes are split from the bytes, before any float exists: transposing a float image
+    # costs many times more, and at some sizes (416 wide) far more, than splitting bytes.
+    pixels = np.stack(cv2.split(canvas)) if planar else canvas
     if settings.datatype == "UINT8":
-        tensor: np.ndarray = canvas
+        tensor: np.ndarray = pixels
     else:
-        tensor = canvas.astype(np.float32)
+        tensor = pixels.astype(np.float32)
         if settings.scale != 1.0:
             tensor *= settings.scale
         if any(settings.mean) or any(s != 1.0 for s in settings.std):
-            mean, std = np.array(settings.mean, np.float32), np.array(settings.std, np.float32)
+            per_channel = (3, 1, 1) if planar else (1, 1, 3)
+            mean = np.array(settings.mean, np.float32).reshape(per_channel)
+            std = np.array(settings.std, np.float32).reshape(per_channel)
             tensor = (tensor - mean) / std
-    if settings.layout == "nchw":
-        tensor = tensor.transpose(2, 0, 1)
     return np.ascontiguousarray(tensor[np.newaxis], dtype=dtype), geo
 
 
