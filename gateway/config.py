@@ -36,6 +36,7 @@ from oricf.config import (
     Schema,
     check_address,
     read_with_overlays,
+    resolve_path,
     validate,
 )
 from oricf.errors import ConfigError
@@ -132,15 +133,13 @@ class InputConfig(Schema):
                           "queue: keep up to queue_size in order (default otherwise)")
     queue_size: int = Field(8, ge=1, le=1000)
 
-    @field_validator("audio")
+    @field_validator("audio", mode="before")
     @classmethod
-    def _wav_beside_yaml(cls, value: str | None, info: Any) -> str | None:
+    def _wav_beside_yaml(cls, value: Any, info: Any) -> Any:
         """A .wav file resolves against the YAML file like every path; a device name stays."""
-        if value is None or not value.lower().endswith(".wav"):
+        if not isinstance(value, str) or not value.lower().endswith(".wav"):
             return value
-        path = Path(value).expanduser()
-        base = (info.context or {}).get("base_dir")
-        return str(path if base is None or path.is_absolute() else Path(base) / path)
+        return str(resolve_path(value, info))
 
     @model_validator(mode="after")
     def _one_source(self) -> InputConfig:

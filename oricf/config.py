@@ -2,7 +2,8 @@
 
 Each file has a pydantic schema that refuses unknown keys. Errors name the file and the
 path of the bad key (``configs/x.yaml: routes[2].timeout_ms: must be > 0``). Relative paths
-in a file resolve against the folder of that file.
+in a file resolve against the folder of that file, an overlay's included: each string an
+overlay brings carries its folder until the schema has read it.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import yaml
-from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, ValidationInfo
+from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, ValidationInfo
 
 from oricf.errors import ConfigError
 
@@ -29,16 +30,43 @@ class Schema(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-def _resolve_against_file(value: Path, info: ValidationInfo) -> Path:
-    base = (info.context or {}).get("base_dir")
-    value = Path(os.path.expanduser(str(value)))
-    if base is not None and not value.is_absolute():
-        value = Path(base) / value
-    return value
+class FromFile(str):
+    """A string read from an overlay file, with that file's folder: a relative path in an
+    overlay means what it means beside the overlay, not beside the file it overlays."""
+
+    folder: Path
+
+    def __new__(cls, value: str, folder: Path) -> FromFile:
+        text = super().__new__(cls, value)
+        text.folder = folder
+        return text
+
+
+def _with_folder(data: Any, folder: Path) -> Any:
+    if isinstance(data, str):
+        return FromFile(data, folder)
+    if isinstance(data, Mapping):
+        return {key: _with_folder(value, folder) for key, value in data.items()}
+    if isinstance(data, list):
+        return [_with_folder(value, folder) for value in data]
+    return data
+
+
+def resolve_path(value: Any, info: ValidationInfo) -> Any:
+    """A relative path against the folder of the file that said it (the overlay's for a
+    string an overlay brought, else the validated file's); anything but a path is left to
+    the schema to refuse."""
+    if not isinstance(value, str | Path):
+        return value
+    base = getattr(value, "folder", None) or (info.context or {}).get("base_dir")
+    path = Path(os.path.expanduser(str(value)))
+    if base is not None and not path.is_absolute():
+        path = Path(base) / path
+    return path
 
 
 # A path in a YAML file: relative paths resolve against the folder of the file.
-FilePath = Annotated[Path, AfterValidator(_resolve_against_file)]
+FilePath = Annotated[Path, BeforeValidator(resolve_path)]
 
 T = TypeVar("T", bound=BaseModel)
 
@@ -199,7 +227,8 @@ def read_with_overlays(path: Path, overlays: Iterable[Path | str] = (),
     data = read_yaml(path)
     sources = [str(path)]
     for overlay in overlays:
-        data = deep_merge(data, read_yaml(Path(overlay)))
+        overlay = Path(overlay)
+        data = deep_merge(data, _with_folder(read_yaml(overlay), overlay.parent))
         sources.append(str(overlay))
     sets = list(sets)
     for assignment in sets:

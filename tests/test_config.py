@@ -4,6 +4,7 @@ import re
 from pathlib import Path
 
 import pytest
+import yaml
 from pydantic import Field
 
 from oricf.config import FilePath, Schema, apply_set, load_config
@@ -65,6 +66,34 @@ def test_overlay_merges_on_top(tmp_path: Path) -> None:
     config = load_config(base, Pipeline, overlays=[overlay])
     assert config.name == "edge"
     assert config.routes[0].topic == "a"
+
+
+def test_an_overlays_relative_paths_resolve_against_the_overlay(tmp_path: Path) -> None:
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "site").mkdir()
+    base = write(tmp_path / "robot", "name: base\nmodel_file: m.onnx\n")
+    renamed = write(tmp_path / "site", "name: site\n", "rename.yaml")
+    assert load_config(base, Pipeline, [renamed]).model_file == tmp_path / "robot" / "m.onnx"
+    moved = write(tmp_path / "site", "model_file: weights/m.onnx\n", "model.yaml")
+    config = load_config(base, Pipeline, [moved, renamed])
+    assert config.model_file == tmp_path / "site" / "weights" / "m.onnx"
+    assert config.name == "site" and type(config.name) is str
+
+
+def test_a_gateway_overlays_wav_file_resolves_against_the_overlay(tmp_path: Path) -> None:
+    from oricf.gateway.config import load_pipeline
+
+    (tmp_path / "site").mkdir()
+    base = write(tmp_path, yaml.safe_dump({
+        "endpoints": {"asr": {"address": "127.0.0.1:50052"}},
+        "routes": {"asked": {"input": {"audio": "question.wav"},
+                             "call": {"service": "asr", "method": "Transcribe"},
+                             "outputs": [{"jsonl": "-", "from": "transcript"}]}}}))
+    overlay = write(tmp_path / "site", yaml.safe_dump(
+        {"routes": {"asked": {"input": {"audio": "recorded.wav"}}}}), "site.yaml")
+    assert load_pipeline(base).routes["asked"].input.audio == str(tmp_path / "question.wav")
+    placed = load_pipeline(base, [overlay]).routes["asked"].input
+    assert placed.audio == str(tmp_path / "site" / "recorded.wav")
 
 
 def test_set_assignments_reach_any_key_as_yaml_values() -> None:
