@@ -21,7 +21,6 @@ import argparse
 import asyncio
 import json
 import os
-import random
 import statistics
 import subprocess
 import sys
@@ -29,135 +28,22 @@ import tempfile
 import time
 import urllib.request
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-import cv2
-import grpc
 import psutil
 import yaml
 from prometheus_client.parser import text_string_to_metric_families
 
-from oricf.bench.common import (
-    load_frames,
-    print_table,
-    served,
-    shipped_detector_model,
-    variant_config,
-)
-from oricf.bench.edge_robot import FPS, JPEG_QUALITY
+from oricf.bench.common import print_table, served, shipped_detector_model, variant_config
+from oricf.bench.edge_load import STARTUP_S, Tally, Window, generate, jpeg_requests
+from oricf.bench.edge_robot import FPS
 from oricf.launch.health import free_port
 from oricf.models.declaration import load_declaration
-from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
+from oricf.v1 import detector_pb2
 
-STARTUP_S = 8.0       # from spawning the robots to the window: imports, frames, channels
 GOAL_P99_MS = 100.0
 GOAL_SHARE = 0.95     # "serves a robot at 10 fps": answers at least 95% of its frames
-
-
-@dataclass
-class Window:
-    start: float  # epoch seconds
-    seconds: float
-
-    @property
-    def end(self) -> float:
-        return self.start + self.seconds
-
-    def holds(self, t: float) -> bool:
-        return self.start <= t < self.end
-
-
-@dataclass
-class Tally:
-    """What happened to the frames captured in the window, over all robots."""
-
-    captured: int = 0
-    latencies: list[float] = field(default_factory=list)
-    dropped: int = 0
-    errors: int = 0
-
-    def add(self, other: dict[str, Any]) -> None:
-        self.captured += other["captured"]
-        self.latencies += other["latencies"]
-        self.dropped += other["dropped"]
-        self.errors += other["errors"]
-
-
-class VirtualRobot:
-    """A camera at FPS and a sender with at most one frame in flight; the newest frame wins."""
-
-    def __init__(self, requests: list[detector_pb2.DetectRequest], window: Window,
-                 deadline_s: float, phase_s: float) -> None:
-        self.requests = requests
-        self.window = window
-        self.deadline_s = deadline_s
-        self.phase_s = phase_s
-        self.tally = Tally()
-        self._latest: tuple[int, float] | None = None
-        self._ready = asyncio.Event()
-        self._done = False
-
-    async def camera(self, first: float) -> None:
-        tick, i = first + self.phase_s, 0
-        await asyncio.sleep(max(0.0, tick - time.time()))
-        while tick < self.window.end + 0.5:
-            if self._latest is not None and self.window.holds(self._latest[1]):
-                self.tally.dropped += 1
-            self._latest = (i, tick)
-            self.tally.captured += self.window.holds(tick)
-            self._ready.set()
-            i, tick = i + 1, tick + 1 / FPS
-            await asyncio.sleep(max(0.0, tick - time.time()))
-        self._done = True
-        self._ready.set()
-
-    async def sender(self, stub: detector_pb2_grpc.DetectorStub) -> None:
-        while True:
-            if self._latest is None:
-                if self._done:
-                    return
-                await self._ready.wait()
-                self._ready.clear()
-                continue
-            (i, captured), self._latest = self._latest, None
-            try:
-                await stub.Detect(self.requests[i % len(self.requests)],
-                                  timeout=self.deadline_s)
-                if self.window.holds(captured):
-                    self.tally.latencies.append(time.time() - captured)
-            except grpc.aio.AioRpcError:
-                self.tally.errors += self.window.holds(captured)
-
-
-def jpeg_requests(count: int, offset: int) -> list[detector_pb2.DetectRequest]:
-    requests = []
-    for frame in load_frames(count + offset)[offset:]:
-        data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])[1]
-        image = common_pb2.Image(data=data.tobytes(), encoding="jpeg", width=frame.shape[1],
-                                 height=frame.shape[0])
-        requests.append(detector_pb2.DetectRequest(image=image, labels=["person"]))
-    return requests
-
-
-async def generate(address: str, robots: int, window: Window, deadline_s: float,
-                   requests: list[detector_pb2.DetectRequest]) -> Tally:
-    phases = random.Random(robots).sample(range(100), robots)  # cameras out of step
-    fleet = [VirtualRobot(requests[i % 7:] + requests[:i % 7], window, deadline_s, p / 1e3)
-             for i, p in enumerate(phases)]
-    channels = [grpc.aio.insecure_channel(address) for _ in fleet]
-    first = window.start - STARTUP_S / 2  # warm up before the window
-    try:
-        await asyncio.gather(*(r.camera(first) for r in fleet),
-                             *(r.sender(detector_pb2_grpc.DetectorStub(c))
-                               for r, c in zip(fleet, channels, strict=True)))
-    finally:
-        await asyncio.gather(*(c.close() for c in channels))
-    total = Tally()
-    for robot in fleet:
-        total.add(robot.tally.__dict__)
-    return total
 
 
 @dataclass
