@@ -7,20 +7,25 @@ stream's extra frames are skipped, a file is played at that rate (without `fps`,
 it decodes). A file ends the route at its end, or starts again with `loop`; a stream or
 device that cannot be opened or stops sending is reopened with backoff, and each attempt is
 logged. RTSP runs over TCP unless OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g.
-"rtsp_transport;udp").
+"rtsp_transport;udp"). An HTTP URL that serves Motion JPEG is read without FFmpeg and its
+frames are handed on as the JPEG bytes that came (mjpeg.py); any other URL, FFmpeg decodes.
+URLs are logged without their user and password.
 """
 
 from __future__ import annotations
 
+import http.client
 import logging
 import os
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
+from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import Submit
+from oricf.gateway.sources.mjpeg import BadStream, MjpegStream, NotMjpeg, without_credentials
 from oricf.gateway.values import Frame
 
 log = logging.getLogger(__name__)
@@ -28,6 +33,30 @@ log = logging.getLogger(__name__)
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 10.0
 STREAM_TIMEOUT_MS = 5000
+
+
+# What a broken or stalled stream raises while it is read: the source reconnects.
+STREAM_ERRORS = (OSError, http.client.HTTPException, BadStream, InvalidInput)
+
+
+class Capture(Protocol):
+    def read(self) -> Frame | None: ...   # None: the source ended
+
+    def release(self) -> None: ...
+
+
+class FfmpegCapture:
+    """OpenCV's VideoCapture (FFmpeg, V4L2) as frames of decoded pixels."""
+
+    def __init__(self, capture: Any) -> None:
+        self._capture = capture
+
+    def read(self) -> Frame | None:
+        ok, pixels = self._capture.read()
+        return Frame.from_pixels(pixels) if ok else None
+
+    def release(self) -> None:
+        self._capture.release()
 
 
 def is_live(url: str) -> bool:
@@ -41,6 +70,8 @@ class VideoSource:
         assert config.url is not None
         self.route = route
         self.url = config.url
+        self.shown_url = without_credentials(config.url)
+        self._open_error = ""  # why the last attempt to open failed, when it is known
         self.config = config
         self.frames = 0
         self.reconnects = 0
@@ -56,7 +87,16 @@ class VideoSource:
         self._stop.set()
         self._thread.join(timeout)
 
-    def _open(self) -> Any:
+    def _open(self) -> Capture | None:
+        self._open_error = ""
+        if self.url.startswith(("http://", "https://")):
+            try:
+                return MjpegStream(self.url, STREAM_TIMEOUT_MS / 1e3)
+            except NotMjpeg:
+                pass  # another kind of stream: FFmpeg reads it
+            except STREAM_ERRORS as exc:
+                self._open_error = f" ({exc})"
+                return None
         import cv2
 
         if self.url.startswith("/dev/video") and self.url[len("/dev/video"):].isdigit():
@@ -73,7 +113,7 @@ class VideoSource:
                 cv2.CAP_PROP_N_THREADS, 1])
         else:
             capture = cv2.VideoCapture(os.path.expanduser(self.url))
-        return capture if capture.isOpened() else None
+        return FfmpegCapture(capture) if capture.isOpened() else None
 
     def _run(self) -> None:
         backoff = RECONNECT_MIN_S
@@ -81,35 +121,42 @@ class VideoSource:
             capture = self._open()
             if capture is None:
                 if not is_live(self.url):
-                    log.error("route %s: cannot open %s; the route ends", self.route, self.url)
+                    log.error("route %s: cannot open %s; the route ends", self.route,
+                              self.shown_url)
                     break
                 self.reconnects += 1
-                log.warning("route %s: cannot open %s; trying again in %.1f s", self.route,
-                            self.url, backoff)
+                log.warning("route %s: cannot open %s%s; trying again in %.1f s", self.route,
+                            self.shown_url, self._open_error, backoff)
                 self._stop.wait(backoff)
                 backoff = min(backoff * 2, RECONNECT_MAX_S)
                 continue
             if self.reconnects or is_live(self.url):
-                log.info("route %s: %s opened", self.route, self.url)
+                log.info("route %s: %s opened", self.route, self.shown_url)
             backoff = RECONNECT_MIN_S
-            ended = self._read(capture)
-            capture.release()
+            try:
+                ended = self._read(capture)
+            except STREAM_ERRORS as exc:
+                log.warning("route %s: %s: %s", self.route, self.shown_url, exc)
+                ended = True
+            finally:
+                capture.release()
             if ended and not is_live(self.url) and not self.config.loop:
-                log.info("route %s: %s ended after %d frames", self.route, self.url,
+                log.info("route %s: %s ended after %d frames", self.route, self.shown_url,
                          self.frames)
                 break
             if ended and is_live(self.url):
                 self.reconnects += 1
-                log.warning("route %s: %s stopped sending; reconnecting", self.route, self.url)
+                log.warning("route %s: %s stopped sending; reconnecting", self.route,
+                            self.shown_url)
         self._on_end(self.route)
 
-    def _read(self, capture: Any) -> bool:
+    def _read(self, capture: Capture) -> bool:
         """Hands frames over until the source ends (True) or the source is stopped (False)."""
         period = 1.0 / self.config.fps if self.config.fps else 0.0
         next_at = time.monotonic()
         while not self._stop.is_set():
-            ok, pixels = capture.read()
-            if not ok:
+            frame = capture.read()
+            if frame is None:
                 return True
             now = time.monotonic()
             if period and now < next_at:
@@ -118,7 +165,6 @@ class VideoSource:
                 self._stop.wait(next_at - now)  # a file plays at the capped rate
                 now = time.monotonic()
             next_at = max(next_at + period, now) if period else now
-            frame = Frame.from_pixels(pixels)
             self.frames += 1
             self._submit(lambda f=frame: {"image": f})
         return False
