@@ -175,6 +175,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=2,
                         help="each row measured this often, interleaved; medians printed")
     parser.add_argument("--deadline-ms", type=int, default=1000, help="each call's deadline")
+    parser.add_argument("--batching", choices=["both", "off", "on"], default="both",
+                        help="the configurations measured (off alone: a model that cannot "
+                             "batch, e.g. one OpenVINO runs at its file's own batch of 1)")
     parser.add_argument("--max-batch-size", type=int, default=8)
     parser.add_argument("--max-queue-delay-ms", type=float, default=5)
     parser.add_argument("--instances", type=int, default=2,
@@ -195,14 +198,17 @@ def main(argv: list[str] | None = None) -> int:
     requests = jpeg_requests(20, 0)
     declared = load_declaration(args.model) if args.model else shipped_detector_model()
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
-          f"{os.cpu_count()} cores; model {declared.name}, onnxruntime threads "
+          f"{os.cpu_count()} cores; model {declared.name}, {declared.backend.engine} threads "
           f"{args.threads or declared.backend.threads}")
     results: dict[tuple[int, str], list[Result]] = {}
     with tempfile.TemporaryDirectory() as tmp, ExitStack() as stack:
         model = {"model": str(model_with_threads(args.model, args.threads, Path(tmp))),
                  "server": {"max_concurrent_rpcs": args.max_concurrent_rpcs}}
         edges = []
-        for name, overrides in (("off", model), ("on", {**model, "batching": batching})):
+        configurations = [("off", model), ("on", {**model, "batching": batching})]
+        for name, overrides in configurations:
+            if args.batching not in ("both", name):
+                continue
             config = variant_config("detector", overrides, Path(tmp), f"batching-{name}")
             metrics = f"127.0.0.1:{free_port()}"
             address, process = stack.enter_context(served(
@@ -224,9 +230,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"{args.rounds} round(s); batching on: {batching}",
                 ["robots", "batching", "answered/s", "p50 ms", "p99 ms", "dropped", "errors",
                  "edge CPU", "mean batch"], [r.cells() for r in rows.values()])
-    print_table("Batching on / off", ["robots", "answered/s", "p99", "CPU per answer"],
-                ratios(rows))
-    for name in ("off", "on"):
+    if args.batching == "both":
+        print_table("Batching on / off", ["robots", "answered/s", "p99", "CPU per answer"],
+                    ratios(rows))
+    for name in ("off", "on") if args.batching == "both" else (args.batching,):
         served_ok = [r.robots for r in rows.values() if r.config == name and r.meets_goal]
         print(f"batching {name}: at {FPS} fps with p99 <= {GOAL_P99_MS:.0f} ms, up to "
               f"{max(served_ok, default=0)} robots (of {', '.join(map(str, counts))})")

@@ -91,14 +91,19 @@ class OpenVinoSession:
                               f"{', '.join(core.available_devices)})")
         config: dict[str, Any] = {"INFERENCE_PRECISION_HINT": settings.precision}
         if settings.device == "CPU":
-            config["INFERENCE_NUM_THREADS"] = settings.threads
+            # As onnxruntime runs concurrent calls side by side: `streams` inferences at once,
+            # each with `threads` threads (OpenVINO counts the threads of all streams).
+            config.update(NUM_STREAMS=settings.streams,
+                          INFERENCE_NUM_THREADS=settings.threads * settings.streams)
         self._compiled = core.compile_model(str(path), settings.device, config)
         self.inputs = [self._spec(port) for port in self._compiled.inputs]
         self.outputs = [self._spec(port) for port in self._compiled.outputs]
         self.runtime = f"openvino {ov.__version__}"
         self.devices = [settings.device]
-        self._request = self._compiled.create_infer_request()
-        self._lock = threading.Lock()  # one infer request, used by one call at a time
+        # An infer request serves one call at a time: one per calling thread, and at most
+        # `streams` inferences running (the others wait here, not inside OpenVINO).
+        self._requests = threading.local()
+        self._running = threading.BoundedSemaphore(settings.streams)
 
     @staticmethod
     def _spec(port: Any) -> TensorSpec:
@@ -107,8 +112,11 @@ class OpenVinoSession:
         return TensorSpec(port.get_any_name(), datatype.name, shape)
 
     def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        with self._lock:
-            results = self._request.infer(feeds)
+        request = getattr(self._requests, "request", None)
+        if request is None:
+            request = self._requests.request = self._compiled.create_infer_request()
+        with self._running:
+            results = request.infer(feeds)
             return {spec.name: np.array(results[port], copy=True)
                     for spec, port in zip(self.outputs, self._compiled.outputs, strict=True)}
 

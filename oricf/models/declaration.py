@@ -60,7 +60,9 @@ class OnnxRuntimeBackend(Schema):
 class OpenVinoBackend(Schema):
     engine: Literal["openvino"]
     device: str = Field("CPU", description="OpenVINO device: CPU, GPU, NPU, AUTO")
-    threads: int = Field(1, ge=1, le=64, description="inference threads (CPU)")
+    threads: int = Field(1, ge=1, le=64, description="inference threads (CPU), per stream")
+    streams: int = Field(1, ge=1, le=64, description="inferences that run at once (CPU): "
+                                                     "calls beyond them wait")
     precision: Literal["f32", "bf16", "f16"] = Field(
         "f32", description="inference precision: f32 agrees with onnxruntime; bf16 (the CPU "
                            "default where it has bfloat16 instructions) is faster but coarser")

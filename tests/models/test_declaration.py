@@ -133,6 +133,42 @@ def test_openvino_serves_the_same_model_within_tolerance(tmp_path: Path) -> None
     assert len(openvino.detect(prepared, 0.35).scores) == len(onnx.detect(prepared, 0.35).scores)
 
 
+def test_openvino_streams_run_concurrent_calls_side_by_side_with_the_same_answers(
+        tmp_path: Path) -> None:
+    """Several callers at once (a service's threads), each with an infer request of its own:
+    each gets its own image's answer; OpenVINO runs two streams of one thread each."""
+    import threading
+
+    import cv2
+
+    from tests.support.data import image
+
+    model = DeclaredModel(load_declaration(declared(tmp_path, {
+        "backend": {"engine": "openvino", "threads": 1, "streams": 2}})), ModelStore())
+    model.load()
+    photos = [model.prepare(cv2.imread(str(image(f)))) for f in ("person.jpg", "horses.jpg")]
+    alone = [model.infer(p.feeds)["output"] for p in photos]
+    assert float(abs(alone[0] - alone[1]).max()) > 0.1  # the two answers differ
+    compiled = model._session._compiled  # type: ignore[union-attr]
+    assert int(compiled.get_property("NUM_STREAMS")) == 2
+    assert int(compiled.get_property("INFERENCE_NUM_THREADS")) == 2
+    answers: dict[int, list] = {i: [] for i in range(4)}
+
+    def caller(i: int) -> None:
+        for _ in range(5):
+            answers[i].append(model.infer(photos[i % 2].feeds)["output"])
+
+    threads = [threading.Thread(target=caller, args=(i,)) for i in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(60)
+    for i, outputs in answers.items():
+        assert len(outputs) == 5
+        for output in outputs:
+            assert float(abs(output - alone[i % 2]).max()) < 1e-4
+
+
 def test_an_unavailable_openvino_device_is_refused_at_load(tmp_path: Path) -> None:
     path = declared(tmp_path, {"backend": {"engine": "openvino", "device": "NPU"}})
     with pytest.raises(ConfigError, match=r"backend\.device: NPU is not available"):
