@@ -64,17 +64,24 @@ def batch_sizes(service: RunningService, model: str) -> tuple[float, float]:
             found.value("oricf_batch_size_sum", **labels))
 
 
+def one_batch_and_alone(batched: RunningService, unbatched: RunningService, model: str,
+                        requests: list) -> list[tuple[dict, dict]]:
+    """The requests sent at once to the batching service, checked to run as one batch of
+    BATCH; each answer beside the unbatched service's answer to the same request."""
+    before = batch_sizes(batched, model)
+    answers = infer_all(batched, requests)
+    assert batch_sizes(batched, model) == (before[0] + 1, before[1] + BATCH)
+    alone = oip_grpc.GRPCInferenceServiceStub(unbatched.channel)
+    return [(got, response_outputs(alone.ModelInfer(request, timeout=WAIT_S)))
+            for request, got in zip(requests, answers, strict=True)]
+
+
 def test_detector_frames_of_four_callers_run_as_one_batch(
         batched: RunningService, unbatched: RunningService) -> None:
     model = unbatched.host.slot.peek().get("yolox-nano")
     requests = [infer_request("yolox-nano", model.prepare(f).feeds)
                 for f in video_frames([0, 200, 400, 600])]
-    before = batch_sizes(batched, "yolox-nano")
-    answers = infer_all(batched, requests)
-    assert batch_sizes(batched, "yolox-nano") == (before[0] + 1, before[1] + BATCH)
-    alone = oip_grpc.GRPCInferenceServiceStub(unbatched.channel)
-    for request, got in zip(requests, answers, strict=True):
-        want = response_outputs(alone.ModelInfer(request, timeout=WAIT_S))
+    for got, want in one_batch_and_alone(batched, unbatched, "yolox-nano", requests):
         assert got["output"].shape == (1, 3549, 85)
         np.testing.assert_allclose(got["output"], want["output"], rtol=0, atol=1e-3)
 
@@ -86,12 +93,7 @@ def test_requests_of_other_sizes_share_a_batch_but_not_a_run(
     second = np.random.default_rng(1).uniform(-1, 1, (1, 3, 48, 96)).astype(np.float32)
     requests = [infer_request("text-direction", {"x": x})
                 for x in (first, second, first[:, :, :, ::-1].copy(), second * 0.5)]
-    before = batch_sizes(batched, "text-direction")
-    answers = infer_all(batched, requests)
-    assert batch_sizes(batched, "text-direction") == (before[0] + 1, before[1] + BATCH)
-    alone = oip_grpc.GRPCInferenceServiceStub(unbatched.channel)
-    for request, got in zip(requests, answers, strict=True):
-        want = response_outputs(alone.ModelInfer(request, timeout=WAIT_S))
+    for got, want in one_batch_and_alone(batched, unbatched, "text-direction", requests):
         (name,) = want
         np.testing.assert_allclose(got[name], want[name], rtol=0, atol=1e-5)
 
