@@ -3,12 +3,12 @@ that measure or exercise the real service without starting another process."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from oricf.config import deep_merge, read_yaml, shipped_service_config, validate
+from oricf.config import deep_merge, read_with_overlays, shipped_service_config, validate
 from oricf.services import load_spec
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.server import ServiceHost
@@ -18,13 +18,15 @@ LOCAL_LISTEN = "127.0.0.1:0"
 
 
 def service_config(name: str, overrides: dict[str, Any] | None = None,
-                   path: Path | None = None) -> Any:
-    """A service's YAML (the shipped one by default) with overrides merged on top, listening
-    on a free local port; validated, errors naming the file."""
+                   path: Path | None = None, overlays: Iterable[Path] = ()) -> Any:
+    """A service's YAML (the shipped one by default) with overlay files and then overrides
+    merged on top, listening on a free local port; validated, errors naming the files."""
     path = path or shipped_service_config(name)
-    data = deep_merge(read_yaml(path), {"server": {"listen": LOCAL_LISTEN}})
+    data, sources = read_with_overlays(path, overlays)
+    data = deep_merge(data, {"server": {"listen": LOCAL_LISTEN}})
     data = deep_merge(data, overrides or {})
-    return validate(data, load_spec(name).config_schema, str(path), base_dir=path.parent)
+    return validate(data, load_spec(name).config_schema, " + ".join(sources),
+                    base_dir=path.parent)
 
 
 @contextmanager

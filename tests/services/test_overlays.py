@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
-from oricf.config import (
-    config_dir,
-    deep_merge,
-    read_with_overlays,
-    shipped_service_config,
-    validate,
-)
+from oricf.config import config_dir
 from oricf.imaging import encode_image
-from oricf.services import load_spec
-from oricf.services.runtime.local import LOCAL_LISTEN, local_service
+from oricf.services.runtime.local import local_service, service_config
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames
 from tests.support.services import CHANNEL_OPTIONS
@@ -21,17 +16,14 @@ from tests.support.services import CHANNEL_OPTIONS
 OVERLAYS = config_dir() / "services" / "overlays"
 
 
-def overlaid(service: str, overlay: str) -> object:
-    path = shipped_service_config(service)
-    data, sources = read_with_overlays(path, [OVERLAYS / overlay])
-    data = deep_merge(data, {"server": {"listen": LOCAL_LISTEN}})
-    return validate(data, load_spec(service).config_schema, " + ".join(sources), path.parent)
+def overlaid(service: str, overlay: str) -> Any:
+    return service_config(service, overlays=[OVERLAYS / overlay])
 
 
 @pytest.mark.parametrize("service", ["detector", "asr", "llm", "models"])
 @pytest.mark.parametrize("overlay", ["tls.yaml", "kubernetes.yaml"])
 def test_the_server_overlays_fit_every_service(service: str, overlay: str) -> None:
-    server = overlaid(service, overlay).server  # type: ignore[attr-defined]
+    server = overlaid(service, overlay).server
     if overlay == "tls.yaml":
         assert server.tls.client_ca is not None and server.auth.file is not None
         assert not server.reflection
@@ -44,7 +36,7 @@ def test_the_fleet_overlay_serves_the_320_model_to_many_robots() -> None:
 
     config = overlaid("detector", "fleet.yaml")
     assert config.model.resolve() == (config_dir() / "models" / "yolox-nano-320.yaml").resolve()
-    assert config.server.max_concurrent_rpcs >= 12  # type: ignore[attr-defined]
+    assert config.server.max_concurrent_rpcs >= 12
     (frame,) = video_frames([0], (640, 480))
     request = detector_pb2.DetectRequest(
         image=common_pb2.Image(data=encode_image(frame, "jpeg"), encoding="jpeg"),
