@@ -2,7 +2,7 @@
 or from a WAV file, each one sent to the route as an AudioClip (16 kHz mono).
 
 The audio is cut into utterances here, on the robot, by the ASR service's own voice-activity
-endpointing (Silero VAD, oricf.services.asr.endpointing) rather than streamed whole to
+endpointing (Silero VAD, oricf.audio.endpointing) rather than streamed whole to
 TranscribeStream: a route item is then one utterance, so each Transcribe call has its
 deadline, busy retries and fallback endpoint like every other call, only speech crosses the
 network (not 32 kB/s of room noise), and no long-lived stream holds one of the service's
@@ -33,8 +33,8 @@ from oricf.gateway.sources.wav import WavFile, is_wav_path
 from oricf.gateway.values import AudioClip, audio_clip
 
 if TYPE_CHECKING:
-    from oricf.services.asr.endpointing import Utterance
-    from oricf.services.asr.vad import SileroVad
+    from oricf.audio.endpointing import Utterance
+    from oricf.audio.vad import SileroVad
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +52,7 @@ def shared_vad() -> SileroVad:
     """One Silero session for every audio route (sessions are thread-safe); loaded on the
     first audio route, so a gateway without one never imports the ASR modules."""
     global _vad
-    from oricf.services.asr.vad import SileroVad
+    from oricf.audio.vad import SileroVad
 
     with _vad_lock:
         if _vad is None:
@@ -71,8 +71,7 @@ class Utterances:
     """int16 blocks of any rate and channel count -> 16 kHz mono utterances (AudioClips)."""
 
     def __init__(self, vad: SileroVad, settings: VadConfig) -> None:
-        from oricf.services.asr.config import EndpointingSettings
-        from oricf.services.asr.endpointing import Endpointer
+        from oricf.audio.endpointing import Endpointer, EndpointingSettings
 
         self._endpointer = Endpointer(vad.stream(), EndpointingSettings(**settings.model_dump()))
         self._resampler: Resampler | None = None

@@ -6,7 +6,7 @@ from typing import Any
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from oricf.audio import VadSettings
+from oricf.audio import EndpointingSettings
 from oricf.config import Schema, format_location
 from oricf.services.asr.recognizer import backend_class
 from oricf.services.runtime import ServiceConfig
@@ -41,12 +41,6 @@ class AsrModelSettings(Schema):
         except ValidationError as exc:
             problems = "; ".join(f"{format_location(e['loc'])}: {e['msg']}" for e in exc.errors())
             raise ValueError(f"{backend} options: {problems}") from None
-
-
-class EndpointingSettings(VadSettings):
-    """Voice-activity endpointing of TranscribeStream (Silero VAD, 32 ms windows)."""
-
-    vad_threads: int = Field(1, ge=1, le=8, description="onnxruntime threads of the VAD")
 
 
 class AudioSettings(Schema):

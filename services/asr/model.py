@@ -10,11 +10,11 @@ import logging
 
 import numpy as np
 
+from oricf.audio import EndpointingSettings
+from oricf.audio.endpointing import Endpointer
+from oricf.audio.vad import ASSET, SAMPLE_RATE, SileroVad
 from oricf.errors import ConfigError
-from oricf.services.asr.config import EndpointingSettings
-from oricf.services.asr.endpointing import Endpointer
 from oricf.services.asr.recognizer import Recognition, Recognizer
-from oricf.services.asr.vad import ASSET, SAMPLE_RATE, SileroVad
 from oricf.services.runtime import ModelInfo
 
 log = logging.getLogger(__name__)

@@ -9,9 +9,9 @@ from collections.abc import Iterator
 import grpc
 
 from oricf.audio import decode_audio, to_model_input
+from oricf.audio.endpointing import Utterance
 from oricf.errors import Cancelled, InvalidInput
 from oricf.services.asr.config import AsrConfig
-from oricf.services.asr.endpointing import Utterance
 from oricf.services.asr.model import SpeechModel
 from oricf.services.asr.recognizer import Recognition
 from oricf.services.asr.stream import StreamDecoder

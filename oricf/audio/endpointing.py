@@ -1,4 +1,5 @@
-"""Cuts a stream of 16 kHz audio into utterances by voice activity.
+"""Cuts a stream of 16 kHz audio into utterances by voice activity: the ASR service's
+TranscribeStream and the gateway's audio inputs cut speech the same way, with the same settings.
 
 Speech starts at the first window whose probability reaches `threshold`; it goes on while
 windows stay above a lower threshold (hysteresis keeps short dips inside a word from
@@ -15,15 +16,38 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field
 
-from oricf.services.asr.config import EndpointingSettings
-from oricf.services.asr.vad import SAMPLE_RATE, WINDOW, VadStream
+from oricf.audio.vad import SAMPLE_RATE, WINDOW, VadStream
+from oricf.config import Schema
 
 # Windows scored between two checks of the caller's deadline (about 2 s of audio).
 CHECK_EVERY = 64
 
 # Silero's own streaming iterator ends speech at threshold - 0.15.
 HYSTERESIS = 0.15
+
+
+class VadSettings(Schema):
+    """How audio is cut into utterances by voice activity (Silero VAD, 32 ms windows at
+    16 kHz): the ASR service's `endpointing:` and a gateway audio input's `vad:`."""
+
+    threshold: float = Field(0.5, gt=0, lt=1, description="speech probability that starts speech")
+    min_silence_ms: int = Field(
+        400, ge=32, le=10_000, description="this much silence ends an utterance")
+    speech_pad_ms: int = Field(
+        200, ge=0, le=2_000, description="audio kept before and after the detected speech")
+    min_speech_ms: int = Field(
+        200, ge=0, le=10_000, description="shorter bursts (clicks, coughs) are dropped")
+    max_utterance_s: float = Field(
+        20.0, gt=1, le=60, description="an utterance this long is cut and transcribed (keep "
+                                       "it under the ASR service's audio.max_audio_s)")
+
+
+class EndpointingSettings(VadSettings):
+    """VadSettings and the VAD's own threads: the ASR service's `endpointing:`."""
+
+    vad_threads: int = Field(1, ge=1, le=8, description="onnxruntime threads of the VAD")
 
 
 @dataclass(frozen=True)
@@ -44,7 +68,7 @@ def _ms_to_samples(ms: float) -> int:
 class Endpointer:
     """push() audio as it arrives and get back the utterances it completes; flush() at the end."""
 
-    def __init__(self, vad: VadStream, settings: EndpointingSettings) -> None:
+    def __init__(self, vad: VadStream, settings: VadSettings) -> None:
         self.vad = vad
         self.threshold = settings.threshold
         self.end_threshold = max(settings.threshold - HYSTERESIS, 0.01)

@@ -1,4 +1,4 @@
-"""Voice-activity endpointing with the real Silero VAD on real speech, and the service's config."""
+"""Voice-activity endpointing with the real Silero VAD on real speech."""
 
 from collections.abc import Iterator
 from itertools import pairwise
@@ -6,12 +6,9 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from oricf.audio import synthesize, to_float32
-from oricf.errors import ConfigError
-from oricf.services.asr.config import EndpointingSettings
-from oricf.services.asr.endpointing import Endpointer, Utterance
-from oricf.services.asr.vad import WINDOW, SileroVad
-from tests.support.services import service_config
+from oricf.audio import EndpointingSettings, synthesize, to_float32
+from oricf.audio.endpointing import Endpointer, Utterance
+from oricf.audio.vad import WINDOW, SileroVad
 
 RATE = 16000
 
@@ -93,30 +90,3 @@ def test_long_speech_is_cut_into_contiguous_pieces(vad: SileroVad, question: np.
 
 def test_silence_gives_nothing(vad: SileroVad) -> None:
     assert run(vad, np.zeros(3 * RATE, np.float32)) == []
-
-
-# --- config ---------------------------------------------------------------------------------
-
-def test_the_shipped_config_is_valid() -> None:
-    config = service_config("asr")
-    assert config.model.backend == "faster-whisper"
-    assert config.model.options.beam_size == 5 and config.model.options.compute_type == "int8"
-    assert config.endpointing.min_silence_ms == 400
-
-
-@pytest.mark.parametrize(("overrides", "message"), [
-    ({"model": {"backend": "vosk"}}, "model.backend: unknown back end 'vosk' (known: "
-                                     "faster-whisper)"),
-    ({"model": {"options": {"beam_sise": 2}}}, "model.options: faster-whisper options: "
-                                               "beam_sise: Extra inputs are not permitted"),
-    ({"model": {"options": {"beam_size": 0}}}, "beam_size: Input should be greater than"),
-    ({"model": {"threads": 0}}, "model.threads: Input should be greater than or equal to 1"),
-    ({"endpointing": {"threshold": 1.5}}, "endpointing.threshold"),
-    ({"endpointing": {"max_utterance_s": 40}}, "max_utterance_s must not exceed"),
-    ({"audio": {"max_seconds": 3}}, "audio.max_seconds: unknown key"),
-])
-def test_bad_config_names_the_key(overrides: dict, message: str) -> None:
-    with pytest.raises(ConfigError) as error:
-        service_config("asr", overrides)
-    assert "asr.yaml" in str(error.value)
-    assert message in str(error.value)
