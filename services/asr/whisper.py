@@ -17,12 +17,11 @@ from pydantic import Field
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput, NotReady
-from oricf.services.asr.recognizer import Recognition
+from oricf.services.asr.recognizer import AsrModelSettings, Recognition
 from oricf.services.asr.short_window import ShortWindowDecoder
 from oricf.services.runtime import ModelInfo
 
-if TYPE_CHECKING:  # the config module imports this one while validating its defaults
-    from oricf.services.asr.config import AsrModelSettings
+if TYPE_CHECKING:
     from oricf.store import ModelStore
 
 log = logging.getLogger(__name__)

@@ -7,7 +7,7 @@ import pytest
 
 from oricf.audio import synthesize, to_float32
 from oricf.errors import InvalidInput, NotReady
-from oricf.services.asr.config import AsrModelSettings
+from oricf.services.asr.recognizer import AsrModelSettings
 from oricf.services.asr.short_window import ShortWindowDecoder, ends_in_a_loop
 from oricf.services.asr.whisper import WhisperRecognizer
 from oricf.store import ModelStore
