@@ -1,7 +1,9 @@
-"""Regenerates the Python stubs from protos/: `python -m oricf.protogen`.
+"""Regenerates the Python stubs from protos/: `.venv/bin/python scripts/protogen.py`.
 
 The stubs are committed next to the .proto files so that installing ORICF needs no
 code generator; tests/test_protos.py fails when they are stale. Never edit them by hand.
+This works in a checkout only (it reads protos/ beside scripts/); it needs grpcio-tools,
+which the dev extra installs.
 """
 
 from __future__ import annotations
@@ -14,12 +16,10 @@ PROTO_ROOT = Path(__file__).resolve().parent.parent / "protos"
 
 
 def proto_files(root: Path = PROTO_ROOT) -> list[Path]:
-    """Every .proto under root; none is an error (an installed wheel has no protos/ beside
-    it: the stubs are generated in a checkout)."""
+    """Every .proto under root; none is an error."""
     files = sorted((root / "oricf").rglob("*.proto"))
     if not files:
-        raise FileNotFoundError(f"no .proto files under {root / 'oricf'}: run "
-                                f"`python -m oricf.protogen` in a checkout of ORICF")
+        raise FileNotFoundError(f"no .proto files under {root / 'oricf'}")
     return files
 
 
