@@ -10,7 +10,7 @@ from typing import Any
 import grpc
 
 from oricf.services.runtime import ServiceHost
-from oricf.services.runtime.local import local_service, service_config
+from oricf.bench.local import local_service, service_config
 from oricf.store import ModelStore
 
 __all__ = ["RunningService", "running_service", "service_config"]
