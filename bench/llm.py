@@ -27,8 +27,8 @@ from typing import Any
 
 import grpc
 
-from oricf.config import shipped_service_config
 from oricf.bench.local import local_service, service_config
+from oricf.config import shipped_service_config
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
 MODELS = ("gemma3-270m", "smollm2-135m-instruct")

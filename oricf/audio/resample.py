@@ -10,7 +10,6 @@ import numpy as np
 
 from oricf.audio.pcm import MODEL_RATE, PcmAudio, check_format, mix_down, to_float32
 
-
 # Windowed-sinc interpolation: ZERO_CROSSINGS lobes each side of the low-pass kernel, and
 # at most MAX_PHASES precomputed fractional offsets (an offset error below 1/2048 of a
 # sample is inaudible and keeps the table small for awkward rate ratios like 44056 Hz).

@@ -9,8 +9,8 @@ from typing import Any
 
 import grpc
 
-from oricf.services.runtime import ServiceHost
 from oricf.bench.local import local_service, service_config
+from oricf.services.runtime import ServiceHost
 from oricf.store import ModelStore
 
 __all__ = ["RunningService", "running_service", "service_config"]
