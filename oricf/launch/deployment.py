@@ -55,14 +55,6 @@ class Gateway(Schema):
     env: dict[str, str] = Field(default_factory=dict)
     restart: Restart = Restart()
 
-    @model_validator(mode="before")
-    @classmethod
-    def _no_profile(cls, data: Any) -> Any:
-        if isinstance(data, dict) and "profile" in data:
-            raise ValueError("profile: removed; list the placement overlay file in overlays "
-                             "(configs/pipelines/placement/)")
-        return data
-
 
 class Deployment(Schema):
     description: str = ""

@@ -1,15 +1,13 @@
 """Whisper on a window shorter than 30 s: the fast path for short spoken queries.
 
 faster-whisper always pads the audio's features to Whisper's 30 s window, and the encoder's
-cost grows faster than linearly with the window (about 4x between 30 s and 10 s here).
-CTranslate2 accepts shorter windows. Measured on synthesized queries, Whisper keeps its
-accuracy while the audio fills at most about a quarter of the window; fuller windows make
-it repeat itself instead of ending. So the window is 4x the audio and at least
-`min_window_s`, and a result that looks repetitive, or has more tokens than speech of that
-length could have, returns None: the caller then decodes again with the full window (as
-faster-whisper's own fallback does).
-Over 210 synthesized queries (5 voices, 2 speaking rates) the word error rate was the same
-as with the full window (14.2% against 14.4%) at a third to a quarter of the median latency.
+cost grows faster than linearly with the window. CTranslate2 accepts shorter windows.
+Whisper keeps its accuracy while the audio fills at most about a quarter of the window;
+fuller windows make it repeat itself instead of ending. So the window is 4x the audio and at
+least `min_window_s`, and a result that looks repetitive, or has more tokens than speech of
+that length could have, returns None: the caller then decodes again with the full window (as
+faster-whisper's own fallback does). `oricf bench asr` compares it with the full window
+(docs/benchmarks.md).
 """
 
 from __future__ import annotations

@@ -174,8 +174,6 @@ def test_a_remote_endpoint_the_pipeline_lacks_is_refused(tmp_path: Path) -> None
     ({"remote": {"asr": {"address": "edge:50052"}}, "gateway": {"config": "x.yaml"}},
      "remote: a list of the gateway's endpoint names to wait for; their addresses come from "
      "its pipeline and overlays (configs/pipelines/placement/), not from the deployment"),
-    ({"gateway": {"config": "x.yaml", "profile": "edge"}},
-     "gateway: profile: removed; list the placement overlay file in overlays"),
     ({}, "nothing to run"),
     ({"services": {"camera": {}}}, "services.camera"),
     ({"services": {"detector": {"listen": "localhost"}}}, "services.detector.listen"),
