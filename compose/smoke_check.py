@@ -47,7 +47,7 @@ def llm_request() -> dict[str, Any]:
 
 
 def detector_check(reply: dict[str, Any]) -> str | None:
-    people = int(reply.get("counts", {}).get("person", 0))
+    people = sum(d.get("label") == "person" for d in reply.get("detections", []))
     return None if people >= 1 else f"no person found in person.jpg: {reply}"
 
 
@@ -171,7 +171,9 @@ def main(argv: list[str]) -> int:
     if problem:
         print(f"FAIL {service}: {problem[:500]}")
         return 1
-    shown = {k: v for k, v in reply.items() if k in ("counts", "text", "timings")}
+    shown = {k: v for k, v in reply.items() if k in ("text", "timings")}
+    if "detections" in reply:
+        shown["labels"] = [d.get("label") for d in reply["detections"]]
     print(f"ok   {service}: {json.dumps(shown)}")
     return 0
 

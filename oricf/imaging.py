@@ -43,8 +43,8 @@ class Detection:
 def label_counts(detections: Iterable[Detection], labels: Iterable[str] = ()) -> dict[str, int]:
     """Detections per label; each of `labels` is present, at 0 when none was found.
 
-    The one way detections are counted: the detector's response and the gateway's
-    post-processors both count with this, so counts agree with the detections beside them.
+    The one way detections are counted: the gateway's post-processing steps count with this
+    (a model service returns detections, never counts), so counts agree with the detections.
     """
     counts = dict.fromkeys(labels, 0)
     counts.update(Counter(d.label for d in detections))

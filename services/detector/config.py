@@ -1,8 +1,6 @@
-"""configs/services/detector.yaml: the server, which declared model, and its label policy."""
+"""configs/services/detector.yaml: the server, which declared model, and its default filter."""
 
 from __future__ import annotations
-
-from typing import Literal
 
 from pydantic import Field
 
@@ -16,16 +14,11 @@ class DetectionSettings(Schema):
     min_score: float | None = Field(
         None, gt=0, le=1, description="default minimum score (default: the model's own)")
     labels: list[str] = Field(
-        default_factory=list,
-        description="labels kept when a request names none (empty: all); after label_map")
-    label_map: dict[str, str] = Field(
-        default_factory=dict, description="rename model labels, e.g. {person: human}")
+        default_factory=list, description="labels kept when a request names none (empty: all)")
 
 
 class ImageSettings(Schema):
     max_pixels: int = Field(MAX_PIXELS, ge=1, description="refuse larger images")
-    annotate_jpeg_quality: int = Field(85, ge=1, le=100)
-    default_annotate_encoding: Literal["jpeg", "png", "rgb8", "bgr8"] = "jpeg"
 
 
 class DetectorConfig(ServiceConfig):

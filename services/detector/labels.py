@@ -1,9 +1,9 @@
-"""Label mapping and label filters for the detector."""
+"""The detector's label filter: which of the model's classes a request keeps."""
 
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -13,19 +13,11 @@ from oricf.models.heads import Detections
 
 
 class LabelSpace:
-    """The detector's output labels: model labels renamed by a label map.
+    """The detector's labels: the model's own, as its declaration lists them (renaming
+    them is the gateway's `map_labels` step). A label listed twice keeps both classes."""
 
-    Several model labels may map to one output label (car, truck -> vehicle); a filter on
-    that label then keeps all of them.
-    """
-
-    def __init__(self, model_labels: Sequence[str], label_map: Mapping[str, str],
-                 default_labels: Sequence[str]) -> None:
-        unknown = sorted(set(label_map) - set(model_labels))
-        if unknown:
-            raise ConfigError(f"detection.label_map: the model has no label(s) "
-                              f"{', '.join(unknown)}")
-        self.names = [label_map.get(label, label) for label in model_labels]
+    def __init__(self, model_labels: Sequence[str], default_labels: Sequence[str]) -> None:
+        self.names = list(model_labels)
         self._ids: dict[str, list[int]] = {}
         for class_id, name in enumerate(self.names):
             self._ids.setdefault(name, []).append(class_id)
@@ -38,8 +30,8 @@ class LabelSpace:
     def labels(self) -> list[str]:
         return list(self._ids)
 
-    def resolve(self, requested: Sequence[str]) -> tuple[list[str], np.ndarray | None]:
-        """The labels a request keeps and their class ids (None: every class)."""
+    def resolve(self, requested: Sequence[str]) -> np.ndarray | None:
+        """The class ids a request keeps (None: every class)."""
         labels = list(dict.fromkeys(requested)) or self.default_labels
         unknown = [label for label in labels if label not in self._ids]
         if unknown:
@@ -49,9 +41,9 @@ class LabelSpace:
             raise InvalidInput(f"unknown label {described}; the detector knows "
                                f"{len(self._ids)} labels (see GetModelInfo)")
         if not labels:
-            return [], None
+            return None
         ids = sorted(i for label in labels for i in self._ids[label])
-        return labels, np.array(ids, dtype=np.int64)
+        return np.array(ids, dtype=np.int64)
 
     def detections(self, raw: Detections) -> list[Detection]:
         return [

@@ -28,7 +28,7 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
     task = slot.peek().declaration.task  # create_model checked it is a detection task
     assert isinstance(task, DetectionTask)
     detection = config.detection
-    labels = LabelSpace(task.label_list(), detection.label_map, detection.labels)
+    labels = LabelSpace(task.label_list(), detection.labels)
     min_score = detection.min_score or task.min_score
     batcher = None
     if config.batching is not None:

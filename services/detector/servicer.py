@@ -1,4 +1,7 @@
-"""oricf.v1.Detector: turns requests into domain values, calls the model, and back."""
+"""oricf.v1.Detector: turns requests into domain values, calls the model, and back.
+
+It returns detections only: counting, renaming labels and drawing boxes are the gateway's
+post-processing steps, so each result has one owner whichever method produced it."""
 
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ import grpc
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.imaging import Detection, decode_image, draw_detections, encode_image, label_counts
+from oricf.imaging import Detection, decode_image
 from oricf.models.heads import Detections, Prepared
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
@@ -28,7 +31,6 @@ from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
-ANNOTATE_ENCODINGS = ("jpeg", "png", "rgb8", "bgr8")
 PREFETCH = 2  # frames of a stream prepared ahead of the one in the network
 
 
@@ -37,12 +39,11 @@ class Frame:
     """A request checked, decoded and letterboxed: ready for the network."""
 
     frame_id: int
-    image: np.ndarray
+    width: int
+    height: int
     prepared: Prepared
-    labels: list[str]
     class_ids: np.ndarray | None
     min_score: float
-    annotate_encoding: str
     started: float
     decode_ms: float
 
@@ -130,33 +131,23 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         started = time.perf_counter()
         model = self.slot.get()
         min_score = self._min_score(request.min_score)
-        labels, class_ids = self.labels.resolve(request.labels)
-        annotate_encoding = self._annotate_encoding(request)
+        class_ids = self.labels.resolve(request.labels)
         image = decode_image(request.image.data, request.image.encoding, request.image.width,
                              request.image.height, self.config.images.max_pixels)
         decode_ms = (time.perf_counter() - started) * 1e3
-        return Frame(request.frame_id, image, model.prepare(image), labels, class_ids,
-                     min_score, annotate_encoding, started, decode_ms)
+        return Frame(request.frame_id, image.shape[1], image.shape[0], model.prepare(image),
+                     class_ids, min_score, started, decode_ms)
 
     def respond(self, frame: Frame, context: grpc.ServicerContext | None = None,
                 cancel: bool = True) -> detector_pb2.DetectResponse:
         """The network (alone or in a batch), decoding its output, and the response."""
         raw = self._detections(frame, context, cancel)
-        detections = self.labels.detections(raw)
-        image = frame.image
         response = detector_pb2.DetectResponse(
-            detections=[_detection_pb(d) for d in detections],
-            counts=label_counts(detections, frame.labels),
+            detections=[_detection_pb(d) for d in self.labels.detections(raw)],
             frame_id=frame.frame_id,
-            image_width=image.shape[1],
-            image_height=image.shape[0],
+            image_width=frame.width,
+            image_height=frame.height,
         )
-        if frame.annotate_encoding:
-            canvas = draw_detections(image, detections)
-            quality = self.config.images.annotate_jpeg_quality
-            response.annotated.CopyFrom(common_pb2.Image(
-                data=encode_image(canvas, frame.annotate_encoding, quality),
-                encoding=frame.annotate_encoding, width=canvas.shape[1], height=canvas.shape[0]))
         timings = response.timings
         timings.decode_ms = frame.decode_ms
         timings.preprocess_ms = raw.timings_ms["preprocess_ms"]
@@ -180,15 +171,6 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
             raise InvalidInput(f"min_score {requested} is out of range: use (0, 1], or 0 for the "
                                f"service default ({self.default_min_score})")
         return requested
-
-    def _annotate_encoding(self, request: detector_pb2.DetectRequest) -> str:
-        if not request.annotate:
-            return ""
-        encoding = request.annotate_encoding or self.config.images.default_annotate_encoding
-        if encoding not in ANNOTATE_ENCODINGS:
-            raise InvalidInput(f"annotate_encoding '{encoding}' is not one of "
-                               f"{', '.join(ANNOTATE_ENCODINGS)}")
-        return encoding
 
 
 def _detection_pb(detection: Detection) -> detector_pb2.Detection:

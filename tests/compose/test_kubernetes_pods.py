@@ -19,6 +19,7 @@ from oricf.tls import ClientTls
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.compose.kubernetes import Document, by_kind, file_contents, render, workspace
 from tests.support.data import image
+from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 
 PODS = ["detector", "asr", "llm", "oricf-models/yolox-nano"]
@@ -108,7 +109,7 @@ def test_the_pod_serves_as_rendered(cluster: tuple[Path, list[Document]], pod_na
                     data=image("person.jpg").read_bytes(), encoding="jpeg"), labels=["person"])
                 reply = detector_pb2_grpc.DetectorStub(channel).Detect(request, timeout=10,
                                                                        metadata=token)
-                assert reply.counts["person"] == 1
+                assert count(reply, "person") == 1
             if isvc:
                 stub = oip_grpc.GRPCInferenceServiceStub(channel)
                 ready = stub.ModelReady(oip.ModelReadyRequest(name=isvc), timeout=10,

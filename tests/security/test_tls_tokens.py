@@ -22,6 +22,7 @@ from oricf.tls import ClientTls, make_certificates
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.test_pipeline import FRAMES, pipeline_config, run_frames
 from tests.support.data import video_frames
+from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 from tests.support.services import RunningService, running_service
 
@@ -96,7 +97,7 @@ def test_mtls_and_a_token_are_both_required(secured: RunningService, certs: Path
     with client_tls(certs).channel(address, []) as mtls:
         assert code_of(mtls, None) == grpc.StatusCode.UNAUTHENTICATED
         assert code_of(mtls, "guess") == grpc.StatusCode.PERMISSION_DENIED
-        assert detect(mtls, TOKEN).counts["person"] == 4
+        assert count(detect(mtls, TOKEN), "person") == 4
         health = health_pb2_grpc.HealthStub(mtls).Check(health_pb2.HealthCheckRequest(),
                                                         timeout=5)
         assert health.status == health_pb2.HealthCheckResponse.SERVING  # no token needed

@@ -11,6 +11,7 @@ from oricf.config import config_dir
 from oricf.imaging import encode_image
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames
+from tests.support.detections import count
 from tests.support.services import CHANNEL_OPTIONS
 
 OVERLAYS = config_dir() / "services" / "overlays"
@@ -48,5 +49,5 @@ def test_the_fleet_overlay_serves_the_320_model_to_many_robots() -> None:
         response = stub.Detect(request)
     assert info.model == "yolox-nano-320"
     # The first frame of the pedestrian video: three people walk in it.
-    assert response.counts["person"] >= 3
+    assert count(response, "person") >= 3
     assert (response.image_width, response.image_height) == (640, 480)

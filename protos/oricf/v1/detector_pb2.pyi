@@ -8,20 +8,16 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class DetectRequest(_message.Message):
-    __slots__ = ("image", "labels", "min_score", "annotate", "annotate_encoding", "frame_id")
+    __slots__ = ("image", "labels", "min_score", "frame_id")
     IMAGE_FIELD_NUMBER: _ClassVar[int]
     LABELS_FIELD_NUMBER: _ClassVar[int]
     MIN_SCORE_FIELD_NUMBER: _ClassVar[int]
-    ANNOTATE_FIELD_NUMBER: _ClassVar[int]
-    ANNOTATE_ENCODING_FIELD_NUMBER: _ClassVar[int]
     FRAME_ID_FIELD_NUMBER: _ClassVar[int]
     image: _common_pb2.Image
     labels: _containers.RepeatedScalarFieldContainer[str]
     min_score: float
-    annotate: bool
-    annotate_encoding: str
     frame_id: int
-    def __init__(self, image: _Optional[_Union[_common_pb2.Image, _Mapping]] = ..., labels: _Optional[_Iterable[str]] = ..., min_score: _Optional[float] = ..., annotate: _Optional[bool] = ..., annotate_encoding: _Optional[str] = ..., frame_id: _Optional[int] = ...) -> None: ...
+    def __init__(self, image: _Optional[_Union[_common_pb2.Image, _Mapping]] = ..., labels: _Optional[_Iterable[str]] = ..., min_score: _Optional[float] = ..., frame_id: _Optional[int] = ...) -> None: ...
 
 class BoundingBox(_message.Message):
     __slots__ = ("x_min", "y_min", "x_max", "y_max")
@@ -48,28 +44,17 @@ class Detection(_message.Message):
     def __init__(self, label: _Optional[str] = ..., class_id: _Optional[int] = ..., score: _Optional[float] = ..., box: _Optional[_Union[BoundingBox, _Mapping]] = ...) -> None: ...
 
 class DetectResponse(_message.Message):
-    __slots__ = ("detections", "counts", "annotated", "timings", "frame_id", "image_width", "image_height", "error")
-    class CountsEntry(_message.Message):
-        __slots__ = ("key", "value")
-        KEY_FIELD_NUMBER: _ClassVar[int]
-        VALUE_FIELD_NUMBER: _ClassVar[int]
-        key: str
-        value: int
-        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    __slots__ = ("detections", "timings", "frame_id", "image_width", "image_height", "error")
     DETECTIONS_FIELD_NUMBER: _ClassVar[int]
-    COUNTS_FIELD_NUMBER: _ClassVar[int]
-    ANNOTATED_FIELD_NUMBER: _ClassVar[int]
     TIMINGS_FIELD_NUMBER: _ClassVar[int]
     FRAME_ID_FIELD_NUMBER: _ClassVar[int]
     IMAGE_WIDTH_FIELD_NUMBER: _ClassVar[int]
     IMAGE_HEIGHT_FIELD_NUMBER: _ClassVar[int]
     ERROR_FIELD_NUMBER: _ClassVar[int]
     detections: _containers.RepeatedCompositeFieldContainer[Detection]
-    counts: _containers.ScalarMap[str, int]
-    annotated: _common_pb2.Image
     timings: _common_pb2.Timings
     frame_id: int
     image_width: int
     image_height: int
     error: _common_pb2.Error
-    def __init__(self, detections: _Optional[_Iterable[_Union[Detection, _Mapping]]] = ..., counts: _Optional[_Mapping[str, int]] = ..., annotated: _Optional[_Union[_common_pb2.Image, _Mapping]] = ..., timings: _Optional[_Union[_common_pb2.Timings, _Mapping]] = ..., frame_id: _Optional[int] = ..., image_width: _Optional[int] = ..., image_height: _Optional[int] = ..., error: _Optional[_Union[_common_pb2.Error, _Mapping]] = ...) -> None: ...
+    def __init__(self, detections: _Optional[_Iterable[_Union[Detection, _Mapping]]] = ..., timings: _Optional[_Union[_common_pb2.Timings, _Mapping]] = ..., frame_id: _Optional[int] = ..., image_width: _Optional[int] = ..., image_height: _Optional[int] = ..., error: _Optional[_Union[_common_pb2.Error, _Mapping]] = ...) -> None: ...

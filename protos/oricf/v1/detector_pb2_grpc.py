@@ -56,7 +56,7 @@ class DetectorServicer:
     """Missing associated documentation comment in .proto file."""
 
     def Detect(self, request, context):
-        """One image in, its detections and per-label counts out.
+        """One image in, its detections out.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')

@@ -15,6 +15,7 @@ from grpc_health.v1 import health_pb2, health_pb2_grpc
 from oricf.config import REPO_ROOT
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
+from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 from tests.support.services import running_service
 
@@ -46,7 +47,7 @@ def test_health_is_serving_only_once_the_model_has_loaded() -> None:
         service.host.load_model()
         assert health(service.channel) == SERVING
         assert health(service.channel, "oricf.v1.Detector") == SERVING
-        assert stub.Detect(person_request(), timeout=5).counts["person"] == 1
+        assert count(stub.Detect(person_request(), timeout=5), "person") == 1
 
 
 def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
@@ -59,7 +60,7 @@ def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
             release.wait(10)
 
         stream = stub.DetectStream(held_open(), timeout=20)
-        assert next(stream).counts["person"] == 1  # the one allowed call is now in flight
+        assert count(next(stream), "person") == 1  # the one allowed call is now in flight
         with pytest.raises(grpc.RpcError) as err:
             stub.Detect(person_request(), timeout=10)
         # Refused while the allowed call is still held open: not queued behind it.
@@ -72,7 +73,7 @@ def test_calls_over_the_concurrency_limit_are_refused_at_once() -> None:
         assert health_stub.Check(health_pb2.HealthCheckRequest(), timeout=5).status == SERVING
         release.set()
         assert list(stream) == []
-        assert stub.Detect(person_request(), timeout=10).counts["person"] == 1
+        assert count(stub.Detect(person_request(), timeout=10), "person") == 1
 
 
 def test_sigterm_drains_in_flight_calls_and_exits_zero() -> None:
@@ -97,7 +98,7 @@ def test_sigterm_drains_in_flight_calls_and_exits_zero() -> None:
         responses = list(detector_pb2_grpc.DetectorStub(channel).DetectStream(frames(), timeout=30))
         assert terminated.is_set()
         assert [r.frame_id for r in responses] == [1, 2, 3]
-        assert all(r.counts["person"] == 1 for r in responses)
+        assert all(count(r, "person") == 1 for r in responses)
         assert next(watch).status == NOT_SERVING
         assert process.wait(timeout=20) == 0
         channel.close()

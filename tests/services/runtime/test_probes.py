@@ -16,6 +16,7 @@ from oricf.errors import ConfigError
 from oricf.tls import ClientTls, make_certificates
 from oricf.v1 import detector_pb2_grpc
 from tests.services.runtime.test_lifecycle import person_request
+from tests.support.detections import count
 from tests.support.metrics import scrape
 from tests.support.processes import free_port
 from tests.support.services import running_service
@@ -94,7 +95,7 @@ def test_health_watchers_hold_no_threads_of_the_service() -> None:
     with running_service("detector", overrides) as service:
         streams = watch_streams(service.channel, 10)
         stub = detector_pb2_grpc.DetectorStub(service.channel)
-        assert stub.Detect(person_request(), timeout=5).counts["person"] == 1
+        assert count(stub.Detect(person_request(), timeout=5), "person") == 1
         assert service.host.metrics_server is not None
         url = service.host.metrics_server.url
         labels = {"grpc_service": "grpc.health.v1.Health", "grpc_method": "Watch"}
@@ -134,9 +135,9 @@ def test_connections_are_closed_at_their_max_age() -> None:
         states_of = connectivity(service.channel)
         states = next(states_of)
         stub = detector_pb2_grpc.DetectorStub(service.channel)
-        assert stub.Detect(person_request(), timeout=5).counts["person"] == 1
+        assert count(stub.Detect(person_request(), timeout=5), "person") == 1
         time.sleep(1.5)
         assert grpc.ChannelConnectivity.IDLE in states[states.index(
             grpc.ChannelConnectivity.READY):]
-        assert stub.Detect(person_request(), timeout=5).counts["person"] == 1
+        assert count(stub.Detect(person_request(), timeout=5), "person") == 1
         next(states_of, None)
