@@ -69,8 +69,9 @@ from oricf.bench.gateway_report import (
 )
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
-from oricf.gateway.config import EndpointConfig, load_pipeline
-from oricf.gateway.dds import dds_profile
+from oricf.gateway.config import load_pipeline
+from oricf.gateway.endpoints import EndpointConfig
+from oricf.gateway.ros.dds import dds_profile
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
 from oricf.v1 import detector_pb2, detector_pb2_grpc
@@ -169,7 +170,7 @@ class Camera:
         """The message the camera publishes, and the same image as a direct Detect request."""
         from sensor_msgs.msg import CompressedImage
 
-        from oricf.gateway.convert import image_from_pixels
+        from oricf.gateway.ros.messages import image_from_pixels
 
         if not self.compressed:
             image = Frame.from_pixels(frame)

@@ -105,7 +105,7 @@ def first_video_frame() -> Any:
 
 def first_count(node: Any, frame: Any, deadline: float) -> int | None:
     """Publishes the frame twice a second until the gateway counts it."""
-    from oricf.gateway.convert import image_from_pixels
+    from oricf.gateway.ros.messages import image_from_pixels
     from oricf.launch.demo_node import COUNT
 
     while time.monotonic() < deadline:

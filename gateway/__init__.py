@@ -1,9 +1,13 @@
-"""The ROS 2 gateway: topics -> model services -> topics, wired by a pipeline YAML.
+"""The gateway: inputs -> model services -> outputs, wired by a pipeline YAML.
 
-Pure core (no ROS import): config (the YAML schema), values, cdr (camera frames read from
-their serialized bytes), calls, post, products, endpoints (deadlines, failover), worker,
-route, pipeline. The ROS shell: node, camera (camera routes' receive threads) and convert
-(rclpy and message types), roslog (the log on /rosout), rosparams (the node's parameters),
-main (`oricf gateway`, `ros2 run oricf_gateway gateway`). Importing this package imports
-nothing.
+The core, at this level, imports no ROS: `config` (the pipeline YAML), `values` (frames,
+audio clips, records), `products` (data products), `endpoints` (deadlines, retries,
+failover; `replicas`), `route` (input -> method -> post steps -> outputs), `worker` (a
+thread per route), `pipeline` (all of it), `metrics`, `throttle`. Around it, a package per
+concern: `methods/` (one module per method: Detect, Transcribe, Generate, Infer), `post/`
+(one module per post step), `sources/` and `sinks/` (inputs and outputs that are no ROS
+topics), `text_channels` (the line-based TCP text server), `recording/` (MCAP record and
+replay, CDR, message definitions), `ros/` (the rclpy node, cameras, parameters, /rosout,
+the DDS profile). `main` is `oricf gateway`; `without_ros` runs a pipeline with no topics.
+Importing this package imports nothing. docs/architecture.md walks through it.
 """

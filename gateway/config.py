@@ -23,28 +23,20 @@ data product, a record field) is checked at load time.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
-from functools import cached_property
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from oricf.audio import VadSettings
-from oricf.config import (
-    FilePath,
-    Schema,
-    check_address,
-    read_with_overlays,
-    resolve_path,
-    validate,
-)
+from oricf.config import Schema, read_with_overlays, resolve_path, validate
 from oricf.errors import ConfigError
-from oricf.gateway.methods import METHODS
-from oricf.gateway.replicas import check_target, several_addresses
+from oricf.gateway.endpoints import EndpointConfig
+from oricf.gateway.methods import METHODS, CallConfig
+from oricf.gateway.post import PostStep
+from oricf.gateway.text_channels import ChannelConfig
 from oricf.metrics import MetricsConfig
-from oricf.models.declaration import ModelDeclaration, load_declaration
-from oricf.tls import ClientTls, ServerTls, TokenSource
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
@@ -60,48 +52,6 @@ IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
 SOURCE_KEYS = ("topic", "product", "url", "audio", "text")
 # The keys of OutputConfig that name a sink; an output has exactly one.
 SINK_KEYS = ("topic", "product", "jsonl", "text", "frames")
-
-
-class ImageTransport(Schema):
-    transport: Literal["raw", "jpeg"] = Field(
-        "raw", description="raw pixels (onboard: no encode cost) or jpeg (remote: less bandwidth)")
-    jpeg_quality: int = Field(80, ge=1, le=100)
-
-
-class RetryConfig(Schema):
-    """Retries of a call the service refused as busy (RESOURCE_EXHAUSTED), within its
-    deadline: wait the service's pushback, or exponential backoff with jitter if longer."""
-
-    attempts: int = Field(2, ge=0, le=10, description="retries after the first refusal")
-    initial_backoff_ms: int = Field(50, ge=1, le=60_000)
-    max_backoff_ms: int = Field(1000, ge=1, le=600_000)
-
-
-class EndpointConfig(Schema):
-    address: str = Field(description="host:port, or replicas to balance over: "
-                                     "dns:///NAME:PORT, ipv4:IP:PORT,IP:PORT,... "
-                                     "(gateway/replicas.py)")
-    fallback: str | None = Field(None, description="used while the primary is unavailable")
-    deadline_ms: int = Field(1000, gt=0, le=600_000, description="per call")
-    probe_interval_s: float = Field(
-        1.0, gt=0, le=60, description="health probe of the primary while on the fallback")
-    image: ImageTransport = ImageTransport()
-    retry: RetryConfig = RetryConfig()
-    tls: ClientTls | None = Field(None, description="TLS to the service (mTLS with cert/key)")
-    token: TokenSource | None = Field(None, description="bearer token sent with every call")
-
-    @field_validator("address", "fallback")
-    @classmethod
-    def _target(cls, value: str | None) -> str | None:
-        return None if value is None else check_target(value)
-
-    @model_validator(mode="after")
-    def _tls_name(self) -> EndpointConfig:
-        listed = [t for t in (self.address, self.fallback) if t and several_addresses(t)]
-        if self.tls is not None and self.tls.server_name is None and listed:
-            raise ValueError(f"tls.server_name is needed with several addresses in one "
-                             f"target ({listed[0]}): the name the replicas' certificate has")
-        return self
 
 
 class VadConfig(VadSettings):
@@ -175,151 +125,6 @@ class InputConfig(Schema):
         return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
 
 
-class ChannelConfig(Schema):
-    """A line-based text channel on a TCP port: clients send questions as lines and receive
-    the outputs written to the channel. TLS (mTLS with client_ca) and bearer tokens as for
-    the services; with `auth`, a client's first line is `authorization: Bearer TOKEN`."""
-
-    listen: str = Field(description="host:port; 127.0.0.1 keeps it on this machine")
-    tls: ServerTls | None = None
-    auth: TokenSource | None = None
-    max_clients: int = Field(16, ge=1, le=1024)
-    max_line_bytes: int = Field(4096, ge=16, le=1 << 20)
-
-    @field_validator("listen")
-    @classmethod
-    def _host_port(cls, value: str) -> str:
-        return check_address(value)
-
-
-class ContextConfig(Schema):
-    products: list[str] = Field(min_length=1)
-    stale: Literal["omit", "mark"] = Field(
-        "omit", description="a product older than its max_age_s: left out, or sent marked stale")
-
-
-class DetectCall(Schema):
-    """oricf.v1.Detector/Detect: an image -> detections, counts, annotated."""
-
-    method: Literal["Detect"]
-    service: str = Field(description="an endpoint name")
-    labels: list[str] = Field(default_factory=list)
-    min_score: float = Field(0.0, ge=0, le=1)
-    annotate: bool = False
-
-
-class TranscribeCall(Schema):
-    """oricf.v1.SpeechRecognizer/Transcribe: audio -> transcript, duration_s."""
-
-    method: Literal["Transcribe"]
-    service: str = Field(description="an endpoint name")
-    language: str = ""
-
-
-class GenerateCall(Schema):
-    """oricf.v1.LanguageModel/Generate: a prompt template with context -> answer."""
-
-    method: Literal["Generate"]
-    service: str = Field(description="an endpoint name")
-    prompt: str = Field("{text}", description="template over the record's fields")
-    max_tokens: int = Field(0, ge=0, le=4096)
-    temperature: float | None = Field(None, ge=0, le=5)
-    stop: list[str] = Field(default_factory=list)
-    context: ContextConfig | None = None
-
-
-class InferCall(Schema):
-    """inference.GRPCInferenceService/ModelInfer on any Open Inference Protocol server: a
-    declared model's pre-processing makes its input tensors, its post-processing turns the
-    outputs into fields (detection: detections, counts; classification: classes, label,
-    score)."""
-
-    method: Literal["Infer"]
-    service: str = Field(description="an endpoint name")
-    model: FilePath = Field(description="the model's declaration (configs/models/*.yaml)")
-    model_name: str | None = Field(
-        None, description="its name on the server, if not the declaration's name")
-    labels: list[str] = Field(default_factory=list, description="detection: keep only these")
-    min_score: float | None = Field(None, gt=0, le=1,
-                                    description="detection: default the declaration's")
-    top_k: int | None = Field(None, ge=1, le=1000, description="classification")
-
-    @cached_property
-    def declaration(self) -> ModelDeclaration:
-        return load_declaration(self.model)
-
-    @model_validator(mode="after")
-    def _usable_declaration(self) -> InferCall:
-        try:
-            task = self.declaration.task
-        except ConfigError as exc:  # named here too, so the pipeline's file and key show
-            raise ValueError(f"model: {exc}") from None
-        if task is None:
-            raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
-                             f"to turn its input into tensors and its outputs into fields")
-        known = task.label_list()  # reads the labels file, so once
-        unknown = sorted(set(self.labels) - set(known)) if known else []
-        if unknown:
-            raise ValueError(f"labels: the model has no label(s) {', '.join(unknown)}")
-        if self.labels and task.kind != "detection":
-            raise ValueError("labels: only for detection models")
-        if self.top_k is not None and task.kind != "classification":
-            raise ValueError("top_k: only for classification models")
-        return self
-
-    @property
-    def server_model(self) -> str:
-        return self.model_name or self.declaration.name
-
-
-CallConfig = Annotated[DetectCall | TranscribeCall | GenerateCall | InferCall,
-                       Field(discriminator="method")]
-
-
-class CountStep(Schema):
-    label: str | None = Field(None, description="count only this label (default: all)")
-    into: str = "count"
-
-
-class FilterStep(Schema):
-    labels: list[str] = Field(default_factory=list)
-    min_score: float = Field(0.0, ge=0, le=1)
-
-
-class AnnotateStep(Schema):
-    into: str = "annotated"
-
-
-class TemplateStep(Schema):
-    text: str
-    into: str = "text"
-
-
-class PostStep(Schema):
-    """One post-processor: exactly one of the keys."""
-
-    map_labels: dict[str, str] | None = None
-    filter: FilterStep | None = None
-    count: CountStep | None = None
-    annotate: AnnotateStep | None = None
-    template: TemplateStep | None = None
-
-    @model_validator(mode="after")
-    def _exactly_one(self) -> PostStep:
-        if len(self.model_fields_set) != 1:
-            raise ValueError("give exactly one of map_labels, filter, count, annotate, template")
-        return self
-
-    @property
-    def kind(self) -> str:
-        return next(iter(self.model_fields_set))
-
-    @property
-    def writes(self) -> str | None:
-        step = getattr(self, self.kind)
-        return getattr(step, "into", None)
-
-
 class OutputConfig(Schema):
     topic: str | None = None
     type: OutputType | None = None
@@ -377,19 +182,30 @@ class PipelineConfig(Schema):
         return ""
 
 
-def _route_problems(name: str, route: RouteConfig) -> Iterator[str]:
-    """Outputs must name fields the route has (input, call and post-processor fields)."""
-    fields = {route.input.field, *METHODS[route.call.method].fields(route.call)}
-    for i, step in enumerate(route.post):
-        if step.kind in ("map_labels", "filter", "count", "annotate") \
-                and "detections" not in fields:
-            yield (f"routes.{name}.post[{i}].{step.kind}: works on detections (method Detect, "
-                   f"or Infer on a detection model)")
+def route_fields(name: str, route: RouteConfig) -> Iterator[str]:
+    """Problems with the fields a route's templates, post steps and outputs name: each must
+    be one the route has by then (its input's, its method's result's, or an earlier step's)."""
+    call = route.call
+    method = METHODS[call.method]
+    fields = {"route", route.input.field, *method.fields(call)}
+    if route.input.field == "image" and route.input.topic is not None:
+        fields.add("header")
+    yield from _missing(f"routes.{name}.call", method.reads(call), fields)
+    for i, post in enumerate(route.post):
+        step = post.build()
+        yield from _missing(f"routes.{name}.post[{i}]", {post.kind: set(step.reads)}, fields)
         if step.writes:
             fields.add(step.writes)
     for i, output in enumerate(route.outputs):
         if output.source not in fields:
             yield (f"routes.{name}.outputs[{i}].from: no field '{output.source}' in this route "
+                   f"(fields: {', '.join(sorted(fields))})")
+
+
+def _missing(where: str, reads: dict[str, set[str]], fields: set[str]) -> Iterator[str]:
+    for key, names in reads.items():
+        for missing in sorted(names - fields):
+            yield (f"{where}.{key}: no field '{missing}' in this route at this point "
                    f"(fields: {', '.join(sorted(fields))})")
 
 
@@ -426,18 +242,15 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
                    f"{service_of[call.service]} and {kind}")
         if route.input.product is not None and route.input.product not in produced:
             yield f"routes.{name}.input.product: no route outputs '{route.input.product}'"
-        context = call.context if isinstance(call, GenerateCall) else None
-        for i, product in enumerate(context.products if context else []):
-            if product not in produced:
-                yield f"routes.{name}.call.context.products[{i}]: no route outputs '{product}'"
-        yield from _route_problems(name, route)
+        for key, products in METHODS[call.method].products(call).items():
+            for i, product in enumerate(products):
+                if product not in produced:
+                    yield f"routes.{name}.call.{key}[{i}]: no route outputs '{product}'"
+        yield from route_fields(name, route)
 
 
 def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:
     """Validates parsed YAML, then every cross-reference; errors name source and key."""
-    if isinstance(data, Mapping) and "profiles" in data:
-        raise ConfigError(f"{source}: profiles: removed; put placement in an overlay file "
-                          f"(configs/pipelines/placement/) and pass it with --overlay")
     config = validate(data, PipelineConfig, source, base_dir)
     problems = [f"{source}: {problem}" for problem in
                 (*_reference_problems(config), *_channel_problems(config))]

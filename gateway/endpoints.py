@@ -24,14 +24,15 @@ import logging
 import random
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Literal, Protocol
 
 import grpc
+from pydantic import Field, field_validator, model_validator
 
-from oricf.gateway.config import EndpointConfig
-from oricf.gateway.methods import Metadata, Method
-from oricf.gateway.replicas import channel_options
-from oricf.tls import ClientTls, open_channel
+from oricf.config import Schema
+from oricf.gateway.replicas import channel_options, check_target, several_addresses
+from oricf.tls import ClientTls, TokenSource, open_channel
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +57,63 @@ CHANNEL_OPTIONS = [
 ]
 PROBE_TIMEOUT_S = 1.0
 
+Metadata = tuple[tuple[str, str], ...]
+Stub = Callable[[grpc.Channel], Any]
+# Whether the server behind a channel is ready for calls (timeout, call metadata).
+Ready = Callable[[grpc.Channel, float, Metadata], bool]
+
+
+class Service(Protocol):
+    """What an endpoint needs of the service it calls (a method's entry has both)."""
+
+    @property
+    def stub(self) -> Stub: ...
+
+    @property
+    def ready(self) -> Ready: ...
+
+
+class ImageTransport(Schema):
+    transport: Literal["raw", "jpeg"] = Field(
+        "raw", description="raw pixels (onboard: no encode cost) or jpeg (remote: less bandwidth)")
+    jpeg_quality: int = Field(80, ge=1, le=100)
+
+
+class RetryConfig(Schema):
+    """Retries of a call the service refused as busy (RESOURCE_EXHAUSTED), within its
+    deadline: wait the service's pushback, or exponential backoff with jitter if longer."""
+
+    attempts: int = Field(2, ge=0, le=10, description="retries after the first refusal")
+    initial_backoff_ms: int = Field(50, ge=1, le=60_000)
+    max_backoff_ms: int = Field(1000, ge=1, le=600_000)
+
+
+class EndpointConfig(Schema):
+    address: str = Field(description="host:port, or replicas to balance over: "
+                                     "dns:///NAME:PORT, ipv4:IP:PORT,IP:PORT,... "
+                                     "(gateway/replicas.py)")
+    fallback: str | None = Field(None, description="used while the primary is unavailable")
+    deadline_ms: int = Field(1000, gt=0, le=600_000, description="per call")
+    probe_interval_s: float = Field(
+        1.0, gt=0, le=60, description="health probe of the primary while on the fallback")
+    image: ImageTransport = ImageTransport()
+    retry: RetryConfig = RetryConfig()
+    tls: ClientTls | None = Field(None, description="TLS to the service (mTLS with cert/key)")
+    token: TokenSource | None = Field(None, description="bearer token sent with every call")
+
+    @field_validator("address", "fallback")
+    @classmethod
+    def _target(cls, value: str | None) -> str | None:
+        return None if value is None else check_target(value)
+
+    @model_validator(mode="after")
+    def _tls_name(self) -> EndpointConfig:
+        listed = [t for t in (self.address, self.fallback) if t and several_addresses(t)]
+        if self.tls is not None and self.tls.server_name is None and listed:
+            raise ValueError(f"tls.server_name is needed with several addresses in one "
+                             f"target ({listed[0]}): the name the replicas' certificate has")
+        return self
+
 
 def _pushback_ms(exc: grpc.RpcError) -> float:
     """The wait the service asked for (gRPC's grpc-retry-pushback-ms), 0 if none."""
@@ -67,16 +125,16 @@ def _pushback_ms(exc: grpc.RpcError) -> float:
 
 
 class Target:
-    """One address: a channel (TLS if configured), the method's stub, the call metadata (a
+    """One address: a channel (TLS if configured), the service's stub, the call metadata (a
     bearer token if configured) and the readiness probe."""
 
-    def __init__(self, address: str, method: Method, tls: ClientTls | None = None,
+    def __init__(self, address: str, service: Service, tls: ClientTls | None = None,
                  token: str | None = None) -> None:
         self.address = address
         self.channel = open_channel(address, tls, channel_options(address, CHANNEL_OPTIONS))
-        self.stub = method.stub(self.channel)
+        self.stub = service.stub(self.channel)
         self.metadata: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
-        self._ready = method.ready
+        self._ready = service.ready
 
     def serving(self) -> bool:
         try:
@@ -89,13 +147,15 @@ class Target:
 
 
 class Endpoint:
-    def __init__(self, name: str, config: EndpointConfig, method: Method) -> None:
+    """A service the routes call: `service.stub` makes its client on a channel,
+    `service.ready` asks whether a server is ready (the probe that ends a failover)."""
+
+    def __init__(self, name: str, config: EndpointConfig, service: Service) -> None:
         self.name = name
         self.config = config
-        self.method = method
         token = config.token.tokens()[0] if config.token else None
-        self.primary = Target(config.address, method, config.tls, token)
-        self.fallback = (Target(config.fallback, method, config.tls, token)
+        self.primary = Target(config.address, service, config.tls, token)
+        self.fallback = (Target(config.fallback, service, config.tls, token)
                          if config.fallback else None)
         self.failovers = 0
         self.recoveries = 0

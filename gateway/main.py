@@ -9,27 +9,12 @@
 Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`, and as the
 ROS 2 package ros/oricf_gateway: `ros2 run oricf_gateway gateway --ros-args -p config:=...`,
 `ros2 launch oricf_gateway people_qa.launch.py` (docs/ros.md). The flags are the defaults of
-the node's parameters config, placement, overlays and sets (oricf.gateway.rosparams); given
+the node's parameters config, placement, overlays and sets (oricf.gateway.ros.params); given
 after --ros-args, a parameter wins. --config and the placement parameter also take the name
-of a shipped file (people_qa, edge). The node's log goes to /rosout (oricf.gateway.roslog).
+of a shipped file (people_qa, edge). The node's log goes to /rosout (oricf.gateway.ros.rosout).
 
-Where rclpy comes from:
-- x86-64 workstation or CI: the PyPI Jazzy wheels, `pip install "oricf[ros]"` (the `ros` extra:
-  ros-jazzy-rclpy[fastrtps], ros-jazzy-std-msgs, ros-jazzy-sensor-msgs). Nothing to source.
-- A robot with its own ROS 2 (e.g. an aarch64 Jetson; there are no aarch64 wheels): install
-  Jazzy from apt (ros-jazzy-ros-base, which has rclpy, std_msgs and sensor_msgs), then
-
-      source /opt/ros/jazzy/setup.bash
-      python3 -m venv --system-site-packages ~/oricf-venv   # sees the apt rclpy
-      ~/oricf-venv/bin/pip install oricf                     # WITHOUT the [ros] extra
-      ~/oricf-venv/bin/oricf gateway --config people_qa.yaml
-
-  The venv's Python must be the one ROS was built for (Python 3.12 for Jazzy on Ubuntu 24.04).
-  Keep ROS_DOMAIN_ID (and ROS_AUTOMATIC_DISCOVERY_RANGE) the same as the robot's other nodes.
-
-Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, the int16
-values are the PCM samples (interleaved if several channels); sample rate and channels are
-set per route in the YAML (`input.sample_rate`, `input.channels`; 16000 Hz mono by default).
+Where rclpy comes from (PyPI wheels, or a robot's own ROS 2): docs/ros.md. The audio
+convention of std_msgs/Int16MultiArray inputs: docs/gateway.md.
 """
 
 from __future__ import annotations
@@ -43,17 +28,11 @@ from pathlib import Path
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, load_pipeline
-from oricf.gateway.dds import use_dds_profile
-from oricf.gateway.grpc_client import poll_in_calling_thread
-from oricf.gateway.memory import keep_freed_memory
-from oricf.gateway.record import Recorder, RecordingError
-from oricf.gateway.rosparams import Settings, declare_settings, read_parameters
+from oricf.gateway.recording.recorder import Recorder, RecordingError
+from oricf.gateway.ros.params import Settings, read_parameters
 from oricf.logs import setup_logging
 
 log = logging.getLogger(__name__)
-
-STOP_CHECK_S = 0.5  # how late a stop may be noticed when rclpy does not wake the executor
-
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="oricf gateway", description=__doc__,
@@ -96,70 +75,10 @@ def replay_rate(text: str) -> float:
     return rate
 
 
-def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
-        settings: Settings | None = None) -> int:
-    """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
-    poll_in_calling_thread()  # before the node's imports load grpc
-    try:
-        import rclpy
-        from rclpy.executors import (
-            Executor,
-            ExternalShutdownException,
-            MultiThreadedExecutor,
-            SingleThreadedExecutor,
-        )
-        from rclpy.impl.implementation_singleton import rclpy_implementation
-
-        from oricf.gateway.roslog import GatewayRosNode
-
-        RCLError = rclpy_implementation.RCLError
-    except ImportError as exc:
-        log.error("ROS 2 Python packages not found (%s): source /opt/ros/jazzy/setup.bash, "
-                  "or pip install 'oricf[ros]' on x86-64", exc)
-        return 2
-    use_dds_profile()
-    if not keep_freed_memory():
-        log.info("mallopt not available: large frame buffers come from fresh pages")
-    recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
-    rclpy.init(args=ros_args)
-    node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
-    if settings is not None:
-        declare_settings(node, settings)
-    # Camera frames never pass through the executor (oricf.gateway.camera); the text and audio
-    # callbacks only hand messages to their routes' worker threads and never block, so one
-    # executor thread keeps up. executor_threads > 1 selects rclpy's MultiThreadedExecutor.
-    executor: Executor = (SingleThreadedExecutor() if config.executor_threads == 1
-                          else MultiThreadedExecutor(num_threads=config.executor_threads))
-    executor.add_node(node)
-    try:
-        # Not executor.spin(): on SIGTERM or SIGINT rclpy's signal thread shuts the context
-        # down, but now and then (about 1 stop in 10 here, rclpy 7.1) the executor's wait is
-        # not woken, and spin() slept on until the next timer (stats_interval_s; forever
-        # without one). A bounded wait notices the shut-down context.
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=STOP_CHECK_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RCLError:
-        # SIGTERM shut the context down while the executor was building its next wait set;
-        # rclpy reports that race as an RCLError. Anything else is a real failure.
-        if rclpy.ok():
-            raise
-    finally:
-        log.info("gateway stopping")
-        node.shutdown()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        if recorder is not None:
-            recorder.close()
-    return 0
-
-
 def replay(config: PipelineConfig, args: argparse.Namespace) -> int:
     """--replay: the pipeline without ROS, its topic inputs from the recording."""
-    from oricf.gateway import standalone
-    from oricf.gateway.sources.replay import Replay
+    from oricf.gateway import without_ros as standalone
+    from oricf.gateway.recording.replay import Replay
 
     player = Replay(args.replay, config, 1.0 if args.rate is None else args.rate)
     try:
@@ -213,9 +132,11 @@ def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
         if args.record is not None:
             raise RecordingError(f"--record {args.record}: the pipeline reads and writes no "
                                  f"topic, so there is nothing to record")
-        from oricf.gateway import standalone
+        from oricf.gateway import without_ros as standalone
 
         return standalone.run(config)
+    from oricf.gateway.ros.spin import run
+
     return run(config, ros_args, args.record, settings)
 
 

@@ -10,8 +10,8 @@ a `queue` route (text, audio) discards its oldest input when full (inputs_droppe
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from typing import TYPE_CHECKING
+from collections.abc import Iterable, Mapping
+from typing import Any, Protocol
 
 import grpc
 from prometheus_client import CollectorRegistry
@@ -23,10 +23,20 @@ from prometheus_client.metrics_core import (
 )
 from prometheus_client.registry import Collector
 
+from oricf.gateway.config import PipelineConfig
+from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.route import Route
+from oricf.gateway.worker import RouteWorker
 from oricf.metrics import new_registry
 
-if TYPE_CHECKING:
-    from oricf.gateway.pipeline import Pipeline
+
+class Pipeline(Protocol):
+    """The parts of a pipeline whose counts are read (oricf.gateway.pipeline.Pipeline)."""
+
+    config: PipelineConfig
+    routes: Mapping[str, Route]
+    workers: Mapping[str, RouteWorker[Any]]
+    endpoints: Mapping[str, Endpoint]
 
 ROUTE = ("route",)
 ENDPOINT = ("endpoint",)

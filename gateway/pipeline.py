@@ -1,6 +1,6 @@
 """A whole pipeline without ROS: endpoints, data products, routes and their workers.
 
-The ROS node (oricf.gateway.node) only subscribes to input topics, submits loaders here,
+The ROS node (oricf.gateway.ros.node) only subscribes to input topics, submits loaders here,
 and publishes what `emit` receives. Tests and benchmarks drive this class directly too.
 """
 
@@ -74,7 +74,7 @@ class Pipeline:
         for name, endpoint in self.endpoints.items():
             fallback = f", fallback {endpoint.fallback.address}" if endpoint.fallback else ""
             images = (f", images {endpoint.config.image.transport}"
-                      if endpoint.method.image_transport else "")
+                      if METHODS[self.config.method_of(name)].image_transport else "")
             log.info("endpoint %s: %s%s, deadline %d ms%s", name, endpoint.primary.address,
                      fallback, endpoint.config.deadline_ms, images)
 

@@ -1,8 +1,9 @@
-"""A route: input record -> call -> post-processors -> outputs. No ROS in here.
+"""A route: input record -> method call -> post steps -> outputs. No ROS in here.
 
 Every failure of one message is logged (throttled, per route and kind of failure) and
-counted; the route goes on with the next message. Topic outputs go to `emit` (the ROS node
-publishes them); product outputs go to the ProductStore.
+counted; the route goes on with the next message. Data products go to the ProductStore;
+every other output to `emit` (oricf.gateway.sinks.Outlets: files, text channels, and topics
+through the ROS node's publishers or a recording).
 """
 
 from __future__ import annotations
@@ -16,9 +17,11 @@ from typing import Any
 import grpc
 
 from oricf.errors import InvalidInput
-from oricf.gateway import calls, post
 from oricf.gateway.config import OutputConfig, RouteConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.methods import METHODS, Skip
+from oricf.gateway.methods.base import result_fields
+from oricf.gateway.post import chain
 from oricf.gateway.products import ProductStore
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
@@ -54,14 +57,14 @@ class Route:
         self.products = products
         self.stats = RouteStats()
         self._emit = emit
-        self._post = post.chain(config.post)
+        self._post = chain(config.post)
         self._throttle = throttle
-        self._invoke = endpoint.method.bind(config.call, endpoint, products)
+        self._invoke = METHODS[config.call.method].bind(config.call, endpoint, products)
 
     def run(self, record: Record) -> Record:
         """Call and post-process one record; returns it with every field filled in."""
         record.setdefault("route", self.name)
-        record.update(self._invoke(record))
+        record.update(result_fields(self._invoke(record)))
         self._post(record)
         return record
 
@@ -80,7 +83,7 @@ class Route:
         started = time.perf_counter()
         try:
             self.send(self.run(load()))
-        except calls.Skip as exc:
+        except Skip as exc:
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)
             return

@@ -1,13 +1,16 @@
 """The values a route carries, independent of ROS: frames, audio clips, records.
 
 A record is the dict of named fields one message turns into as it passes through a route:
-the input field (`image`, `audio`, `text`, `value`), the call's fields (`detections`,
-`counts`, `annotated`, `transcript`, `answer`), and whatever post-processors add. Outputs
-pick one field each (`from:`). Checks on incoming data raise InvalidInput naming the problem.
+the input field (`image`, `audio`, `text`, `value`, and a camera frame's `header`), the
+fields of the method's typed result (oricf.gateway.methods: `detections`, `transcript`,
+`answer`, ...), and what post steps write. Which fields a route has is known when the
+pipeline loads, so steps and outputs that name a missing one are refused then. Outputs pick
+one field each (`from:`). Checks on incoming data raise InvalidInput naming the problem.
 """
 
 from __future__ import annotations
 
+import string
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +22,16 @@ from oricf.imaging import ENCODED, RAW_CHANNELS, check_size, decode_image, encod
 from oricf.v1 import common_pb2, speech_pb2
 
 Record = dict[str, Any]
+
+
+def template_fields(template: str) -> set[str]:
+    """The record fields a `str.format` template names (`{count}`, `{detections[0]}` and
+    `{image.width}` name count, detections, image); a malformed template is a ValueError."""
+    names = set()
+    for _, field, _, _ in string.Formatter().parse(template):
+        if field is not None:
+            names.add(field.split(".", 1)[0].split("[", 1)[0])
+    return names
 
 
 @dataclass(frozen=True)

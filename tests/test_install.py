@@ -121,7 +121,7 @@ def test_oricf_and_its_configs_come_from_the_installed_package(installed: Instal
 
 
 def test_the_fast_dds_profile_is_the_installed_one(installed: Installed) -> None:
-    done = installed.run("python", "-m", "oricf.gateway.dds")
+    done = installed.run("python", "-m", "oricf.gateway.ros.dds")
     assert done.returncode == 0, done.stderr
     profile = Path(done.stdout.strip())
     assert profile == installed.package / "configs" / "pipelines" / "dds" / "fastdds.xml"
@@ -181,7 +181,7 @@ def test_missing_configs_fail_loudly(installed: Installed, tmp_path: Path) -> No
 
     empty = tmp_path / "empty"
     empty.mkdir()
-    done = installed.run("python", "-m", "oricf.gateway.dds", ORICF_CONFIG_DIR=str(empty))
+    done = installed.run("python", "-m", "oricf.gateway.ros.dds", ORICF_CONFIG_DIR=str(empty))
     assert done.returncode == 2
     assert f"{empty}/pipelines/dds/fastdds.xml: the Fast DDS profile is missing" in done.stderr
     done = installed.run("oricf", "gateway", "--check", ORICF_CONFIG_DIR=str(empty))

@@ -6,19 +6,22 @@ from __future__ import annotations
 
 from typing import Any
 
-from oricf.gateway.channels import Channels
 from oricf.gateway.config import OutputConfig, PipelineConfig
+from oricf.gateway.route import Emit
 from oricf.gateway.sinks.frames import FrameFiles
 from oricf.gateway.sinks.jsonl import JsonLines
 from oricf.gateway.sinks.text import TextLines
+from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 
 class Outlets:
-    """Where a pipeline's non-topic outputs go; topics belong to the ROS node (or a
-    recording when replaying without ROS). Owns the pipeline's text channels."""
+    """Where a pipeline's outputs go (data products excepted: the pipeline keeps those).
+    Topic outputs go to `topics`: the ROS node's publishers (oricf.gateway.ros.publishers),
+    or a recording when replaying without ROS. Owns the pipeline's text channels."""
 
-    def __init__(self, config: PipelineConfig) -> None:
+    def __init__(self, config: PipelineConfig, topics: Emit | None = None) -> None:
+        self.topics = topics
         self.channels = Channels(config.channels)
         self.jsonl = JsonLines()
         self.text = TextLines(self.channels)
@@ -33,6 +36,8 @@ class Outlets:
             self.text.write(output, value, record)
         elif output.frames is not None:
             self.frames.write(route, output, value, self._fps.get(route))
+        elif self.topics is not None:
+            self.topics(output, value, record)
         else:
             raise RuntimeError(f"output topic {output.topic} needs the ROS node")
 

@@ -8,9 +8,9 @@ import sys
 import threading
 from typing import Any
 
-from oricf.gateway.channels import Channels
 from oricf.gateway.config import OutputConfig
 from oricf.gateway.sinks.jsonl import jsonable
+from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 

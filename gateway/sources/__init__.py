@@ -6,12 +6,14 @@ pipeline itself.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from typing import Any
 
-from oricf.gateway.channels import Channels
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sources.base import OnEnd, Source, Submit
+from oricf.gateway.text_channels import Channels
 
 # source key -> "module:class" (imported only when a route uses it: audio needs its extra)
 SOURCES = {
@@ -38,4 +40,11 @@ def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEn
     return sources
 
 
-__all__ = ["SOURCES", "OnEnd", "Source", "Submit", "make_sources"]
+def pipeline_sources(pipeline: Pipeline, channels: Channels, on_end: OnEnd) -> list[Source]:
+    """The pipeline's sources that are no ROS topics, each feeding its route."""
+    submit: dict[str, Submit] = {name: functools.partial(pipeline.submit, name)
+                                 for name in pipeline.config.routes}
+    return make_sources(pipeline.config, submit, on_end, channels)
+
+
+__all__ = ["SOURCES", "OnEnd", "Source", "Submit", "make_sources", "pipeline_sources"]

@@ -11,9 +11,9 @@ import sys
 import threading
 from typing import TextIO
 
-from oricf.gateway.channels import Channels, Client
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import OnEnd, Submit
+from oricf.gateway.text_channels import Channels, Client
 
 log = logging.getLogger(__name__)
 

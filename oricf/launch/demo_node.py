@@ -26,8 +26,8 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import InputConfig
-from oricf.gateway.convert import image_from_pixels
-from oricf.gateway.dds import use_dds_profile
+from oricf.gateway.ros.messages import image_from_pixels
+from oricf.gateway.ros.dds import use_dds_profile
 from oricf.gateway.sources.video import VideoSource, is_live
 
 log = logging.getLogger(__name__)

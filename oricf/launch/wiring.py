@@ -28,7 +28,8 @@ from oricf.errors import ConfigError
 from oricf.launch.deployment import Deployment
 
 if TYPE_CHECKING:
-    from oricf.gateway.config import EndpointConfig, PipelineConfig
+    from oricf.gateway.config import PipelineConfig
+    from oricf.gateway.endpoints import EndpointConfig
 
 log = logging.getLogger(__name__)
 

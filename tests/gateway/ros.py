@@ -25,9 +25,9 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import PipelineConfig
-from oricf.gateway.convert import image_from_pixels
-from oricf.gateway.dds import dds_profile
-from oricf.gateway.node import GatewayNode
+from oricf.gateway.ros.dds import dds_profile
+from oricf.gateway.ros.messages import image_from_pixels
+from oricf.gateway.ros.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
            "/camera/image_annotated": Image, "/people_fallen": Int32, "/fall_alert": String}

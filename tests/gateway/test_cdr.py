@@ -11,7 +11,7 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int32, String
 
 from oricf.errors import InvalidInput
-from oricf.gateway import cdr
+from oricf.gateway.recording import cdr
 
 
 def image_message(frame_id: str, encoding: str, is_bigendian: int = 0) -> Image:

@@ -72,15 +72,6 @@ def test_placement_overlays_change_endpoints_only(placement: str) -> None:
         assert detector.address == "127.0.0.1:50051" and detector.image.transport == "raw"
 
 
-def test_profiles_are_refused_pointing_at_overlay_files(tmp_path: Path) -> None:
-    path = write(tmp_path, {**MINIMAL, "profiles": {"edge": {"endpoints": {
-        "detector": {"address": "edge.local:50051"}}}}})
-    with pytest.raises(ConfigError) as error:
-        load_pipeline(path)
-    assert str(error.value) == (f"{path}: profiles: removed; put placement in an overlay file "
-                                "(configs/pipelines/placement/) and pass it with --overlay")
-
-
 def test_profile_option_is_gone(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exit_:
         main(["--config", str(PEOPLE_QA), "--profile", "edge", "--check"])
@@ -118,7 +109,7 @@ BAD = [
     ({"routes": {"more": {"input": {"topic": "cam2", "type": "sensor_msgs/Image"},
                           "call": {"service": "detector", "method": "Detect"},
                           "outputs": [{"topic": "/human_counter", "type": "std_msgs/String",
-                                       "from": "counts"}]}}},
+                                       "from": "detections"}]}}},
      "outputs[0].type: /human_counter is already std_msgs/"),
     ({"routes": {"ask": {"input": {"topic": "/q", "type": "std_msgs/String"},
                          "call": {"service": "detector", "method": "Generate"},

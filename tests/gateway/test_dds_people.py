@@ -11,6 +11,7 @@ from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros import running_gateway
 from tests.support.data import video_frames
+from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 from tests.support.services import running_service
 
@@ -27,8 +28,8 @@ def test_vtest_frames_give_plausible_counts(ros_context: Context) -> None:
             counts.append(probe.next("/human_counter", timeout=10).data)
             annotated.append(probe.next("/camera/image_annotated", timeout=10))
         stub = detector_pb2_grpc.DetectorStub(detector.channel)
-        direct = [stub.Detect(detector_pb2.DetectRequest(
-            image=Frame.from_pixels(f).to_proto(), labels=["person"]), timeout=10).counts["person"]
+        direct = [count(stub.Detect(detector_pb2.DetectRequest(
+            image=Frame.from_pixels(f).to_proto(), labels=["person"]), timeout=10))
             for f in frames]
     # vtest.avi: a street with a handful of pedestrians; YOLOX-Nano finds 4-9 per frame.
     assert all(3 <= count <= 12 for count in counts), counts

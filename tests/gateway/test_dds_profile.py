@@ -19,7 +19,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32
 
 from oricf.errors import ConfigError
-from oricf.gateway.dds import dds_profile, use_dds_profile
+from oricf.gateway.ros.dds import dds_profile, use_dds_profile
 from tests.gateway.ros import spinning
 
 PUBLISHED = 40

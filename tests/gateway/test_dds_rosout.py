@@ -11,7 +11,7 @@ import rclpy.logging
 from rcl_interfaces.msg import Log
 from rclpy.context import Context
 
-from oricf.gateway.roslog import GatewayRosNode
+from oricf.gateway.ros.rosout import GatewayRosNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.rosout import lines_until, next_line, rosout_reader
 

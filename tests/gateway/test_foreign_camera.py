@@ -31,7 +31,7 @@ from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import CompressedImage
 
-from oricf.gateway.node import GatewayNode
+from oricf.gateway.ros.node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_path

@@ -3,7 +3,7 @@ the real camera cases are in test_foreign_camera.py)."""
 
 from __future__ import annotations
 
-from oricf.gateway.frame_loss import MIN_LOST, FrameLoss, camera_side_fix, replaceable
+from oricf.gateway.ros.frame_loss import MIN_LOST, FrameLoss, camera_side_fix, replaceable
 
 
 def test_a_gap_in_front_of_a_frame_the_receiver_waited_for_is_all_lost() -> None:
@@ -53,4 +53,4 @@ def test_counting_again_keeps_a_warning_given() -> None:
 def test_the_fix_names_large_data_sizes_above_the_frame() -> None:
     assert "LARGE_DATA?max_msg_size=1MB&sockets_size=1MB" in camera_side_fix(921_660)
     assert "LARGE_DATA?max_msg_size=3MB&sockets_size=3MB" in camera_side_fix(1280 * 720 * 3)
-    assert "python -m oricf.gateway.dds" in camera_side_fix(100)
+    assert "python -m oricf.gateway.ros.dds" in camera_side_fix(100)

@@ -11,7 +11,7 @@ import sys
 # argv[1] == "keep" applies the setting first. Run in a child: pytest's own heap stays as is.
 PROBE = """
 import ctypes, sys
-from oricf.gateway.memory import keep_freed_memory
+from oricf.gateway.ros.process import keep_freed_memory
 class Info(ctypes.Structure):
     _fields_ = [(name, ctypes.c_size_t) for name in (
         "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks",

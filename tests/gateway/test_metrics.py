@@ -38,7 +38,7 @@ def pipeline(primary: str, fallback: str) -> Pipeline:
                        "call": DETECT, "post": [{"count": {"label": "person"}}],
                        "outputs": [{"product": "people", "from": "count"}]},
             "queued": {"input": {"url": "not-opened.mp4", "keep": "queue", "queue_size": 2},
-                       "call": DETECT, "outputs": [{"product": "queued", "from": "counts"}]}},
+                       "call": DETECT, "outputs": [{"product": "queued", "from": "detections"}]}},
         "metrics": {"listen": "127.0.0.1:0"}}
     return Pipeline(parse_pipeline(data, "metrics test"), lambda o, v, r: None)
 
@@ -157,7 +157,7 @@ def check_failover(scraped: Scrape, primary: str, fallback: str) -> None:
 def test_metrics_are_off_without_the_key() -> None:
     config = parse_pipeline({"endpoints": {"detector": {"address": "127.0.0.1:1"}},
                              "routes": {"r": {"input": {"url": "x.mp4"}, "call": DETECT,
-                                              "outputs": [{"product": "p", "from": "counts"}]}}},
+                                              "outputs": [{"product": "p", "from": "detections"}]}}},
                             "no metrics")
     p = Pipeline(config, lambda o, v, r: None)
     p.start()

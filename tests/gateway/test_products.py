@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from oricf.gateway.calls import fact, generate_request
-from oricf.gateway.config import GenerateCall, OutputConfig, PipelineConfig, parse_pipeline
+from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
+from oricf.gateway.methods.generate import GenerateCall, fact, generate_request
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.products import ProductStore, Reading
 from oricf.gateway.values import Frame, Record

@@ -28,7 +28,7 @@ from std_msgs.msg import String
 
 from oricf.audio import synthesize
 from oricf.config import config_dir, read_yaml
-from oricf.gateway import msgdefs
+from oricf.gateway.recording import definitions as msgdefs
 from tests.gateway.ros import Probe, running_probe
 from tests.support.data import video_frames
 from tests.support.processes import oricf_process
@@ -325,7 +325,7 @@ def test_a_full_disk_stops_the_recording_not_the_writer(tmp_path: Path) -> None:
 import resource, signal, sys
 from pathlib import Path
 import numpy as np
-from oricf.gateway.record import Recorder
+from oricf.gateway.recording.recorder import Recorder
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # fail the write with EFBIG instead
 resource.setrlimit(resource.RLIMIT_FSIZE, (2**20, 2**20))
 recorder = Recorder(Path(sys.argv[1]), wait_when_full=True)

@@ -16,8 +16,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int16MultiArray, Int32, MultiArrayDimension, String
 
-from oricf.gateway import cdr, convert, msgdefs
-from oricf.gateway.messages import serialize_output
+from oricf.gateway.recording import cdr
+from oricf.gateway.recording import definitions as msgdefs
+from oricf.gateway.recording.topic_values import serialize_output
+from oricf.gateway.ros import messages as convert
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
 
@@ -90,7 +92,8 @@ def test_outputs_written_without_ros_are_the_messages_the_node_publishes() -> No
 
 
 def test_the_recording_modules_do_not_import_ros() -> None:
-    modules = ["msgdefs", "messages", "record", "sources.mcapfile", "sources.replay"]
+    modules = ["recording.definitions", "recording.topic_values", "recording.recorder",
+               "recording.mcap_reader", "recording.replay"]
     imports = "; ".join(f"import oricf.gateway.{name}" for name in modules)
     check = ("import sys; bad = sorted(m for m in sys.modules if m.split('.')[0] in "
              "('rclpy', 'sensor_msgs', 'std_msgs', 'builtin_interfaces')); assert not bad, bad")

@@ -20,8 +20,7 @@ import cv2
 import pytest
 
 from oricf.config import config_dir
-from oricf.gateway.channels import Client, TextChannel
-from oricf.gateway.config import ChannelConfig
+from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
 from oricf.launch.health import free_port
 from oricf.tls import make_certificates
 from tests.support.data import video_frames

@@ -15,7 +15,8 @@ import pytest
 
 from oricf.bench.common import stop
 from oricf.gateway.endpoints import Target
-from oricf.gateway.methods import METHODS, health_check
+from oricf.gateway.methods import METHODS
+from oricf.gateway.methods.base import health_check
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.store import ModelStore

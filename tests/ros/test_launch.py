@@ -13,7 +13,7 @@ import yaml
 
 from oricf.config import config_dir
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.rosparams import DESCRIPTIONS, Settings
+from oricf.gateway.ros.params import DESCRIPTIONS, Settings
 from tests.ros.conftest import PACKAGE
 
 LAUNCH = PACKAGE / "launch" / "people_qa.launch.py"

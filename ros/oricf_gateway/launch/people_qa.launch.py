@@ -5,7 +5,7 @@
         [namespace:=robot1] [log_level:=debug]
 
 config, placement, overlays and sets become the node's parameters of the same names
-(oricf.gateway.rosparams: shipped names resolved, files merged in that order, each value
+(oricf.gateway.ros.params: shipped names resolved, files merged in that order, each value
 checked); namespace and log_level are ROS's own. The node's name is the pipeline's
 `node_name` (oricf_gateway for people_qa), in the namespace.
 

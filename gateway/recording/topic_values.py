@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.gateway import cdr
 from oricf.gateway.config import InputConfig
+from oricf.gateway.recording import cdr
 from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
 from oricf.imaging import RAW_CHANNELS
 

@@ -19,10 +19,30 @@ import ssl
 import threading
 from collections.abc import Callable
 
-from oricf.gateway.config import ChannelConfig
-from oricf.tls import token_matches
+from pydantic import Field, field_validator
+
+from oricf.config import Schema, check_address
+from oricf.tls import ServerTls, TokenSource, token_matches
 
 log = logging.getLogger(__name__)
+
+
+class ChannelConfig(Schema):
+    """A line-based text channel on a TCP port: clients send questions as lines and receive
+    the outputs written to the channel. TLS (mTLS with client_ca) and bearer tokens as for
+    the services; with `auth`, a client's first line is `authorization: Bearer TOKEN`."""
+
+    listen: str = Field(description="host:port; 127.0.0.1 keeps it on this machine")
+    tls: ServerTls | None = None
+    auth: TokenSource | None = None
+    max_clients: int = Field(16, ge=1, le=1024)
+    max_line_bytes: int = Field(4096, ge=16, le=1 << 20)
+
+    @field_validator("listen")
+    @classmethod
+    def _host_port(cls, value: str) -> str:
+        return check_address(value)
+
 
 OnLine = Callable[[str, "Client"], None]
 HANDSHAKE_TIMEOUT_S = 10.0

@@ -8,7 +8,7 @@ oricf.config.config_dir) does two things, both explained in the file:
   most frames are lost on best-effort topics. The publisher's setting is the one that
   matters, so camera nodes need it as well:
 
-      export FASTRTPS_DEFAULT_PROFILES_FILE=$(python -m oricf.gateway.dds)
+      export FASTRTPS_DEFAULT_PROFILES_FILE=$(python -m oricf.gateway.ros.dds)
 
 - it keeps reliable writers (the count, the answers) from arming a timer for every sample,
   which woke Fast DDS's event thread twice per published message.

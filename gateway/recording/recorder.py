@@ -38,10 +38,10 @@ from mcap.well_known import MessageEncoding, Profile, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from oricf.errors import OricfError
-from oricf.gateway import msgdefs
 from oricf.gateway.config import OutputConfig
-from oricf.gateway.messages import serialize_output
-from oricf.gateway.route import Emit, Loader
+from oricf.gateway.recording import definitions as msgdefs
+from oricf.gateway.recording.topic_values import serialize_output
+from oricf.gateway.route import Loader
 from oricf.gateway.sinks.jsonl import jsonable
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
@@ -200,21 +200,17 @@ class Recorder:
 
 
 class TopicOutputs:
-    """A pipeline's outputs when no ROS node publishes them: topic outputs go into the
-    recording, or without one to standard output as JSON lines (the jsonl sink's objects
-    plus "topic" and "input_ns", the publish time of the input they came from); every other
-    output goes to `others` (sinks.Outlets)."""
+    """Topic outputs when no ROS node publishes them (a replay): into the recording, or
+    without one to standard output as JSON lines (the jsonl sink's objects plus "topic" and
+    "input_ns", the publish time of the input they came from)."""
 
-    def __init__(self, others: Emit, recorder: Recorder | None = None) -> None:
-        self._others = others
+    def __init__(self, recorder: Recorder | None = None) -> None:
         self._recorder = recorder
         self._lock = threading.Lock()
         self._throttle = ThrottledLog(log)
 
     def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
-        if output.topic is None or output.type is None:
-            self._others(output, value, record)
-            return
+        assert output.topic is not None and output.type is not None
         topic = ros_name(output.topic)
         if self._recorder is None:
             line = json.dumps({"route": record.get("route", ""), "time": round(time.time(), 3),

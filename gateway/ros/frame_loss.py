@@ -72,7 +72,7 @@ def camera_side_fix(frame_bytes: int) -> str:
     """What to set where the camera driver is started, for frames of this size."""
     megabytes = max(1, math.ceil((frame_bytes + 65536) / 1_000_000))
     return ("Where the camera driver is started, set FASTRTPS_DEFAULT_PROFILES_FILE to ORICF's "
-            "Fast DDS profile (python -m oricf.gateway.dds prints its path), or "
+            "Fast DDS profile (python -m oricf.gateway.ros.dds prints its path), or "
             f"FASTDDS_BUILTIN_TRANSPORTS='{LARGE_DATA.format(mb=megabytes)}' (not with "
             "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, where ROS replaces Fast DDS's builtin "
             "transports); or publish reliable, or publish sensor_msgs/CompressedImage. See "

@@ -1,11 +1,12 @@
 """Camera routes' own receive threads, outside the rclpy executor.
 
 Per wake-up, rclpy's executors rebuild a wait set of every entity of the node in Python and
-run each callback as a task: about 0.5 ms of the robot's CPU per camera frame, as much as
-the gRPC call that sends the frame away. A camera route instead gets a thread that waits on
-a wait set holding only its subscription and a stop signal (the pattern of rclpy's own
-wait_for_message), takes each frame serialized (oricf.gateway.cdr reads it) and runs the
-route on it. While the route is busy, DDS keeps only the newest frame (history depth 1);
+run each callback as a task, which costs the robot as much CPU per camera frame as the
+gRPC call that sends the frame away (docs/ros.md). A camera route instead gets a thread
+that waits on a wait set holding only its subscription and a stop signal (the pattern of
+rclpy's own wait_for_message), takes each frame serialized (oricf.gateway.recording.cdr
+reads it) and runs the route on it. While the route is busy, DDS keeps only the newest
+frame (history depth 1);
 the frames it replaced are counted from the gaps in the publisher's sequence numbers (exact
 with one publisher per camera topic, the usual case; with several the gaps mean nothing and
 are not counted).
@@ -15,7 +16,7 @@ topic's publishers, checked every second: reliable when every publisher is (imag
 default, reliable with depth 10, which many drivers keep), so DDS resends the pieces of a raw
 frame lost on the way; best effort as soon as one publisher is (sensor_data drivers), since a
 reliable subscription would not match it. A gap that the route's busy time cannot explain
-is frames lost on the way, not replaced (oricf.gateway.frame_loss): when those are many, or
+is frames lost on the way, not replaced (oricf.gateway.ros.frame_loss): when those are many, or
 when a publisher never matches, the receiver warns once, naming what to set where the camera
 is started (docs/ros.md, Camera drivers).
 
@@ -39,7 +40,11 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from oricf.gateway.frame_loss import FrameLoss, camera_side_fix, replaceable
+from oricf.gateway.config import InputConfig
+from oricf.gateway.recording.recorder import Recorder, message_times
+from oricf.gateway.ros.frame_loss import FrameLoss, camera_side_fix, replaceable
+from oricf.gateway.ros.messages import MESSAGE_TYPES, image_loader
+from oricf.gateway.route import Loader
 
 log = logging.getLogger(__name__)
 
@@ -65,20 +70,29 @@ class OwnThreadGroup(CallbackGroup):
         pass
 
 
-class CameraReceiver:
-    """Takes serialized frames from one topic and passes them to `receive` with the number of
-    frames missed since the previous one and rclpy's message info (its timestamps). `qos`
-    gives the depth and the reliability to start with, until publishers are found."""
+# Runs a route on one item in the calling thread: (route, loader, frames missed before it).
+RunHere = Callable[[str, Loader, int], None]
 
-    def __init__(self, node: Node, route: str, msg_type: Any, topic: str, qos: QoSProfile,
-                 receive: Callable[[bytes, int, dict[str, Any]], None]) -> None:
+
+class CameraReceiver:
+    """Takes serialized frames from one topic and runs the route on each (`run_here`, the
+    pipeline's handle_here), with the number of frames missed since the previous one; with
+    a recorder, each frame is recorded first. `qos` gives the depth and the reliability to
+    start with, until publishers are found."""
+
+    def __init__(self, node: Node, route: str, config: InputConfig, qos: QoSProfile,
+                 run_here: RunHere, recorder: Recorder | None = None) -> None:
+        assert config.topic is not None and config.type is not None
         self.route = route
         self.loss = FrameLoss()
         self._node = node
-        self._msg_type = msg_type
-        self._topic = topic
+        self._type = config.type
+        self._msg_type = MESSAGE_TYPES[config.type]
+        self._topic = config.topic
+        self._name = node.resolve_topic_name(config.topic)
         self._qos = qos
-        self._receive = receive
+        self._run_here = run_here
+        self._recorder = recorder
         self._context = node.context
         self.subscription = self._subscribe(qos.reliability)
         self._wake = GuardCondition(None, None, context=node.context)
@@ -121,6 +135,13 @@ class CameraReceiver:
                 log.exception("camera receiver %s stopped", self._thread.name)
             else:
                 log.debug("camera receiver %s: %s while stopping", self._thread.name, exc)
+
+    def _receive(self, serialized: bytes, missed: int, info: dict[str, Any]) -> None:
+        load = image_loader(self._type, serialized)
+        if self._recorder is not None:
+            load = self._recorder.input(self._name, self._type, serialized,
+                                        *message_times(info), load)
+        self._run_here(self.route, load, missed)
 
     def _take(self, wait_set: Any) -> tuple[Any, bool]:
         """The next frame, if one came within the wait, and whether the receiver was idle

@@ -1,9 +1,10 @@
-"""ROS messages <-> route values. The only module besides node.py that imports ROS types.
+"""ROS messages <-> route values, with rclpy's message types.
 
 Incoming messages become loaders: conversion runs when the route takes the message, so a
 queued message that is dropped is never converted. Camera frames arrive serialized and are
-read by oricf.gateway.cdr; the other inputs arrive as rclpy messages. What a message turns
-into is decided in oricf.gateway.messages, which recordings share without ROS.
+read by oricf.gateway.recording.cdr; the other inputs arrive as rclpy messages. What a
+message turns into is decided in oricf.gateway.recording.topic_values, which recordings
+share without ROS.
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header, Int16MultiArray, Int32, String
 
 from oricf.errors import InvalidInput
-from oricf.gateway import cdr
 from oricf.gateway.config import InputConfig
-from oricf.gateway.messages import data_record, image_record
+from oricf.gateway.recording import cdr
+from oricf.gateway.recording.topic_values import data_record, image_record
 from oricf.gateway.route import Loader
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import RAW_CHANNELS

@@ -84,7 +84,7 @@ def _used_types(type_: str, text: str) -> list[str]:
 @functools.cache
 def definition(type_: str) -> str:
     """One type's .msg text: the installed file's if it has the table's fields (so the schema
-    always matches what oricf.gateway.cdr reads and writes), else the table's."""
+    always matches what oricf.gateway.recording.cdr reads and writes), else the table's."""
     installed = installed_definition(type_)
     if installed is not None and fields_only(installed) == DEFINITIONS[type_]:
         return installed

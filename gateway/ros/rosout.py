@@ -29,7 +29,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.node import Node
 
-from oricf.gateway.node import GatewayNode
+from oricf.gateway.ros.node import GatewayNode
 
 ROOT = "oricf"
 # Python logging level -> rcutils severity, highest first (the numbers happen to agree).

@@ -1,22 +1,8 @@
 """The gateway's ROS parameters: which pipeline the node runs, said as to any ROS node.
 
-    ros2 run oricf_gateway gateway --ros-args -p config:=people_qa -p placement:=edge \\
-        -p overlays:='[/etc/oricf/site.yaml]' -p sets:='[routes.people.input.topic=front/image]'
-
-| parameter   | type     | default                  | what                                       |
-|-------------|----------|--------------------------|--------------------------------------------|
-| `config`    | string   | `--config` (people_qa)   | the pipeline: a YAML path, or the name of  |
-|             |          |                          | a shipped one (configs/pipelines/NAME.yaml) |
-| `placement` | string   | none                     | a placement overlay: a shipped name        |
-|             |          |                          | (configs/pipelines/placement/NAME.yaml:    |
-|             |          |                          | onboard, edge, ...) or a YAML path         |
-| `overlays`  | string[] | `--overlay` ([])         | more YAML files merged on top, in order    |
-| `sets`      | string[] | `--set` ([])             | KEY=VALUE assignments, read like `--set`   |
-
-The flags of `oricf gateway` give the defaults; a parameter given to the node (`-p`,
-`--params-file`, a launch file) overrides its flag, as ROS overrides do. The pipeline file,
-then the placement, then the overlays are merged in that order, then the sets applied. A
-value of the wrong type stops the gateway with exit code 2, naming the parameter.
+The parameters are `config`, `placement`, `overlays` and `sets` (docs/ros.md, Parameters):
+the flags of `oricf gateway` give their defaults, and a parameter given to the node
+overrides its flag, as ROS overrides do.
 
 Why a short-lived node reads them: ROS hands parameters to a node, resolved by rcl for the
 node's name after remapping (`-p`, `/**` and `/NAME` sections of a params file), and rclpy
@@ -105,7 +91,7 @@ def read_parameters(ros_args: list[str], defaults: Settings) -> Settings:
     from rclpy.impl.implementation_singleton import rclpy_implementation
     from rclpy.node import Node
 
-    from oricf.gateway.dds import use_dds_profile
+    from oricf.gateway.ros.dds import use_dds_profile
 
     # Fast DDS reads its profiles file once per process, when the first participant is made:
     # this node's, so the gateway's profile must be chosen before it.

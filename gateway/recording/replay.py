@@ -5,7 +5,7 @@
 The file is a rosbag2 recording (`ros2 bag record -s mcap`), or one the gateway wrote with
 --record. Its messages are read in file order; each on a topic some route reads (the
 route's topic as a ROS name: camera/image_raw is /camera/image_raw) goes to that route, the
-rest are skipped. Camera frames are read by oricf.gateway.cdr as the ROS node reads them;
+rest are skipped. Camera frames are read by oricf.gateway.recording.cdr as the ROS node reads them;
 text, numbers and audio are decoded by mcap-ros2-support from the definition in the file
 (or the gateway's own, msgdefs.py, if the file has none).
 
@@ -34,14 +34,14 @@ from mcap.records import Channel, Message, Schema
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap_ros2.decoder import DecoderFactory
 
-from oricf.gateway import msgdefs
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
-from oricf.gateway.messages import data_record, image_record
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.record import Recorder, RecordingError, linked, ros_name
+from oricf.gateway.recording import definitions as msgdefs
+from oricf.gateway.recording.mcap_reader import McapFile
+from oricf.gateway.recording.recorder import Recorder, RecordingError, linked, ros_name
+from oricf.gateway.recording.topic_values import data_record, image_record
 from oricf.gateway.route import Loader
 from oricf.gateway.sources.base import OnEnd, Source
-from oricf.gateway.sources.mcapfile import McapFile
 from oricf.gateway.throttle import ThrottledLog
 
 log = logging.getLogger(__name__)

@@ -5,38 +5,26 @@ runs where ROS is not installed. Stops on SIGTERM/SIGINT, or when every source h
 
 from __future__ import annotations
 
-import functools
 import logging
 import threading
-from typing import TYPE_CHECKING
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.record import TopicOutputs
+from oricf.gateway.recording.recorder import TopicOutputs
+from oricf.gateway.recording.replay import Replay
 from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import OnEnd, Source, Submit, make_sources
+from oricf.gateway.sources import pipeline_sources
 from oricf.signals import stop_on_signals
 
-if TYPE_CHECKING:
-    from oricf.gateway.sources.replay import Replay
-
 log = logging.getLogger(__name__)
-
-
-def pipeline_sources(pipeline: Pipeline, outlets: Outlets, on_end: OnEnd) -> list[Source]:
-    """The pipeline's non-topic sources, each feeding its route."""
-    submit: dict[str, Submit] = {name: functools.partial(pipeline.submit, name)
-                                 for name in pipeline.config.routes}
-    return make_sources(pipeline.config, submit, on_end, outlets.channels)
 
 
 def run(config: PipelineConfig, replay: Replay | None = None) -> int:
     """Runs until stopped or every source has ended. With `replay` (--replay), topic inputs
     come from a recording and topic outputs go to its recorder or standard output; the exit
     code is then the replay's."""
-    outlets = Outlets(config)
-    pipeline = Pipeline(config, outlets if replay is None
-                        else TopicOutputs(outlets, replay.recorder))
+    outlets = Outlets(config, None if replay is None else TopicOutputs(replay.recorder))
+    pipeline = Pipeline(config, outlets)
     ended: set[str] = set()
     lock = threading.Lock()
     with stop_on_signals() as stop:
@@ -46,7 +34,7 @@ def run(config: PipelineConfig, replay: Replay | None = None) -> int:
                 if ended >= {s.route for s in sources}:
                     stop.set()
 
-        sources = pipeline_sources(pipeline, outlets, on_end)
+        sources = pipeline_sources(pipeline, outlets.channels, on_end)
         if replay is not None:
             sources += replay.sources(pipeline, on_end)
         outlets.start()

@@ -24,7 +24,7 @@ from mcap.records import Channel, Header, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 
-from oricf.gateway.record import RecordingError
+from oricf.gateway.recording.recorder import RecordingError
 
 log = logging.getLogger(__name__)
 

@@ -2,9 +2,8 @@
 Image, String and Int32 written (for recordings made without ROS).
 
 Camera routes take frames serialized (rclpy's `raw=True`): rclpy would otherwise build a
-Python message first, copying the pixels into an array.array, and that conversion cost
-about 0.15 ms of the robot's CPU per 40 KB JPEG frame. Reading the few fields here and
-slicing the pixels out once is cheaper. No ROS import.
+Python message first, copying the pixels into an array.array. Reading the few fields here
+and slicing the pixels out once is cheaper. No ROS import.
 
 Layout (the ROS 2 IDL mapped to plain CDR): a 4-byte encapsulation header whose second byte
 says the byte order, then every field aligned to its own size, counted from the end of that

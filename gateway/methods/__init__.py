@@ -1,0 +1,33 @@
+"""The methods a route can call, one module each: its call schema, its request, its typed
+result, and its entry in METHODS (oricf.gateway.methods.base.Method).
+
+    Detect      image            -> Detections (detections)
+    Transcribe  audio            -> Transcript (transcript, duration_s); no words ends the route
+    Generate    prompt template  -> Answer (answer); data products as typed facts for context
+    Infer       image            -> Detections, or Classes (classes, label, score)
+
+Adding a method is one module with a METHOD, and its line below.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field
+
+from oricf.gateway.methods import detect, generate, infer, transcribe
+from oricf.gateway.methods.base import Method, Skip
+
+METHODS: dict[str, Method] = {m.name: m for m in (
+    detect.METHOD,
+    transcribe.METHOD,
+    generate.METHOD,
+    infer.METHOD,
+)}
+
+# A route's `call:`: the `method` key picks the schema, so a key of another method is refused.
+CallConfig = Annotated[
+    detect.DetectCall | transcribe.TranscribeCall | generate.GenerateCall | infer.InferCall,
+    Field(discriminator="method")]
+
+__all__ = ["METHODS", "CallConfig", "Method", "Skip"]

@@ -1,0 +1,133 @@
+"""Generate: a prompt template with context -> an answer, on ORICF's language model
+(oricf.v1.LanguageModel). The context is data products passed as typed facts
+(oricf.v1.Fact), each with its age; a stale one is left out or sent marked stale, never
+passed off as current."""
+
+from __future__ import annotations
+
+import json
+import logging
+import numbers
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, field_validator
+
+from oricf.config import Schema
+from oricf.errors import InvalidInput
+from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.methods.base import CallBase, Invoke, Method, Skip, health_check
+from oricf.gateway.products import ProductStore, Reading
+from oricf.gateway.values import Record, template_fields
+from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
+
+log = logging.getLogger(__name__)
+
+
+class ContextConfig(Schema):
+    products: list[str] = Field(min_length=1)
+    stale: Literal["omit", "mark"] = Field(
+        "omit", description="a product older than its max_age_s: left out, or sent marked stale")
+
+
+class GenerateCall(CallBase):
+    """oricf.v1.LanguageModel/Generate: a prompt template with context -> answer."""
+
+    method: Literal["Generate"]
+    prompt: str = Field("{text}", description="template over the record's fields")
+    max_tokens: int = Field(0, ge=0, le=4096)
+    temperature: float | None = Field(None, ge=0, le=5)
+    stop: list[str] = Field(default_factory=list)
+    context: ContextConfig | None = None
+
+    @field_validator("prompt")
+    @classmethod
+    def _template(cls, value: str) -> str:
+        template_fields(value)  # a malformed template (e.g. an unclosed brace) is refused
+        return value
+
+
+@dataclass(frozen=True)
+class Answer:
+    answer: str
+
+
+def generate_request(record: Record, call: GenerateCall, products: ProductStore
+                     ) -> language_pb2.GenerateRequest:
+    try:
+        prompt = call.prompt.format_map(record).strip()
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InvalidInput(f"prompt template {call.prompt!r}: cannot fill {exc}") from None
+    if not prompt:
+        raise Skip("empty prompt")
+    readings = products.context(call.context.products, call.context.stale) if call.context \
+        else []
+    request = language_pb2.GenerateRequest(prompt=prompt, facts=[fact(r) for r in readings],
+                                           max_tokens=call.max_tokens, stop=call.stop)
+    if call.temperature is not None:
+        request.temperature = call.temperature
+    return request
+
+
+def fact(reading: Reading) -> common_pb2.Fact:
+    """A data product as an oricf.v1.Fact: the value in its own type, its age, whether stale.
+    A value with no typed form (a dict of counts, a list) goes as JSON text; None, or a
+    number that is not finite, as no value (the receiver renders it as unknown)."""
+    message = common_pb2.Fact(name=reading.name, age_s=reading.age_s, stale=reading.stale)
+    value = reading.value
+    if value is None:
+        pass
+    elif isinstance(value, (bool, np.bool_)):
+        message.flag = bool(value)
+    elif isinstance(value, numbers.Integral) and -2**63 <= int(value) < 2**63:
+        message.integer = int(value)
+    elif isinstance(value, numbers.Real):
+        if np.isfinite(float(value)):
+            message.number = float(value)
+    elif isinstance(value, str):
+        message.text = value
+    else:
+        message.text = json.dumps(value, default=str)
+    return message
+
+
+def facts_text(facts: Iterable[common_pb2.Fact]) -> str:
+    """Facts on one line for logs: `people_count=3 (1.2 s)`, `people_count=3 (stale, 12.0 s)`."""
+    parts = []
+    for f in facts:
+        kind = f.WhichOneof("value")
+        value = repr(getattr(f, kind)) if kind else "(no value)"
+        notes = [*(["stale"] if f.stale else []),
+                 *([f"{f.age_s:.1f} s"] if f.HasField("age_s") else [])]
+        parts.append(f"{f.name}={value}" + (f" ({', '.join(notes)})" if notes else ""))
+    return ", ".join(parts) or "none"
+
+
+def bind(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    def invoke(record: Record) -> Answer:
+        request = generate_request(record, call, products)
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("Generate prompt %r facts %s", request.prompt, facts_text(request.facts))
+        return Answer(endpoint.call("Generate", request).text.strip())
+
+    return invoke
+
+
+def result(call: Any) -> type:
+    return Answer
+
+
+def reads(call: GenerateCall) -> dict[str, set[str]]:
+    """The record fields the prompt template names, by the key that names them."""
+    return {"prompt": template_fields(call.prompt)}
+
+
+def products(call: GenerateCall) -> dict[str, list[str]]:
+    return {"context.products": call.context.products if call.context else []}
+
+
+METHOD = Method("Generate", GenerateCall, "oricf.v1.LanguageModel",
+                language_pb2_grpc.LanguageModelStub, health_check("oricf.v1.LanguageModel"),
+                result, bind, reads=reads, products=products)

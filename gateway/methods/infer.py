@@ -1,0 +1,139 @@
+"""Infer: an image -> detections or classes, on any Open Inference Protocol server (KServe
+v2: ORICF's `oricf serve models`, Triton, KServe, MLServer).
+
+The model's declaration (configs/models/*.yaml) says how the gateway makes the input tensors
+and reads the outputs: a detection model gives Detections (as Detect does), a
+classification model gives Classes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Literal
+
+import grpc
+import numpy as np
+from pydantic import Field, model_validator
+
+from oricf.config import FilePath
+from oricf.errors import ConfigError
+from oricf.gateway.endpoints import Endpoint, Metadata
+from oricf.gateway.methods.base import CallBase, Invoke, Method, input_frame
+from oricf.gateway.methods.detect import Detections
+from oricf.gateway.products import ProductStore
+from oricf.gateway.values import Frame, Record
+from oricf.imaging import Box, Detection, encoded_size
+from oricf.models.declaration import ModelDeclaration, load_declaration
+from oricf.models.heads import ClassificationHead, DetectionHead, Prepared, declared_head
+from oricf.models.image import geometry
+from oricf.models.wire import infer_request, response_outputs
+from oricf.oip import open_inference_grpc_pb2 as oip
+from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+
+
+class InferCall(CallBase):
+    """inference.GRPCInferenceService/ModelInfer on any Open Inference Protocol server: a
+    declared model's pre-processing makes its input tensors, its post-processing turns the
+    outputs into fields (detection: detections; classification: classes, label, score)."""
+
+    method: Literal["Infer"]
+    model: FilePath = Field(description="the model's declaration (configs/models/*.yaml)")
+    model_name: str | None = Field(
+        None, description="its name on the server, if not the declaration's name")
+    labels: list[str] = Field(default_factory=list, description="detection: keep only these")
+    min_score: float | None = Field(None, gt=0, le=1,
+                                    description="detection: default the declaration's")
+    top_k: int | None = Field(None, ge=1, le=1000, description="classification")
+
+    @cached_property
+    def declaration(self) -> ModelDeclaration:
+        return load_declaration(self.model)
+
+    @model_validator(mode="after")
+    def _usable_declaration(self) -> InferCall:
+        try:
+            task = self.declaration.task
+        except ConfigError as exc:  # named here too, so the pipeline's file and key show
+            raise ValueError(f"model: {exc}") from None
+        if task is None:
+            raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
+                             f"to turn its input into tensors and its outputs into fields")
+        known = task.label_list()  # reads the labels file, so once
+        unknown = sorted(set(self.labels) - set(known)) if known else []
+        if unknown:
+            raise ValueError(f"labels: the model has no label(s) {', '.join(unknown)}")
+        if self.labels and task.kind != "detection":
+            raise ValueError("labels: only for detection models")
+        if self.top_k is not None and task.kind != "classification":
+            raise ValueError("top_k: only for classification models")
+        return self
+
+    @property
+    def server_model(self) -> str:
+        return self.model_name or self.declaration.name
+
+
+@dataclass(frozen=True)
+class Classes:
+    """A classification: every class kept with its score, best first, and the best one."""
+
+    classes: list[tuple[str, float]]
+    label: str
+    score: float
+
+
+def server_ready(channel: grpc.Channel, timeout: float, metadata: Metadata = ()) -> bool:
+    """Ready when the Open Inference Protocol's ServerReady says so: Triton, KServe and
+    MLServer need not implement grpc.health.v1."""
+    stub = oip_grpc.GRPCInferenceServiceStub(channel)
+    return bool(stub.ServerReady(oip.ServerReadyRequest(), timeout=timeout,
+                                 metadata=metadata).ready)
+
+
+def _encoded_input(frame: Frame, head: DetectionHead | ClassificationHead, quality: int
+                   ) -> Prepared:
+    """The frame as one JPEG (or its own encoding) for the server to pre-process."""
+    image = frame.to_proto("jpeg", quality)
+    size = (image.width, image.height) if image.width else encoded_size(image.data)[1:]
+    tensor = np.empty(1, dtype=object)
+    tensor[0] = image.data
+    return Prepared({head.input_name: tensor},
+                    geometry(size[0], size[1], head.image, head.size), 0.0)
+
+
+def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    head = declared_head(call.declaration)
+    wanted = [head.output] if head.output else []
+    label_ids = {label: i for i, label in enumerate(head.labels)}
+    class_ids = (np.array(sorted(label_ids[label] for label in call.labels), np.int64)
+                 if call.labels else None)
+    transport = endpoint.config.image
+
+    def invoke(record: Record) -> Detections | Classes:
+        frame = input_frame(record, "Infer")
+        prepared = (_encoded_input(frame, head, transport.jpeg_quality)
+                    if transport.transport == "jpeg" else head.prepare(frame.pixels()))
+        request = infer_request(call.server_model, prepared.feeds, wanted)
+        outputs = response_outputs(endpoint.call("ModelInfer", request))
+        if isinstance(head, ClassificationHead):
+            classes = head.decode(outputs, prepared, call.top_k)
+            return Classes(list(zip(classes.labels, classes.scores, strict=True)),
+                           classes.labels[0], classes.scores[0])
+        found = head.decode(outputs, prepared, call.min_score or head.task.min_score,
+                            class_ids)
+        return Detections([Detection(head.labels[c], int(c), float(s), Box(*map(float, b)))
+                           for b, s, c in zip(found.boxes, found.scores, found.class_ids,
+                                              strict=True)])
+
+    return invoke
+
+
+def result(call: InferCall) -> type:
+    task = call.declaration.task
+    return Detections if task is None or task.kind == "detection" else Classes
+
+
+METHOD = Method("Infer", InferCall, "inference.GRPCInferenceService",
+                oip_grpc.GRPCInferenceServiceStub, server_ready, result, bind,
+                image_transport=True)

@@ -1,0 +1,59 @@
+"""Topic outputs on ROS: one publisher per output topic; each value converted to its
+message (oricf.gateway.ros.messages) and published, and recorded with --record."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+
+from oricf.gateway.config import OutputConfig, PipelineConfig
+from oricf.gateway.recording.recorder import Recorder
+from oricf.gateway.ros import messages
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.values import Record
+
+log = logging.getLogger(__name__)
+
+
+class TopicPublishers:
+    """Called with each topic output of the pipeline's routes (oricf.gateway.sinks.Outlets
+    hands them on)."""
+
+    def __init__(self, node: Node, config: PipelineConfig,
+                 recorder: Recorder | None = None) -> None:
+        self._node = node
+        self._recorder = recorder  # --record: every topic output into a file
+        self._throttle = ThrottledLog(log)
+        self._publishers: dict[str, Publisher] = {}
+        for route in config.routes.values():
+            for output in route.outputs:
+                if output.topic is not None and output.topic not in self._publishers:
+                    assert output.type is not None
+                    # Reliable publishers match both reliable and best-effort subscribers.
+                    depth = 1 if output.type == "sensor_msgs/Image" else 10
+                    self._publishers[output.topic] = node.create_publisher(
+                        messages.MESSAGE_TYPES[output.type], output.topic, depth)
+
+    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+        assert output.topic is not None and output.type is not None
+        try:
+            msg = messages.to_message(output.type, value, record.get("header"))
+        except (TypeError, ValueError) as exc:  # a value that does not fit the topic type
+            self._throttle.error(f"emit:{output.topic}", "cannot publish %r on %s (%s): %s",
+                                 value, output.topic, output.type, exc)
+            return
+        publisher = self._publishers[output.topic]
+        try:
+            publisher.publish(msg)
+        except Exception:
+            # SIGTERM shuts the ROS context down before the camera threads stop, so a frame
+            # in flight may finish after it: nothing can be published any more, and that
+            # is not an error of the route.
+            if self._node.context.ok():
+                raise
+            log.debug("shutting down: %s not published", output.topic)
+        if self._recorder is not None:
+            self._recorder.output(publisher.topic_name, output.type, value, record)
