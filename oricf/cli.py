@@ -1,7 +1,7 @@
 """The `oricf` command.
 
     oricf serve detector|asr|llm|models [--config FILE] [--overlay FILE ...] [--listen HOST:PORT]
-                [--metrics-listen HOST:PORT]
+                [--metrics-listen HOST:PORT] [--http-listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
@@ -53,10 +53,14 @@ def security_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 
 def metrics_overrides(args: argparse.Namespace) -> dict[str, object]:
-    """--metrics-listen as `server.metrics.listen` (a `tls:` beside it in the YAML stays)."""
-    if not args.metrics_listen:
-        return {}
-    return {"server": {"metrics": {"listen": args.metrics_listen}}}
+    """--metrics-listen as `server.metrics.listen` (a `tls:` beside it in the YAML stays),
+    --http-listen as `server.http.listen` (the YAML's other http keys stay)."""
+    server: dict[str, object] = {}
+    if args.metrics_listen:
+        server["metrics"] = {"listen": args.metrics_listen}
+    if args.http_listen:
+        server["http"] = {"listen": args.http_listen}
+    return {"server": server} if server else {}
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
@@ -120,6 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--metrics-listen", metavar="HOST:PORT",
                        help="serve Prometheus metrics at http://HOST:PORT/metrics "
                             "(docs/metrics.md)")
+    serve.add_argument("--http-listen", metavar="HOST:PORT",
+                       help="also serve the OpenAI-compatible HTTP API there (llm, asr; "
+                            "docs/openai.md)")
     serve.set_defaults(run=cmd_serve)
 
     models = verbs.add_parser("models", help="list or fetch models into the local model store")

@@ -113,17 +113,7 @@ class _Server(ThreadingWSGIServer):
 
 
 def _ssl_context(tls: ServerTls) -> ssl.SSLContext:
-    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
-    context.minimum_version = ssl.TLSVersion.TLSv1_2
-    try:
-        context.load_cert_chain(tls.cert, tls.key)
-        if tls.client_ca is not None:
-            context.load_verify_locations(tls.client_ca)
-            context.verify_mode = ssl.CERT_REQUIRED
-    except (OSError, ssl.SSLError) as exc:
-        raise ConfigError(f"metrics.tls: cannot load {tls.cert}, {tls.key} or "
-                          f"{tls.client_ca}: {exc}") from None
-    return context
+    return tls.ssl_context("metrics.tls")
 
 
 class MetricsServer:

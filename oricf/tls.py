@@ -18,6 +18,7 @@ import hmac
 import ipaddress
 import os
 import secrets
+import ssl
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -54,6 +55,21 @@ class ServerTls(Schema):
         return grpc.ssl_server_credentials(
             [(_read(self.key, "tls.key"), _read(self.cert, "tls.cert"))],
             root_certificates=client_ca, require_client_auth=client_ca is not None)
+
+    def ssl_context(self, what: str) -> ssl.SSLContext:
+        """The same certificate (and client CA) for a server that speaks TLS through Python's
+        ssl module (HTTP); `what` names the YAML key in errors."""
+        context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+        context.minimum_version = ssl.TLSVersion.TLSv1_2
+        try:
+            context.load_cert_chain(self.cert, self.key)
+            if self.client_ca is not None:
+                context.load_verify_locations(self.client_ca)
+                context.verify_mode = ssl.CERT_REQUIRED
+        except (OSError, ssl.SSLError) as exc:
+            raise ConfigError(f"{what}: cannot load {self.cert}, {self.key} or "
+                              f"{self.client_ca}: {exc}") from None
+        return context
 
 
 class ClientTls(Schema):

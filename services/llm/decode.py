@@ -67,14 +67,17 @@ class StopScanner:
 
 def run_tokens(llm: Any, tokens: list[int], sampling: Sampling, max_tokens: int,
                stops: Sequence[str], is_end: Callable[[int], bool], check: Callable[[], None],
-               result: LoopResult, clock: Callable[[], float]) -> Iterator[str]:
+               result: LoopResult, clock: Callable[[], float], grammar: Any = None
+               ) -> Iterator[str]:
     """Generates from `tokens`, yielding text as it is produced (leading blanks dropped).
 
     check() runs after every token and raises to stop at once; `result` then still holds
-    the count of tokens generated so far.
+    the count of tokens generated so far. A grammar (llama_cpp.LlamaGrammar) constrains
+    which tokens may come.
     """
     started = False
-    for text in _run(llm, tokens, sampling, max_tokens, stops, is_end, check, result, clock):
+    for text in _run(llm, tokens, sampling, max_tokens, stops, is_end, check, result, clock,
+                     grammar):
         if not started:
             # "Answer:" prompts make the first token " I"; the answer itself has no blank.
             text = text.lstrip()
@@ -85,12 +88,12 @@ def run_tokens(llm: Any, tokens: list[int], sampling: Sampling, max_tokens: int,
 
 def _run(llm: Any, tokens: list[int], sampling: Sampling, max_tokens: int,
          stops: Sequence[str], is_end: Callable[[int], bool], check: Callable[[], None],
-         result: LoopResult, clock: Callable[[], float]) -> Iterator[str]:
+         result: LoopResult, clock: Callable[[], float], grammar: Any) -> Iterator[str]:
     scanner = StopScanner(stops)
     decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
     generator = llm.generate(
         tokens, temp=sampling.temperature, top_k=sampling.top_k, top_p=sampling.top_p,
-        min_p=sampling.min_p, repeat_penalty=sampling.repeat_penalty)
+        min_p=sampling.min_p, repeat_penalty=sampling.repeat_penalty, grammar=grammar)
     try:
         for token in generator:
             if result.first_token_at is None:

@@ -25,12 +25,27 @@ class Fact:
 
 
 @dataclass(frozen=True)
+class JsonOutput:
+    """Answer in JSON, enforced by a grammar while decoding: any JSON object, or one that
+    validates against a JSON Schema (its JSON text)."""
+
+    schema: str | None = None
+
+
+@dataclass(frozen=True)
 class GenerationRequest:
     prompt: str
     facts: tuple[Fact, ...] = ()
     max_tokens: int = 48
     temperature: float = 0.0
     stop: tuple[str, ...] = ()
+    # A conversation (the OpenAI API): the caller's system text, added to the template's,
+    # and earlier (question, answer) turns, rendered after the template's examples.
+    system: str = ""
+    history: tuple[tuple[str, str], ...] = ()
+    json: JsonOutput | None = None
+    seed: int | None = None
+    top_p: float | None = None        # None: the service's
 
 
 @dataclass(frozen=True)

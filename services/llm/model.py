@@ -24,6 +24,7 @@ from oricf.services.llm.domain import (
     StillWanted,
 )
 from oricf.services.llm.gate import GenerationGate
+from oricf.services.llm.grammar import json_grammar
 from oricf.services.llm.prompt import PromptRenderer, PromptTemplate
 from oricf.services.runtime import ModelInfo
 
@@ -126,20 +127,23 @@ class LlamaModel:
         started = time.perf_counter()
         llm = self._require_loaded()
         self._refuse_control_text(
-            [request.prompt, *(f.value for f in request.facts if isinstance(f.value, str))])
-        rendered = self.renderer.render(request.prompt, request.facts)
+            [request.prompt, request.system, *(text for turn in request.history for text in turn),
+             *(f.value for f in request.facts if isinstance(f.value, str))])
+        rendered = self.renderer.render(request.prompt, request.facts, request.system,
+                                        request.history)
+        grammar = json_grammar(request.json) if request.json is not None else None
         tokens = self._tokenize(rendered.text, add_bos=True)
         self._check_fits(len(tokens), request.max_tokens)
         log.debug("prompt facts: %s", rendered.facts)
         prepared = time.perf_counter()
         with self.gate.turn(still_wanted) as waited_s:
             finished = yield from self._run(llm, tokens, request, still_wanted,
-                                            (started, prepared, waited_s))
+                                            (started, prepared, waited_s), grammar)
         # The model is free before the last chunk goes out, whatever the consumer does next.
         yield Chunk("", finished)
 
     def _run(self, llm: Any, tokens: list[int], request: GenerationRequest,
-             still_wanted: StillWanted, marks: tuple[float, float, float]
+             still_wanted: StillWanted, marks: tuple[float, float, float], grammar: Any
              ) -> Generator[Chunk, None, Finished]:
         started, prepared, waited_s = marks
         acquired = time.perf_counter()
@@ -148,13 +152,19 @@ class LlamaModel:
         cached = self._cached_prefix(llm, tokens)
         result = LoopResult()
         sampling = replace(self.settings.sampling, temperature=request.temperature)
-        stops = [*self.renderer.stop, *request.stop]
+        if request.top_p is not None:
+            sampling = replace(sampling, top_p=request.top_p)
+        if request.seed is not None:
+            llm.set_seed(request.seed)
+        # JSON ends where its grammar does: the format's stops (a newline) would cut it.
+        stops = [*([] if grammar else self.renderer.stop), *request.stop]
         # A consumer that stops reading (a streaming client gone between chunks) closes
         # this generator at its yield: nothing more is generated, and it is recorded.
         reason = ABANDONED
         try:
             for text in run_tokens(llm, tokens, sampling, request.max_tokens, stops,
-                                   self._is_end, still_wanted, result, time.perf_counter):
+                                   self._is_end, still_wanted, result, time.perf_counter,
+                                   grammar):
                 yield Chunk(text)
             reason = result.finish_reason
         except OricfError as exc:

@@ -142,22 +142,33 @@ class PromptRenderer:
     def __init__(self, template: PromptTemplate) -> None:
         self.template = template
         self._named = {f.name for f in template.facts}
-        fmt = template.format
-        parts = [fmt.header.format(system=template.system)]
-        for example in template.examples:
+        self.prefix = self._prefix(template.system)
+
+    def _prefix(self, system: str) -> str:
+        fmt = self.template.format
+        parts = [fmt.header.format(system=system)]
+        for example in self.template.examples:
             facts = [Fact(name, value) for name, value in example.facts.items()]
             parts.append(self._turn(example.question, facts))
             parts.append(fmt.answer.format(answer=example.answer))
-        self.prefix = "".join(parts)
+        return "".join(parts)
 
     @property
     def stop(self) -> list[str]:
         return list(self.template.format.stop)
 
-    def render(self, question: str, facts: Sequence[Fact]) -> RenderedPrompt:
+    def render(self, question: str, facts: Sequence[Fact], system: str = "",
+               history: Sequence[tuple[str, str]] = ()) -> RenderedPrompt:
+        """The prompt for a question. A conversation's own system text follows the
+        template's; its earlier (question, answer) turns follow the examples, each with
+        this request's facts (the facts are what is known now)."""
         rendered = self.render_facts(facts)
+        prefix = self._prefix(f"{self.template.system} {system}") if system else self.prefix
+        answer = self.template.format.answer
+        earlier = "".join(self._turn(q, facts) + answer.format(answer=self._question(a))
+                          for q, a in history)
         turn = self.template.format.turn.format(facts=rendered, question=self._question(question))
-        return RenderedPrompt(self.prefix + turn, self.prefix, rendered)
+        return RenderedPrompt(prefix + earlier + turn, prefix, rendered)
 
     def render_facts(self, facts: Sequence[Fact]) -> str:
         by_name: Mapping[str, Fact] = {fact.name: fact for fact in facts}

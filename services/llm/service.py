@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import grpc
 
 from oricf.services.llm.config import LlmConfig, load_prompt
@@ -33,10 +35,18 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[LlamaModel], config: LlmCo
         LanguageModelServicer(slot, config), server)
 
 
+def http_routes(slot: ModelSlot[LlamaModel], config: LlmConfig) -> list[Any]:
+    """OpenAI's chat completions API (docs/openai.md); Starlette is imported only here."""
+    from oricf.services.llm.openai_api import routes
+
+    return routes(slot, config)
+
+
 SPEC = ServiceSpec(
     name="llm",
     service_name=language_pb2.DESCRIPTOR.services_by_name["LanguageModel"].full_name,
     config_schema=LlmConfig,
     create_model=create_model,
     add_servicer=add_servicer,
+    http_routes=http_routes,
 )

@@ -2,14 +2,49 @@
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from oricf.config import Schema
-from oricf.metrics import MetricsConfig
+from oricf.metrics import MetricsConfig, split_listen
 from oricf.tls import ServerTls, TokenSource
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
 DEFAULT_MAX_MESSAGE_MB = 16
+
+
+class HttpSettings(Schema):
+    """The OpenAI-compatible HTTP API beside gRPC (docs/openai.md): the same model, call
+    limit, TLS and tokens."""
+
+    listen: str = Field(description="host:port (a bare port means 127.0.0.1:PORT; port 0 "
+                                    "picks a free port)")
+    max_body_kb: int = Field(1024, ge=1, le=1_048_576, description="largest JSON request body")
+    max_upload_mb: float = Field(25.0, gt=0, le=1024,
+                                 description="largest multipart upload (an audio file)")
+    max_connections: int = Field(
+        64, ge=1, le=10_000, description="open connections and requests; more get 503 at once")
+    request_timeout_s: float = Field(
+        30.0, gt=0, le=3600, description="a client must send its headers and whole body within "
+                                         "this; slower ones are cut off (408 or closed)")
+    keep_alive_s: float = Field(5.0, gt=0, le=600,
+                                description="an idle connection is closed after this")
+
+    @field_validator("listen", mode="before")
+    @classmethod
+    def _host_port(cls, value: object) -> object:
+        if isinstance(value, int) or (isinstance(value, str) and value.isdigit()):
+            value = f"127.0.0.1:{value}"  # loopback unless a host is named
+        if isinstance(value, str):
+            split_listen(value)
+        return value
+
+    @property
+    def max_body_bytes(self) -> int:
+        return self.max_body_kb * 1024
+
+    @property
+    def max_upload_bytes(self) -> int:
+        return int(self.max_upload_mb * 1024 * 1024)
 
 
 class ServerSettings(Schema):
@@ -35,6 +70,9 @@ class ServerSettings(Schema):
         description="close each client connection this long after it opened (in-flight calls "
                     "get grace_s to finish), so clients resolving a name again find replicas "
                     "that were added since")
+
+    http: HttpSettings | None = Field(
+        None, description="also serve the OpenAI-compatible HTTP API (off if absent)")
 
     @property
     def max_message_bytes(self) -> int:

@@ -51,7 +51,7 @@ class ServiceHost:
         self.slot: ModelSlot[Any] = ModelSlot(model)
         settings = config.server
         limit = settings.max_concurrent_rpcs
-        call_limit = CallLimit(limit, settings.retry_after_ms)
+        call_limit = self.call_limit = CallLimit(limit, settings.retry_after_ms)
         interceptors: list[grpc.ServerInterceptor] = []
         self.metrics: CollectorRegistry | None = None
         self.metrics_server: MetricsServer | None = None
@@ -91,6 +91,15 @@ class ServiceHost:
         if self.port == 0:
             raise ConfigError(f"cannot listen on {self.address} (port in use?)")
         self._set_health(health_pb2.HealthCheckResponse.NOT_SERVING)
+        self.draining = False
+        self.http = self._http_server() if settings.http is not None else None
+
+    def _http_server(self) -> Any:
+        """The OpenAI-compatible HTTP API on the same model and call limit (bound now)."""
+        from oricf.services.runtime.http import http_server
+
+        return http_server(self.spec, self.slot, self.config, self.call_limit, self.metrics,
+                           lambda: self.draining)
 
     def _set_health(self, status: int) -> None:
         self.health.set("", status)
@@ -112,6 +121,10 @@ class ServiceHost:
             security += ", bearer tokens"
         log.info("%s listening on port %d (%s; health NOT_SERVING until the model loads)",
                  self.spec.name, self.port, security)
+        if self.http is not None:
+            self.http.start()
+            log.info("%s: OpenAI-compatible HTTP API on port %d (%s; /health 503 until the "
+                     "model loads)", self.spec.name, self.http.port, security)
 
     def load_model(self) -> None:
         seconds = self.slot.load()
@@ -123,10 +136,13 @@ class ServiceHost:
         Returns False when calls were still stuck STOP_MARGIN_S after the grace period."""
         grace = self.config.server.grace_s if grace is None else grace
         self.health.enter_graceful_shutdown()
+        self.draining = True
         self.slot.flush()
         log.info("%s draining (grace %.1f s)", self.spec.name, grace)
         deadline = time.monotonic() + grace + STOP_MARGIN_S
-        stopped = self.server.stop(grace).wait(grace + STOP_MARGIN_S)
+        grpc_done = self.server.stop(grace)
+        http_stopped = self.http is None or self.http.stop(grace)
+        stopped = grpc_done.wait(max(0.0, deadline - time.monotonic())) and http_stopped
         workers = threading.Thread(target=self._workers.shutdown, kwargs={"wait": True},
                                    daemon=True, name=f"{self.spec.name}-stop")
         workers.start()
@@ -162,6 +178,8 @@ def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | 
             host.load_model()
         except Exception:
             host.server.stop(0)
+            if host.http is not None:
+                host.http.stop(0)
             if host.probe is not None:
                 host.probe[0].stop(0)
             raise

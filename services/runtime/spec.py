@@ -20,3 +20,6 @@ class ServiceSpec:
     config_schema: type[ServiceConfig]
     create_model: Callable[[Any, ModelStore], Model]  # (its config, the store) -> unloaded model
     add_servicer: Callable[[grpc.Server, ModelSlot[Any], Any], None]
+    # (slot, its config) -> Starlette routes of the OpenAI-compatible HTTP API; None: none.
+    # Called only when server.http is set, so Starlette is imported only then.
+    http_routes: Callable[[ModelSlot[Any], Any], list[Any]] | None = None

@@ -1,0 +1,145 @@
+"""uvicorn in a thread of the service process: its own socket, TLS, limits and a clean stop.
+
+The socket is bound when the server is made, so a port in use fails the service at start
+like the gRPC port does, and port 0 is known before anything is served. uvicorn cuts off
+idle keep-alive connections and refuses requests beyond `max_connections` with 503, but it
+has no limit on how long a client may take to send a request's headers: the protocol below
+closes a connection whose headers are not complete within `request_timeout_s` (a slowloris
+client that dribbles a header a minute would otherwise hold its connection for ever). The
+body's deadline is kept by the app (limits.py).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+import ssl
+import threading
+from typing import Any
+
+import uvicorn
+from uvicorn.protocols.http.h11_impl import H11Protocol
+
+from oricf.errors import ConfigError
+from oricf.metrics import split_listen
+from oricf.services.runtime.config import HttpSettings
+from oricf.tls import ServerTls
+
+log = logging.getLogger(__name__)
+
+# How long starting may take before the service gives up (binding is already done).
+START_TIMEOUT_S = 10.0
+# After the grace period, how long uvicorn may take to cancel what is left.
+STOP_MARGIN_S = 5.0
+
+
+def _protocol(header_timeout_s: float) -> type[asyncio.Protocol]:
+    class HeaderDeadlineProtocol(H11Protocol):
+        """uvicorn's HTTP/1.1 protocol, closing connections whose request headers are late."""
+
+        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+            super().connection_made(transport)
+            self._arm_header_deadline()
+
+        def data_received(self, data: bytes) -> None:
+            super().data_received(data)
+            if self.cycle is not self._waiting_after:  # a request's headers are complete
+                self._disarm_header_deadline()
+
+        def on_response_complete(self) -> None:
+            super().on_response_complete()
+            self._arm_header_deadline()  # the next request on this connection
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            self._disarm_header_deadline()
+            super().connection_lost(exc)
+
+        def _arm_header_deadline(self) -> None:
+            self._disarm_header_deadline()
+            self._waiting_after = self.cycle
+            self._header_timer: asyncio.TimerHandle | None = self.loop.call_later(
+                header_timeout_s, self._headers_too_late)
+
+        def _disarm_header_deadline(self) -> None:
+            timer = getattr(self, "_header_timer", None)
+            if timer is not None:
+                timer.cancel()
+                self._header_timer = None
+
+        def _headers_too_late(self) -> None:
+            in_progress = self.cycle is not None and not self.cycle.response_complete
+            if not in_progress and not self.transport.is_closing():
+                log.debug("closing a connection from %s: no complete request in %.0f s",
+                          self.client, header_timeout_s)
+                self.transport.close()
+
+    return HeaderDeadlineProtocol
+
+
+def _bind(listen: str) -> socket.socket:
+    host, port = split_listen(listen)
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise ConfigError(f"server.http: cannot listen on {listen}: "
+                          f"{exc.strerror or exc}") from None
+    sock.listen(128)
+    sock.setblocking(False)
+    return sock
+
+
+class HttpServer:
+    """Serves an ASGI app on `settings.listen` from a thread, until stop()."""
+
+    def __init__(self, app: Any, settings: HttpSettings, tls: ServerTls | None,
+                 grace_s: float, name: str) -> None:
+        self._socket = _bind(settings.listen)
+        self.port: int = self._socket.getsockname()[1]
+        self.name = name
+        self.scheme = "https" if tls else "http"
+        context = tls.ssl_context("server.tls") if tls else None
+        config = uvicorn.Config(
+            app, http=_protocol(settings.request_timeout_s), lifespan="off", ws="none",
+            log_config=None, access_log=False, server_header=False, proxy_headers=False,
+            limit_concurrency=settings.max_connections,
+            timeout_keep_alive=settings.keep_alive_s,  # type: ignore[arg-type]
+            timeout_graceful_shutdown=grace_s,  # type: ignore[arg-type]
+            ssl_context_factory=_fixed(context) if context else None,
+            # uvicorn needs a certificate file name to switch TLS on at all
+            ssl_certfile=str(tls.cert) if tls else None)
+        self._server = uvicorn.Server(config)
+        self._thread = threading.Thread(target=self._run, daemon=True, name=f"{name}-http")
+
+    def _run(self) -> None:
+        try:
+            self._server.run(sockets=[self._socket])
+        except BaseException:  # a dying server thread must say why
+            log.exception("%s: the HTTP server stopped", self.name)
+
+    def start(self) -> None:
+        self._thread.start()
+        waited = 0.0
+        while not self._server.started and self._thread.is_alive() and waited < START_TIMEOUT_S:
+            threading.Event().wait(0.02)
+            waited += 0.02
+        if not self._server.started:
+            raise ConfigError(f"{self.name}: the HTTP server did not start")
+
+    def stop(self, grace_s: float) -> bool:
+        """Stops accepting, lets requests in flight finish within grace_s; False if the
+        server thread was still running after that and the margin."""
+        self._server.should_exit = True
+        self._thread.join(grace_s + STOP_MARGIN_S)
+        if self._thread.is_alive():
+            self._server.force_exit = True
+            return False
+        return True
+
+
+def _fixed(context: ssl.SSLContext) -> Any:
+    return lambda config, default: context
