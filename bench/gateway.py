@@ -170,7 +170,7 @@ class Camera:
         """The message the camera publishes, and the same image as a direct Detect request."""
         from sensor_msgs.msg import CompressedImage
 
-        from oricf.gateway.ros.messages import image_from_pixels
+        from oricf.demo.node import image_from_pixels
 
         if not self.compressed:
             image = Frame.from_pixels(frame)

@@ -71,7 +71,7 @@ def ros_check(timeout_s: float = 120.0) -> int:
     """A vtest.avi frame -> /human_counter, then /question -> an /answer with that count."""
     import rclpy
 
-    from oricf.launch.demo_node import DemoNode, ros_context
+    from oricf.demo.node import DemoNode, ros_context
 
     frame = first_video_frame()
     context = ros_context()
@@ -105,8 +105,7 @@ def first_video_frame() -> Any:
 
 def first_count(node: Any, frame: Any, deadline: float) -> int | None:
     """Publishes the frame twice a second until the gateway counts it."""
-    from oricf.gateway.ros.messages import image_from_pixels
-    from oricf.launch.demo_node import COUNT
+    from oricf.demo.node import COUNT, image_from_pixels
 
     while time.monotonic() < deadline:
         node.camera.publish(image_from_pixels(frame, "bgr8"))
@@ -118,7 +117,7 @@ def first_count(node: Any, frame: Any, deadline: float) -> int | None:
 
 def typed_answer(node: Any, deadline: float) -> str | None:
     """Asks once the gateway listens on /question; asks again every 5 s without an answer."""
-    from oricf.launch.demo_node import ANSWER
+    from oricf.demo.node import ANSWER
 
     while time.monotonic() < deadline:
         if node.question.get_subscription_count() > 0:

@@ -32,7 +32,7 @@ DELEGATED = {
     "certs": "oricf.tls",
     "gateway": "oricf.gateway.main",
     "up": "oricf.launch.up",
-    "demo": "oricf.launch.demo",
+    "demo": "oricf.demo.main",
 }
 BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link", "rtsp", "offload", "edge")
 

@@ -24,9 +24,9 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
+from oricf.demo.node import image_from_pixels
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.ros.dds import dds_profile
-from oricf.gateway.ros.messages import image_from_pixels
 from oricf.gateway.ros.node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,

@@ -10,9 +10,9 @@ import pytest
 import yaml
 
 from oricf.config import config_dir, load_config
+from oricf.demo.main import build_parser, pick_deployment
 from oricf.errors import ConfigError
 from oricf.gateway.config import load_pipeline
-from oricf.launch.demo import build_parser, pick_deployment
 from oricf.launch.deployment import (
     ProcessPlan,
     ServiceName,

@@ -78,7 +78,7 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
               progress: ProgressLine) -> list[Result]:
     import rclpy
 
-    from oricf.launch.demo_node import COUNT, CameraFeed, DemoNode, ros_context
+    from oricf.demo.node import COUNT, CameraFeed, DemoNode, ros_context
 
     context = ros_context()
     node = DemoNode(context)
@@ -120,7 +120,7 @@ def _wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> No
 
 
 def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float) -> Result:
-    from oricf.launch.demo_node import ANSWER, TRANSCRIPT
+    from oricf.demo.node import ANSWER, TRANSCRIPT
 
     result = Result(question)
     node.drain(TRANSCRIPT)

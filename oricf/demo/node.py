@@ -26,7 +26,6 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import InputConfig
-from oricf.gateway.ros.messages import image_from_pixels
 from oricf.gateway.ros.dds import use_dds_profile
 from oricf.gateway.sources.video import VideoSource, is_live
 
@@ -74,6 +73,17 @@ class CameraFeed:
 
     def stop(self) -> None:
         self._reader.stop()
+
+
+def image_from_pixels(pixels: np.ndarray, encoding: str = "bgr8") -> Image:
+    """A sensor_msgs/Image from a uint8 array, as a camera driver publishes it (the demo's
+    camera, and other publishers of camera frames in the smoke check, tests and benchmarks)."""
+    height, width = pixels.shape[:2]
+    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    msg = Image(height=height, width=width, encoding=encoding, is_bigendian=0,
+                step=width * channels)
+    msg.data = np.ascontiguousarray(pixels).tobytes()
+    return msg
 
 
 def _file_fps(path: str) -> float:

@@ -29,7 +29,7 @@ from typing import Any
 import yaml
 
 from oricf.config import config_dir
-from oricf.launch.demo_run import DemoOptions, run_demo
+from oricf.demo.run import DemoOptions, run_demo
 from oricf.launch.deployment import Deployment, load_deployment
 from oricf.launch.launcher import LaunchFailed, Stopped
 from oricf.launch.progress import ProgressLine
