@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import grpc
 
 from oricf.services.asr.config import AsrConfig
@@ -24,10 +26,18 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[SpeechModel], config: AsrC
         SpeechRecognizerServicer(slot, config), server)
 
 
+def http_routes(slot: ModelSlot[SpeechModel], config: AsrConfig) -> list[Any]:
+    """OpenAI's transcription API (docs/openai.md); Starlette is imported only here."""
+    from oricf.services.asr.openai_api import routes
+
+    return routes(slot, config)
+
+
 SPEC = ServiceSpec(
     name="asr",
     service_name=speech_pb2.DESCRIPTOR.services_by_name["SpeechRecognizer"].full_name,
     config_schema=AsrConfig,
     create_model=create_model,
     add_servicer=add_servicer,
+    http_routes=http_routes,
 )

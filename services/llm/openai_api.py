@@ -23,8 +23,9 @@ from oricf.services.llm.domain import Chunk, Finished, GenerationRequest, StillW
 from oricf.services.llm.model import LlamaModel
 from oricf.services.llm.openai_request import ChatRequest, parse_chat, to_generation
 from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.http.app import check_model, models_route
 from oricf.services.runtime.http.calls import Presence, iterate_blocking, read_json, run_blocking
-from oricf.services.runtime.http.errors import ApiError, as_api_error, error_body
+from oricf.services.runtime.http.errors import as_api_error, error_body
 
 SSE_HEADERS = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
 
@@ -43,23 +44,15 @@ class ChatCompletions:
         self.slot = slot
         self.config = config
         self.name = config.model.name
-        self.created = int(time.time())
 
     def routes(self) -> list[Route]:
         return [Route("/v1/chat/completions", self.chat, methods=["POST"]),
-                Route("/v1/models", self.models, methods=["GET"])]
-
-    async def models(self, request: Request) -> Response:
-        return JSONResponse({"object": "list", "data": [
-            {"id": self.name, "object": "model", "created": self.created, "owned_by": "oricf"}]})
+                models_route(self.name)]
 
     async def chat(self, request: Request) -> Response:
         chat = parse_chat(await read_json(request))
         model = self.slot.get()
-        if chat.model is not None and chat.model != self.name:
-            raise ApiError(404, f"model '{chat.model[:80]}' is not served here; this service "
-                                f"serves '{self.name}' (GET /v1/models)",
-                           param="model", code="model_not_found")
+        check_model(chat.model, self.name)
         generation = to_generation(chat, self.config)
         head = {"id": f"chatcmpl-{uuid.uuid4().hex}", "created": int(time.time()),
                 "model": self.name, "system_fingerprint": None}

@@ -3,6 +3,7 @@ metrics every route shares (guards.py, metrics.py)."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -37,6 +38,25 @@ def _health(slot: ModelSlot[Any], draining: Callable[[], bool]) -> Route:
         return JSONResponse({"status": "SERVING"})
 
     return Route(HEALTH_PATH, health, methods=["GET"])
+
+
+def models_route(name: str) -> Route:
+    """GET /v1/models: the one model a service serves, as OpenAI lists models."""
+    listing = {"object": "list", "data": [
+        {"id": name, "object": "model", "created": int(time.time()), "owned_by": "oricf"}]}
+
+    async def models(request: Request) -> Response:
+        return JSONResponse(listing)
+
+    return Route("/v1/models", models, methods=["GET"])
+
+
+def check_model(requested: str | None, served: str) -> None:
+    """A request naming another model than the one served: 404 model_not_found."""
+    if requested and requested != served:
+        raise ApiError(404, f"model '{requested[:80]}' is not served here; this service "
+                            f"serves '{served}' (GET /v1/models)",
+                       param="model", code="model_not_found")
 
 
 async def _http_error(request: Request, exc: Exception) -> Response:

@@ -8,12 +8,12 @@ generation stops within a token of the client leaving.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import threading
 from collections.abc import AsyncGenerator, Callable, Iterator
 from typing import Any, TypeVar
 
-import anyio
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 
@@ -64,14 +64,13 @@ async def _watch(request: Request, presence: Presence) -> None:
 async def run_blocking(request: Request, work: Callable[[Callable[[], None]], T]) -> T:
     """work(still_wanted) in a worker thread; still_wanted raises once the client left."""
     presence = Presence()
-    result: list[T] = []
-    async with anyio.create_task_group() as tasks:
-        tasks.start_soon(_watch, request, presence)
-        try:
-            result.append(await run_in_threadpool(work, presence.still_wanted))
-        finally:
-            tasks.cancel_scope.cancel()
-    return result[0]
+    # A task of its own rather than a task group: the work's exception reaches the caller
+    # as it is, not wrapped in an ExceptionGroup.
+    watcher = asyncio.ensure_future(_watch(request, presence))
+    try:
+        return await run_in_threadpool(work, presence.still_wanted)
+    finally:
+        watcher.cancel()
 
 
 async def iterate_blocking(items: Iterator[T], presence: Presence) -> AsyncGenerator[T, None]:
