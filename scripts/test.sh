@@ -9,5 +9,15 @@ echo; echo "==> ruff"
 "$VENV/bin/ruff" check .
 echo; echo "==> mypy"
 "$VENV/bin/mypy" oricf services gateway bench
+echo; echo "==> import contracts"
+# lint-imports reads oricf's files from disk and puts its working directory first on
+# sys.path: it runs in a tree where the folders pyproject.toml maps onto the namespace
+# (services/, gateway/...) are linked under oricf/ (scripts/namespace_view.py).
+VIEW="$(mktemp -d)"
+"$VENV/bin/python" scripts/namespace_view.py "$VIEW"
+ROOT="$PWD"
+LINT_IMPORTS="$(cd "$VENV/bin" && pwd)/lint-imports"
+(cd "$VIEW" && "$LINT_IMPORTS" --no-cache "$ROOT/pyproject.toml") || { rm -rf "$VIEW"; exit 1; }
+rm -rf "$VIEW"
 echo; echo "==> pytest"
 exec "$VENV/bin/python" -m pytest "$@"

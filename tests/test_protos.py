@@ -1,22 +1,10 @@
 """The committed stubs are exactly what `python scripts/protogen.py` generates."""
 
-import importlib.util
 from pathlib import Path
-from types import ModuleType
 
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "protogen.py"
+from tests.support.scripts import load_script
 
-
-def load_script(path: Path) -> ModuleType:
-    """A checkout-only script, imported from its file (scripts/ is not a package)."""
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    assert spec is not None and spec.loader is not None, path
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-protogen = load_script(SCRIPT)
+protogen = load_script("protogen")
 PROTO_ROOT, generate = protogen.PROTO_ROOT, protogen.generate
 
 

@@ -1,0 +1,114 @@
+"""No import cycle anywhere in the oricf namespace: services/, gateway/, bench/ and the stubs
+included (scripts/namespace_view.py links them where Python imports them, so grimp sees the
+whole namespace). The layers themselves are import-linter's contracts in pyproject.toml,
+which scripts/test.sh checks with lint-imports on the same view.
+
+Imports under `if TYPE_CHECKING:` count: they do not run, but a cycle through one is still
+two modules that each need the other, and moving the shared type out of the pair breaks it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+
+import pytest
+
+from tests.support.scripts import load_script
+
+# Run in a fresh interpreter: grimp finds `oricf` with importlib, and this process has
+# imported it already from oricf/ alone.
+DUMP_GRAPH = """
+import json, sys
+import grimp
+graph = grimp.build_graph("oricf", cache_dir=None, exclude_type_checking_imports=False)
+json.dump({m: sorted(graph.find_modules_directly_imported_by(m)) for m in graph.modules},
+          sys.stdout)
+"""
+
+Graph = dict[str, list[str]]
+
+
+@pytest.fixture(scope="module")
+def graph(tmp_path_factory: pytest.TempPathFactory) -> Graph:
+    root = tmp_path_factory.mktemp("namespace")
+    load_script("namespace_view").build_view(root)
+    done = subprocess.run([sys.executable, "-c", DUMP_GRAPH], cwd=root, capture_output=True,
+                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(root)})
+    assert done.returncode == 0, done.stderr
+    imports: Graph = json.loads(done.stdout)
+    return imports
+
+
+def strongly_connected(graph: Graph) -> Iterator[list[str]]:
+    """Tarjan's strongly connected components, without recursion."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(graph.get(start, ())))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            module, imported = work[-1]
+            for other in imported:
+                if other not in index:
+                    index[other] = low[other] = len(index)
+                    stack.append(other)
+                    on_stack.add(other)
+                    work.append((other, iter(graph.get(other, ()))))
+                    break
+                if other in on_stack:
+                    low[module] = min(low[module], index[other])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[module])
+                if low[module] == index[module]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == module:
+                            break
+                    yield sorted(component)
+
+
+def a_cycle(graph: Graph, members: list[str]) -> list[str]:
+    """One shortest path from the first member back to itself, inside the component."""
+    inside = set(members)
+    start = members[0]
+    paths = {start: [start]}
+    frontier = [start]
+    while frontier:
+        following = []
+        for module in frontier:
+            for other in graph.get(module, ()):
+                if other == start:
+                    return [*paths[module], start]
+                if other in inside and other not in paths:
+                    paths[other] = [*paths[module], other]
+                    following.append(other)
+        frontier = following
+    raise AssertionError(f"no cycle through {start}")
+
+
+def test_the_graph_holds_the_whole_namespace(graph: Graph) -> None:
+    for module in ("oricf.cli", "oricf.audio.vad", "oricf.services.runtime.server",
+                   "oricf.gateway.pipeline", "oricf.bench.local", "oricf.v1.detector_pb2"):
+        assert module in graph
+
+
+def test_no_import_cycle(graph: Graph) -> None:
+    cycles = [" -> ".join(a_cycle(graph, members))
+              for members in strongly_connected(graph)
+              if len(members) > 1 or members[0] in graph.get(members[0], ())]
+    assert not cycles, "import cycles:\n  " + "\n  ".join(cycles)
