@@ -15,6 +15,7 @@ import math
 from typing import Any
 
 from starlette.exceptions import HTTPException
+from starlette.requests import ClientDisconnect
 from starlette.responses import JSONResponse
 
 from oricf.errors import (
@@ -85,6 +86,8 @@ def as_api_error(exc: BaseException, retry_after_ms: int) -> ApiError:
         return exc
     if isinstance(exc, HTTPException):
         return ApiError(exc.status_code, str(exc.detail))
+    if isinstance(exc, ClientDisconnect):  # while its body was being read
+        return ApiError(CLIENT_CLOSED, "the client went away", code="client_closed_request")
     for kind, (status, _, code) in STATUS_FOR.items():
         if isinstance(exc, kind):
             wait = None
