@@ -48,14 +48,23 @@ PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
 "${PIP[@]}" install --upgrade pip
 
 step "llama-cpp-python $LLAMA_VERSION (compiled once per CPU type, then reused from $CACHE/wheels)"
-# The wheel is built for this CPU (llama.cpp uses its native instructions), so the cache
-# folder is keyed by the CPU's feature flags.
-CPU_KEY=$(grep -m1 '^flags' /proc/cpuinfo | sha256sum | cut -c1-12)
+# llama.cpp is built for this CPU's instruction sets, named one by one from /proc/cpuinfo
+# rather than -march=native: native turns AMX on where the CPU has it, and AMX code crashes
+# the process where the kernel does not grant it AMX state (many virtual machines). The
+# cache folder is keyed by the build options, so another CPU type builds its own wheel.
+CPU_FLAGS=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
+CMAKE_ARGS="-DGGML_NATIVE=OFF"
+for pair in avx:AVX avx2:AVX2 fma:FMA f16c:F16C bmi2:BMI2 avx_vnni:AVX_VNNI avx512f:AVX512 \
+            avx512vbmi:AVX512_VBMI avx512_vnni:AVX512_VNNI avx512_bf16:AVX512_BF16; do
+    [[ "$CPU_FLAGS" == *" ${pair%%:*} "* ]] && CMAKE_ARGS+=" -DGGML_${pair#*:}=ON"
+done
+export CMAKE_ARGS
+CPU_KEY=$(echo "$LLAMA_VERSION $CMAKE_ARGS" | sha256sum | cut -c1-12)
 WHEELS="$CACHE/wheels/$CPU_KEY"
 mkdir -p "$WHEELS"
 if ! ls "$WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
-    echo "building llama-cpp-python (about 5-10 minutes on 2 cores)..."
-    "${PIP[@]}" wheel --no-deps -w "$WHEELS" "llama-cpp-python==$LLAMA_VERSION" \
+    echo "building llama-cpp-python (about 5-10 minutes on 2 cores): $CMAKE_ARGS"
+    "${PIP[@]}" wheel --no-cache-dir --no-deps -w "$WHEELS" "llama-cpp-python==$LLAMA_VERSION" \
         || die "llama-cpp-python did not build (needs gcc, g++ and cmake)"
 fi
 
