@@ -1,0 +1,206 @@
+"""Hostile input on the services' HTTP side (the OpenAI-compatible API), against real
+`oricf serve llm|asr --http-listen` processes: fuzzed JSON bodies, bytes that are not JSON,
+10 MB bodies, uploads that are not audio, lying Content-Lengths, slow clients (slowloris)
+and 200 connections at once. Every answer is a client error in OpenAI's shape or a limit,
+never a 500; memory stays bounded; the service answers normally afterwards."""
+
+from __future__ import annotations
+
+import json
+import socket
+import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import httpx
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tests.support.openai_http import HttpService, health, http_service, overlay, rss_mb
+
+REQUEST_TIMEOUT_S = 2.0
+MAX_CONNECTIONS = 64
+CLIENT_ERRORS = {400, 404, 408, 413, 429}
+MAX_GROWTH_MB = 300
+QUESTION = {"messages": [{"role": "user", "content": "How many people do you see?"}]}
+
+SERVER = {"max_concurrent_rpcs": 4,
+          "http": {"request_timeout_s": REQUEST_TIMEOUT_S, "max_connections": MAX_CONNECTIONS,
+                   "keep_alive_s": 2}}
+
+
+@pytest.fixture(scope="module")
+def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+    folder = tmp_path_factory.mktemp("llm")
+    short = overlay(folder, {"server": SERVER,
+                             "generation": {"max_tokens": 2, "max_tokens_limit": 4}})
+    with http_service("llm", "--overlay", short) as service:
+        yield service
+
+
+@pytest.fixture(scope="module")
+def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+    folder = tmp_path_factory.mktemp("asr")
+    with http_service("asr", "--overlay", overlay(folder, {"server": SERVER})) as service:
+        yield service
+
+
+def assert_openai_error(response: httpx.Response) -> None:
+    assert response.status_code in CLIENT_ERRORS, (response.status_code, response.text)
+    error = response.json()["error"]
+    assert set(error) == {"message", "type", "param", "code"} and error["message"]
+    assert "Traceback" not in response.text
+
+
+def still_serving(service: HttpService) -> None:
+    assert health(service).status_code == 200
+    response = httpx.post(f"{service.base_url}/v1/chat/completions", json=QUESTION, timeout=30)
+    if "llm" in service.process.args:  # type: ignore[operator]
+        assert response.status_code == 200, response.text
+
+
+HOSTILE = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70),
+                    st.floats(allow_nan=False), st.text(max_size=60),
+                    st.sampled_from(["user", "system", "assistant", "tool", "image_url",
+                                     "json_schema", "gemma3-270m", "x" * 5000]))
+VALUES = st.recursive(HOSTILE, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=12), inner, max_size=4)),
+    max_leaves=12)
+MESSAGE = st.fixed_dictionaries({"role": st.sampled_from(["user", "system", "assistant", "x"])},
+                                optional={"content": VALUES})
+FIELDS = {"model": VALUES, "messages": st.one_of(st.lists(MESSAGE, max_size=3), VALUES),
+          "max_tokens": VALUES, "temperature": VALUES, "top_p": VALUES, "stop": VALUES,
+          "seed": VALUES, "stream": VALUES, "response_format": VALUES, "facts": VALUES,
+          "n": VALUES, "stream_options": VALUES}
+
+
+@settings(max_examples=150, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(body=st.fixed_dictionaries({}, optional=FIELDS))
+def test_fuzzed_chat_bodies_get_clear_answers(llm: HttpService, body: dict[str, Any]) -> None:
+    response = httpx.post(f"{llm.base_url}/v1/chat/completions", timeout=30,
+                          content=json.dumps(body),
+                          headers={"Content-Type": "application/json"})
+    if response.status_code != 200:
+        assert_openai_error(response)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(body=st.binary(max_size=300))
+def test_bytes_that_are_not_json_are_400(llm: HttpService, body: bytes) -> None:
+    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=body, timeout=30)
+    if response.status_code != 200:  # an accident of valid JSON is answered
+        assert_openai_error(response)
+
+
+def test_ten_megabyte_bodies_are_refused_with_bounded_memory(llm: HttpService,
+                                                             asr: HttpService) -> None:
+    before = rss_mb(llm.process.pid), rss_mb(asr.process.pid)
+    big = b"{" + b" " * (10 * 1024 * 1024) + b"}"
+    for _ in range(5):
+        response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=big, timeout=30)
+        assert response.status_code == 413
+        assert_openai_error(response)
+    noise = {"file": ("noise.wav", bytes(range(256)) * 40_000)}  # 10 MB that is not audio
+    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", files=noise, timeout=30)
+    assert response.status_code == 400 and "not audio" in response.json()["error"]["message"]
+    assert rss_mb(llm.process.pid) - before[0] < MAX_GROWTH_MB
+    assert rss_mb(asr.process.pid) - before[1] < MAX_GROWTH_MB
+    still_serving(llm)
+
+
+@pytest.mark.parametrize("form", [
+    {"data": {"model": "whisper-tiny-en"}},                              # no file
+    {"data": {f"field{i}": "x" for i in range(40)}, "files": {"file": ("a.wav", b"RIFF")}},
+    {"data": {"language": "x" * 100_000}, "files": {"file": ("a.wav", b"RIFF")}},
+    {"files": {"file": ("a.mp3", b"\xff\xfb" + bytes(5000))}},            # MP3 sync, no frames
+    {"files": {"file": ("a.wav", b"RIFF\xff\xff\xff\xffWAVEfmt " + bytes(64))}},
+])
+def test_hostile_uploads_are_client_errors(asr: HttpService, form: dict[str, Any]) -> None:
+    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", timeout=30, **form)
+    assert_openai_error(response)
+
+
+def raw(service: HttpService, data: bytes, wait_s: float = 0.0) -> bytes:
+    """Sends bytes on a fresh connection and returns what came back before it closed."""
+    with socket.create_connection(("127.0.0.1", service.port), timeout=15) as sock:
+        sock.sendall(data)
+        time.sleep(wait_s)
+        chunks = []
+        try:
+            while chunk := sock.recv(65536):
+                chunks.append(chunk)
+        except (ConnectionResetError, TimeoutError):
+            pass
+        return b"".join(chunks)
+
+
+def test_lying_content_lengths(llm: HttpService) -> None:
+    head = b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\nConnection: close\r\n"
+    # More promised than sent: the body's deadline passes, 408.
+    answer = raw(llm, head + b"Content-Length: 1000\r\n\r\n{\"messages\": ")
+    assert answer.startswith(b"HTTP/1.1 408") and b'"request_timeout"' in answer
+    # Less promised than sent: the body is what was promised (not JSON), the rest is not HTTP.
+    answer = raw(llm, head + b"Content-Length: 5\r\n\r\n" + json.dumps(QUESTION).encode())
+    assert answer.startswith(b"HTTP/1.1 400")
+    # A Content-Length that is not a number is refused before any route runs.
+    answer = raw(llm, head + b"Content-Length: lots\r\n\r\n{}")
+    assert answer.startswith(b"HTTP/1.1 400")
+    still_serving(llm)
+
+
+def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:
+    slow = [socket.create_connection(("127.0.0.1", llm.port), timeout=15) for _ in range(10)]
+    started = time.monotonic()
+    try:
+        for sock in slow:
+            sock.sendall(b"GET /v1/models HTTP/1.1\r\nHost: x\r\n")  # headers never end
+        still_serving(llm)  # meanwhile
+        closed = 0
+        while closed < len(slow) and time.monotonic() - started < REQUEST_TIMEOUT_S + 10:
+            for sock in slow:
+                try:
+                    sock.sendall(b"X-Slow: 1\r\n")  # a header a second, for ever
+                except OSError:
+                    continue
+            time.sleep(1.0)
+            closed = sum(_closed(sock) for sock in slow)
+        assert closed == len(slow)
+        assert time.monotonic() - started < REQUEST_TIMEOUT_S + 5
+    finally:
+        for sock in slow:
+            sock.close()
+    still_serving(llm)
+
+
+def _closed(sock: socket.socket) -> bool:
+    sock.setblocking(False)
+    try:
+        return sock.recv(1) == b""
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
+    finally:
+        sock.setblocking(True)
+
+
+def test_200_connections_at_once(llm: HttpService) -> None:
+    before = rss_mb(llm.process.pid)
+    url = f"{llm.base_url}/v1/chat/completions"
+
+    def one(_: int) -> int:
+        try:
+            return httpx.post(url, json=QUESTION, timeout=60).status_code
+        except httpx.TransportError:
+            return 0  # refused at the connection limit
+
+    with ThreadPoolExecutor(max_workers=200) as pool:
+        statuses = list(pool.map(one, range(200)))
+    assert set(statuses) <= {0, 200, 429, 503}, statuses
+    assert statuses.count(200) >= 1 and statuses.count(429) + statuses.count(503) >= 1
+    assert rss_mb(llm.process.pid) - before < MAX_GROWTH_MB
+    still_serving(llm)
