@@ -5,6 +5,7 @@ process for comparison."""
 from __future__ import annotations
 
 import json
+import signal
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,6 +18,7 @@ import pytest
 
 from oricf.bench.local import local_service, service_config
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
+from tests.support.metrics import scrape
 from tests.support.openai_http import HttpService, client, health, http_service, overlay
 
 MODEL = "gemma3-270m"
@@ -181,3 +183,39 @@ def test_503_until_the_model_is_loaded(tmp_path: Path) -> None:
         with pytest.raises(openai.InternalServerError) as error:
             ask(client(service))
         assert error.value.status_code == 503 and "still loading" in error.value.message
+
+
+def test_http_requests_are_counted_in_the_service_metrics() -> None:
+    config = service_config("llm", {"server": {"http": {"listen": "127.0.0.1:0"},
+                                               "metrics": {"listen": "127.0.0.1:0"}}})
+    with local_service("llm", config, load=False) as host:
+        assert host.http is not None and host.metrics_server is not None
+        base = f"http://127.0.0.1:{host.http.port}"
+        assert httpx.get(f"{base}/v1/models", timeout=10).status_code == 200
+        assert httpx.post(f"{base}/v1/chat/completions", json={}, timeout=10).status_code == 400
+        assert httpx.get(f"{base}/no/such/{'x' * 50}", timeout=10).status_code == 404
+        metrics = scrape(host.metrics_server.url)
+    count = "http_server_request_duration_seconds_count"
+    assert metrics.value(count, http_route="/v1/models", http_request_method="GET",
+                         http_response_status_code="200") == 1
+    assert metrics.value(count, http_route="/v1/chat/completions",
+                         http_response_status_code="400") == 1
+    assert metrics.value(count, http_route="other", http_response_status_code="404") == 1
+    assert metrics.value("http_server_active_requests", http_route="/v1/models") == 0
+
+
+def test_sigterm_lets_a_streamed_answer_finish() -> None:
+    with http_service("llm") as service:
+        request = {"model": MODEL, "stream": True, "facts": FACTS,
+                   "messages": [{"role": "user", "content": QUESTION}]}
+        with httpx.stream("POST", f"{service.base_url}/v1/chat/completions", json=request,
+                          timeout=30) as response:
+            lines = response.iter_lines()
+            first = next(line for line in lines if line)
+            service.process.send_signal(signal.SIGTERM)  # drains: the answer completes
+            rest = [line for line in lines if line]
+        assert first.startswith("data: {") and rest[-1] == "data: [DONE]"
+        text = "".join(json.loads(line[6:])["choices"][0]["delta"].get("content") or ""
+                       for line in [first, *rest[:-1]])
+        assert "4" in text
+        assert service.process.wait(timeout=30) == 0
