@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header, Int16MultiArray, Int32, String
@@ -65,14 +64,4 @@ def image_message(frame: Frame, header: cdr.Stamp | None = None) -> Image:
         msg.header = Header(stamp=Time(sec=header.sec, nanosec=header.nanosec),
                             frame_id=header.frame_id)
     msg.data = frame.data
-    return msg
-
-
-def image_from_pixels(pixels: np.ndarray, encoding: str = "bgr8") -> Image:
-    """A sensor_msgs/Image from a uint8 array (for publishers in tests, demos, benchmarks)."""
-    height, width = pixels.shape[:2]
-    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
-    msg = Image(height=height, width=width, encoding=encoding, is_bigendian=0,
-                step=width * channels)
-    msg.data = np.ascontiguousarray(pixels).tobytes()
     return msg

@@ -50,7 +50,7 @@ _vad_lock = threading.Lock()
 
 def shared_vad() -> SileroVad:
     """One Silero session for every audio route (sessions are thread-safe); loaded on the
-    first audio route, so a gateway without one never imports the ASR modules."""
+    first audio route, so a gateway without one never loads onnxruntime's VAD session."""
     global _vad
     from oricf.audio.vad import SileroVad
 

@@ -157,7 +157,8 @@ def check_failover(scraped: Scrape, primary: str, fallback: str) -> None:
 def test_metrics_are_off_without_the_key() -> None:
     config = parse_pipeline({"endpoints": {"detector": {"address": "127.0.0.1:1"}},
                              "routes": {"r": {"input": {"url": "x.mp4"}, "call": DETECT,
-                                              "outputs": [{"product": "p", "from": "detections"}]}}},
+                                              "outputs": [{"product": "p",
+                                                           "from": "detections"}]}}},
                             "no metrics")
     p = Pipeline(config, lambda o, v, r: None)
     p.start()
