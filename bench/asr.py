@@ -26,6 +26,7 @@ import numpy as np
 
 from oricf.audio import MODEL_RATE, synthesize
 from oricf.bench.common import median_ms, print_table, served, variant_config
+from oricf.bench.protocols import parse_protocols
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 
 QUERIES = [
@@ -134,7 +135,14 @@ def main(argv: list[str] | None = None) -> int:
                                          "(no comparison)")
     parser.add_argument("--voices", nargs="+", default=VOICES, help="espeak-ng voices")
     parser.add_argument("--rounds", type=int, default=1, help="passes over the queries")
+    parser.add_argument("--protocol", type=parse_protocols, metavar="grpc,openai",
+                        help="instead: latency over these protocols side by side "
+                             "(bench/protocols.py)")
     args = parser.parse_args(argv)
+    if args.protocol:
+        from oricf.bench.asr_protocols import compare
+
+        return compare(args)
 
     queries = make_queries(args.voices)
     with ExitStack() as stack:

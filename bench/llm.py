@@ -10,6 +10,7 @@ prefix kept (the default) and thrown away before every call.
     oricf bench llm --model gemma3-270m --show        # one model, print every answer
     oricf bench llm --threads 1 --threads 2           # thread counts side by side
     oricf bench llm --prompt my-prompt.yaml
+    oricf bench llm --protocol grpc,openai            # gRPC against the OpenAI API (latency)
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import Any
 import grpc
 
 from oricf.bench.local import local_service, service_config
+from oricf.bench.protocols import parse_protocols
 from oricf.config import shipped_service_config
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
@@ -214,6 +216,9 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                         help="llama.cpp threads (repeatable, to compare; default: the YAML's)")
     parser.add_argument("--questions", type=int, default=64, help="how many questions")
     parser.add_argument("--show", action="store_true", help="print every answer")
+    parser.add_argument("--protocol", type=parse_protocols, metavar="grpc,openai",
+                        help="instead: latency over these protocols side by side "
+                             "(bench/protocols.py)")
     args = parser.parse_args(argv)
     if args.questions < SIDE_SAMPLE:
         parser.error(f"--questions must be at least {SIDE_SAMPLE}")
@@ -222,6 +227,10 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
 
 def main(argv: Sequence[str]) -> int:
     args = parse_args(argv)
+    if args.protocol:
+        from oricf.bench.llm_protocols import compare
+
+        return compare(args)
     rows = []
     for model in args.model or MODELS:
         for threads in args.threads or [None]:

@@ -1,0 +1,81 @@
+"""`oricf bench llm --protocol grpc,openai`: answer latency and time to first token of the
+language service over gRPC (GenerateStream, Generate) and over its OpenAI-compatible API
+(chat completions, streamed and not), interleaved question by question (protocols.py)."""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from oricf.bench.llm import DEADLINE_S, people_count, questions
+from oricf.bench.protocols import Endpoints, both_protocols, clock, interleave, report
+from oricf.v1 import language_pb2, language_pb2_grpc
+
+MEASURES = ("first token", "streamed answer", "answer")
+Question = tuple[str, int]
+
+
+def _grpc(endpoints: Endpoints) -> Any:
+    stub = language_pb2_grpc.LanguageModelStub(endpoints.grpc)
+
+    def ask(question: Question) -> dict[str, float]:
+        request = language_pb2.GenerateRequest(prompt=question[0],
+                                               facts=[people_count(question[1])])
+        started = clock()
+        first = None
+        for message in stub.GenerateStream(request, timeout=DEADLINE_S):
+            if first is None and message.text:
+                first = clock() - started
+        streamed = clock() - started
+        started = clock()
+        stub.Generate(request, timeout=DEADLINE_S)
+        return {"first token": first or streamed, "streamed answer": streamed,
+                "answer": clock() - started}
+
+    return ask
+
+
+def _openai(endpoints: Endpoints, model: str) -> Any:
+    api = endpoints.openai
+
+    def ask(question: Question) -> dict[str, float]:
+        options = {"model": model, "messages": [{"role": "user", "content": question[0]}],
+                   "extra_body": {"facts": [{"name": "people_count", "integer": question[1],
+                                             "age_s": 0.5}]}}
+        started = clock()
+        first = None
+        for chunk in api.chat.completions.create(stream=True, **options):
+            if first is None and chunk.choices and chunk.choices[0].delta.content:
+                first = clock() - started
+        streamed = clock() - started
+        started = clock()
+        api.chat.completions.create(**options)
+        return {"first token": first or streamed, "streamed answer": streamed,
+                "answer": clock() - started}
+
+    return ask
+
+
+def compare(args: argparse.Namespace) -> int:
+    for model in args.model or ["gemma3-270m"]:
+        print(f"{model}: {args.questions} questions over {', '.join(args.protocol)}...",
+              flush=True)
+        overrides = ["--config", str(args.config)]
+        with both_protocols("llm", *overrides, *_model_args(model, args)) as endpoints:
+            asks = {"grpc": _grpc(endpoints), "openai": _openai(endpoints, model)}
+            results = interleave(questions(args.questions),
+                                 {name: asks[name] for name in args.protocol})
+        report(f"{model}, oricf serve llm", results, MEASURES)
+    return 0
+
+
+def _model_args(model: str, args: argparse.Namespace) -> list[str]:
+    """The model is chosen through an overlay, so the YAML given stays as it is."""
+    folder = Path(tempfile.mkdtemp(prefix="oricf-bench-"))
+    path = folder / "model.yaml"
+    path.write_text(yaml.safe_dump({"model": {"name": model}}))
+    return ["--overlay", str(path)]
