@@ -219,3 +219,20 @@ def test_sigterm_lets_a_streamed_answer_finish() -> None:
                        for line in [first, *rest[:-1]])
         assert "4" in text
         assert service.process.wait(timeout=30) == 0
+
+
+def test_a_client_leaving_mid_stream_stops_the_generation() -> None:
+    config = service_config("llm", {"server": {"http": {"listen": "127.0.0.1:0"}}})
+    with local_service("llm", config) as host:
+        assert host.http is not None
+        model = host.slot.peek()
+        request = {"model": MODEL, "stream": True, "max_tokens": 256,
+                   "response_format": {"type": "json_object"},  # rambles on to the limit
+                   "messages": [{"role": "user", "content": "Describe the room in JSON."}]}
+        url = f"http://127.0.0.1:{host.http.port}/v1/chat/completions"
+        with httpx.stream("POST", url, json=request, timeout=30) as response:
+            next(line for line in response.iter_lines() if '"content": "{' in line)
+        # the connection is closed: the model stops within a token or so and is free again
+        assert "4" in ask(client(HttpService(None, "", url.rpartition("/v1")[0])))  # type: ignore[arg-type]
+        stats = model.stats
+        assert stats.stopped_early == 1 and stats.completion_tokens < 256 + 10
