@@ -142,7 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.protocol:
         from oricf.bench.asr_protocols import compare
 
-        return compare(args)
+        return compare(args, make_queries(args.voices),
+                       lambda q, text: word_errors(normalise(q.text), normalise(text)),
+                       lambda q: len(normalise(q.text)))
 
     queries = make_queries(args.voices)
     with ExitStack() as stack:

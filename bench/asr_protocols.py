@@ -5,19 +5,23 @@ multipart), interleaved query by query (protocols.py); the word error rate of ea
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from oricf.audio import MODEL_RATE, encode_wav
-from oricf.bench.asr import Query, make_queries, normalise, word_errors
 from oricf.bench.protocols import Endpoints, both_protocols, clock, interleave, report
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 
 MEASURES = ("transcript",)
 
 
-def _grpc(endpoints: Endpoints, errors: dict[str, int]) -> Any:
+Query = Any          # oricf.bench.asr.Query: text, voice, pcm (16 kHz pcm_s16le)
+Score = Callable[[Query, str], int]   # word errors of a transcript of the query
+
+
+def _grpc(endpoints: Endpoints, errors: dict[str, int], score: Score) -> Any:
     stub = speech_pb2_grpc.SpeechRecognizerStub(endpoints.grpc)
 
     def ask(query: Query) -> dict[str, float]:
@@ -26,13 +30,13 @@ def _grpc(endpoints: Endpoints, errors: dict[str, int]) -> Any:
         started = clock()
         text = stub.Transcribe(request, timeout=30).text
         seconds = clock() - started
-        errors["grpc"] += word_errors(normalise(query.text), normalise(text))
+        errors["grpc"] += score(query, text)
         return {"transcript": seconds}
 
     return ask
 
 
-def _openai(endpoints: Endpoints, errors: dict[str, int]) -> Any:
+def _openai(endpoints: Endpoints, errors: dict[str, int], score: Score) -> Any:
     api = endpoints.openai
 
     def ask(query: Query) -> dict[str, float]:
@@ -41,24 +45,25 @@ def _openai(endpoints: Endpoints, errors: dict[str, int]) -> Any:
         text = api.audio.transcriptions.create(model="whisper-tiny-en",
                                                file=("query.wav", wav)).text
         seconds = clock() - started
-        errors["openai"] += word_errors(normalise(query.text), normalise(text))
+        errors["openai"] += score(query, text)
         return {"transcript": seconds}
 
     return ask
 
 
-def compare(args: argparse.Namespace) -> int:
-    queries = make_queries(args.voices)
+def compare(args: argparse.Namespace, queries: list[Query], score: Score,
+            words: Callable[[Query], int]) -> int:
+    """The queries and their scoring come from `oricf bench asr` (no import back)."""
     errors = {"grpc": 0, "openai": 0}
     print(f"{len(queries)} queries over {', '.join(args.protocol)}...", flush=True)
     with both_protocols("asr") as endpoints:
-        asks = {"grpc": _grpc(endpoints, errors), "openai": _openai(endpoints, errors)}
+        asks = {"grpc": _grpc(endpoints, errors, score),
+                "openai": _openai(endpoints, errors, score)}
         results = interleave(queries, {name: asks[name] for name in args.protocol},
                              args.rounds)
     report("oricf serve asr", results, MEASURES)
     # every query of every round, and the first once more as the warm-up
-    words = (sum(len(normalise(q.text)) for q in queries) * args.rounds
-             + len(normalise(queries[0].text)))
+    total = sum(words(q) for q in queries) * args.rounds + words(queries[0])
     for name in args.protocol:
-        print(f"{name}: WER {errors[name] / words:.1%} over the same queries")
+        print(f"{name}: WER {errors[name] / total:.1%} over the same queries")
     return 0

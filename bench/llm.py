@@ -230,7 +230,7 @@ def main(argv: Sequence[str]) -> int:
     if args.protocol:
         from oricf.bench.llm_protocols import compare
 
-        return compare(args)
+        return compare(args, questions(args.questions))
     rows = []
     for model in args.model or MODELS:
         for threads in args.threads or [None]:

@@ -11,20 +11,20 @@ from typing import Any
 
 import yaml
 
-from oricf.bench.llm import DEADLINE_S, people_count, questions
 from oricf.bench.protocols import Endpoints, both_protocols, clock, interleave, report
-from oricf.v1 import language_pb2, language_pb2_grpc
+from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
 MEASURES = ("first token", "streamed answer", "answer")
-Question = tuple[str, int]
+DEADLINE_S = 30.0
+Question = tuple[str, int]   # (question, the people count passed as a typed fact)
 
 
 def _grpc(endpoints: Endpoints) -> Any:
     stub = language_pb2_grpc.LanguageModelStub(endpoints.grpc)
 
     def ask(question: Question) -> dict[str, float]:
-        request = language_pb2.GenerateRequest(prompt=question[0],
-                                               facts=[people_count(question[1])])
+        count = common_pb2.Fact(name="people_count", integer=question[1], age_s=0.5)
+        request = language_pb2.GenerateRequest(prompt=question[0], facts=[count])
         started = clock()
         first = None
         for message in stub.GenerateStream(request, timeout=DEADLINE_S):
@@ -60,15 +60,15 @@ def _openai(endpoints: Endpoints, model: str) -> Any:
     return ask
 
 
-def compare(args: argparse.Namespace) -> int:
+def compare(args: argparse.Namespace, asked: list[Question]) -> int:
+    """asked: the questions of `oricf bench llm` (it passes them: no import back)."""
     for model in args.model or ["gemma3-270m"]:
-        print(f"{model}: {args.questions} questions over {', '.join(args.protocol)}...",
+        print(f"{model}: {len(asked)} questions over {', '.join(args.protocol)}...",
               flush=True)
         overrides = ["--config", str(args.config)]
         with both_protocols("llm", *overrides, *_model_args(model, args)) as endpoints:
             asks = {"grpc": _grpc(endpoints), "openai": _openai(endpoints, model)}
-            results = interleave(questions(args.questions),
-                                 {name: asks[name] for name in args.protocol})
+            results = interleave(asked, {name: asks[name] for name in args.protocol})
         report(f"{model}, oricf serve llm", results, MEASURES)
     return 0
 
