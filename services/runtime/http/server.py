@@ -113,6 +113,8 @@ class HttpServer:
             # uvicorn needs a certificate file name to switch TLS on at all
             ssl_certfile=str(tls.cert) if tls else None)
         self._server = uvicorn.Server(config)
+        # uvicorn's start and stop lines repeat the service's own; its warnings stay.
+        logging.getLogger("uvicorn.error").setLevel(logging.WARNING)
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"{name}-http")
 
     def _run(self) -> None:
