@@ -13,6 +13,7 @@ from typing import Any
 
 from prometheus_client import CollectorRegistry
 
+from oricf.errors import ConfigError
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.http.app import build_app
 from oricf.services.runtime.http.server import HttpServer
@@ -29,6 +30,9 @@ def http_server(spec: ServiceSpec, slot: ModelSlot[Any], config: ServiceConfig,
     """The service's HTTP server, bound and not yet started."""
     settings = config.server
     assert settings.http is not None
-    routes = spec.http_routes(slot, config) if spec.http_routes is not None else []
+    if spec.http_routes is None:
+        raise ConfigError(f"server.http: the {spec.name} service has no HTTP API (the llm and "
+                          f"asr services have one)")
+    routes = spec.http_routes(slot, config)
     app = build_app(routes, slot, settings, limit, registry, draining)
     return HttpServer(app, settings.http, settings.tls, settings.grace_s, spec.name)

@@ -3,6 +3,8 @@
 import pytest
 from pydantic import ValidationError
 
+from oricf.bench.local import local_service, service_config
+from oricf.errors import ConfigError
 from oricf.services.runtime.config import HttpSettings, ServerSettings
 
 
@@ -22,3 +24,10 @@ def test_off_unless_asked_for() -> None:
 def test_bad_settings_are_refused(bad: dict[str, object]) -> None:
     with pytest.raises(ValidationError):
         HttpSettings.model_validate(bad)
+
+
+def test_a_service_without_an_http_api_refuses_server_http() -> None:
+    config = service_config("detector", {"server": {"http": {"listen": "127.0.0.1:0"}}})
+    with pytest.raises(ConfigError, match="the detector service has no HTTP API"), \
+            local_service("detector", config, load=False):
+        pass
