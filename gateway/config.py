@@ -237,6 +237,7 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
             yield (f"routes.{name}.call.service: no endpoint '{call.service}' "
                    f"(endpoints: {', '.join(sorted(config.endpoints)) or 'none'})")
         kind = METHODS[call.method].service
+        yield from _protocol_problems(name, call.method, config.endpoints.get(call.service))
         if service_of.setdefault(call.service, kind) != kind:
             yield (f"routes.{name}.call.service: endpoint '{call.service}' would serve both "
                    f"{service_of[call.service]} and {kind}")
@@ -247,6 +248,19 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
                 if product not in produced:
                     yield f"routes.{name}.call.{key}[{i}]: no route outputs '{product}'"
         yield from route_fields(name, route)
+
+
+def _protocol_problems(route: str, method: str, endpoint: EndpointConfig | None
+                       ) -> Iterator[str]:
+    """The endpoint's servers must speak a protocol the method has calls in."""
+    if endpoint is None:
+        return
+    spoken = METHODS[method].protocols
+    for slot, target in endpoint.targets.items():
+        if target.protocol not in spoken:
+            yield (f"routes.{route}.call.service: the endpoint's {slot} speaks "
+                   f"{target.protocol}, which {method} does not (it speaks "
+                   f"{', '.join(sorted(spoken))})")
 
 
 def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:

@@ -2,10 +2,10 @@
 
 A method is one `Method` entry: its call schema (the route's `call:` keys, a pydantic class
 whose `method` literal names it), the gRPC service an endpoint must serve for it and how to
-ask whether a server is ready, the typed result it returns (a dataclass: its fields are
-the fields the route's record gains, checked against post steps and outputs when the
-pipeline loads), and `bind`, which runs once per route and returns the function that turns
-one record into a result.
+ask whether a server is ready, the protocols it speaks (gRPC; some also the OpenAI-compatible
+API), the typed result it returns (a dataclass: its fields are the fields the route's record
+gains, checked against post steps and outputs when the pipeline loads), and `bind`, which
+runs once per route and returns the function that turns one record into a result.
 """
 
 from __future__ import annotations
@@ -50,6 +50,8 @@ class Method:
     result: Callable[[Any], type]              # call config -> its result dataclass
     bind: Binder                               # (call config, endpoint, products) -> invoke
     image_transport: bool = False              # sends camera frames (endpoint.image applies)
+    # The protocols its calls can go in (an endpoint's targets must speak one of them).
+    protocols: frozenset[str] = frozenset({"grpc"})
     # The record fields the call's templates name, by the key that holds the template.
     reads: Callable[[Any], dict[str, set[str]]] = lambda call: {}
     # The data products the call reads as context, by the key that names them.

@@ -1,7 +1,9 @@
 """Generate: a prompt template with context -> an answer, on ORICF's language model
-(oricf.v1.LanguageModel). The context is data products passed as typed facts
-(oricf.v1.Fact), each with its age; a stale one is left out or sent marked stale, never
-passed off as current."""
+(oricf.v1.LanguageModel) or any OpenAI-compatible server (POST /chat/completions: Ollama,
+vLLM, llama.cpp's server, ORICF's own with --http-listen). The context is data products,
+each with its age; a stale one is left out or sent marked stale, never passed off as
+current. Over gRPC they go as typed facts (oricf.v1.Fact); over the OpenAI API, rendered
+into a system message (chat.py), with the newest camera frame as an image if asked."""
 
 from __future__ import annotations
 
@@ -17,8 +19,11 @@ from pydantic import Field, field_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
-from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.endpoints import Endpoint, GrpcTarget
+from oricf.gateway.endpoints.endpoint import Work
+from oricf.gateway.endpoints.openai import OpenAITarget, chat_completion
 from oricf.gateway.methods.base import CallBase, Invoke, Method, Skip, health_check
+from oricf.gateway.methods.chat import ChatTemplates, ImageContext, image_url, messages
 from oricf.gateway.products import ProductStore, Reading
 from oricf.gateway.values import Record, template_fields
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
@@ -30,6 +35,9 @@ class ContextConfig(Schema):
     products: list[str] = Field(min_length=1)
     stale: Literal["omit", "mark"] = Field(
         "omit", description="a product older than its max_age_s: left out, or sent marked stale")
+    chat: ChatTemplates = Field(
+        default_factory=ChatTemplates,
+        description="openai: how the facts become a system message")
 
 
 class GenerateCall(CallBase):
@@ -41,6 +49,11 @@ class GenerateCall(CallBase):
     temperature: float | None = Field(None, ge=0, le=5)
     stop: list[str] = Field(default_factory=list)
     context: ContextConfig | None = None
+    stream: bool = Field(False, description="take the answer as it is produced (GenerateStream, "
+                                            "or server-sent events), joined")
+    image: ImageContext | None = Field(
+        None, description="openai: the newest frame of a data product, for a vision-language "
+                          "model")
 
     @field_validator("prompt")
     @classmethod
@@ -54,16 +67,23 @@ class Answer:
     answer: str
 
 
-def generate_request(record: Record, call: GenerateCall, products: ProductStore
-                     ) -> language_pb2.GenerateRequest:
+def context_readings(call: GenerateCall, products: ProductStore) -> list[Reading]:
+    """The context's products as they are now (stale ones left out or marked)."""
+    return products.context(call.context.products, call.context.stale) if call.context \
+        else []
+
+
+def generate_request(record: Record, call: GenerateCall, products: ProductStore,
+                     readings: list[Reading] | None = None) -> language_pb2.GenerateRequest:
+    """The gRPC request; `readings` are the context's, read now if not given."""
     try:
         prompt = call.prompt.format_map(record).strip()
     except (KeyError, IndexError, ValueError) as exc:
         raise InvalidInput(f"prompt template {call.prompt!r}: cannot fill {exc}") from None
     if not prompt:
         raise Skip("empty prompt")
-    readings = products.context(call.context.products, call.context.stale) if call.context \
-        else []
+    if readings is None:
+        readings = context_readings(call, products)
     request = language_pb2.GenerateRequest(prompt=prompt, facts=[fact(r) for r in readings],
                                            max_tokens=call.max_tokens, stop=call.stop)
     if call.temperature is not None:
@@ -106,13 +126,58 @@ def facts_text(facts: Iterable[common_pb2.Fact]) -> str:
 
 
 def bind(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
+    text_only = _TextOnly(endpoint.name)
+
+    def over_grpc(request: language_pb2.GenerateRequest) -> Work[str]:
+        def work(target: GrpcTarget, timeout: float) -> str:
+            if call.image is not None:
+                text_only.warn(target.address)
+            if not call.stream:
+                return str(target.invoke("Generate", request, timeout).text)
+            return "".join(r.text for r in target.invoke("GenerateStream", request, timeout))
+        return work
+
+    def over_openai(request: language_pb2.GenerateRequest, readings: list[Reading]
+                    ) -> Work[str]:
+        def work(target: OpenAITarget, timeout: float) -> str:
+            image = image_url(products, call.image) if call.image else None
+            templates = call.context.chat if call.context else ChatTemplates()
+            body: dict[str, Any] = {
+                "messages": messages(request.prompt, readings, templates, image)}
+            if call.max_tokens:
+                body["max_tokens"] = call.max_tokens
+            if call.temperature is not None:
+                body["temperature"] = call.temperature
+            if call.stop:
+                body["stop"] = call.stop
+            return chat_completion(target, body, timeout, call.stream)
+        return work
+
     def invoke(record: Record) -> Answer:
-        request = generate_request(record, call, products)
+        readings = context_readings(call, products)
+        request = generate_request(record, call, products, readings)
         if log.isEnabledFor(logging.DEBUG):
             log.debug("Generate prompt %r facts %s", request.prompt, facts_text(request.facts))
-        return Answer(endpoint.call("Generate", request).text.strip())
+        text = endpoint.run({"grpc": over_grpc(request),
+                             "openai": over_openai(request, readings)})
+        return Answer(text.strip())
 
     return invoke
+
+
+class _TextOnly:
+    """Says once that a text-only server (ORICF's gRPC language service, e.g. a fallback)
+    answers without the image."""
+
+    def __init__(self, endpoint: str) -> None:
+        self._endpoint = endpoint
+        self._warned = False
+
+    def warn(self, address: str) -> None:
+        if not self._warned:
+            self._warned = True
+            log.warning("endpoint %s: %s takes no images; asking it without the frame",
+                        self._endpoint, address)
 
 
 def result(call: Any) -> type:
@@ -125,9 +190,11 @@ def reads(call: GenerateCall) -> dict[str, set[str]]:
 
 
 def products(call: GenerateCall) -> dict[str, list[str]]:
-    return {"context.products": call.context.products if call.context else []}
+    return {"context.products": call.context.products if call.context else [],
+            "image.product": [call.image.product] if call.image else []}
 
 
 METHOD = Method("Generate", GenerateCall, "oricf.v1.LanguageModel",
                 language_pb2_grpc.LanguageModelStub, health_check("oricf.v1.LanguageModel"),
-                result, bind, reads=reads, products=products)
+                result, bind, reads=reads, products=products,
+                protocols=frozenset({"grpc", "openai"}))

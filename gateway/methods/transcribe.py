@@ -1,13 +1,19 @@
 """Transcribe: an utterance -> its transcript, on ORICF's speech recognizer
-(oricf.v1.SpeechRecognizer). An utterance with no words ends the route there (Skip)."""
+(oricf.v1.SpeechRecognizer) or any OpenAI-compatible server (POST /audio/transcriptions,
+the utterance as a WAV file: faster-whisper-server, LocalAI, vLLM, ORICF's own with
+--http-listen). An utterance with no words ends the route there (Skip)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+
+from oricf.audio import encode_wav
 from oricf.errors import InvalidInput
-from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.endpoints import Endpoint, GrpcTarget
+from oricf.gateway.endpoints.openai import OpenAITarget, transcription
 from oricf.gateway.methods.base import CallBase, Invoke, Method, Skip, health_check
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import AudioClip, Record
@@ -27,23 +33,32 @@ class Transcript:
     duration_s: float
 
 
-def transcribe_request(record: Record, call: TranscribeCall) -> speech_pb2.TranscribeRequest:
+def utterance(record: Record) -> AudioClip:
     clip = record.get("audio")
     if not isinstance(clip, AudioClip):
         raise InvalidInput("Transcribe needs an audio input")
-    return speech_pb2.TranscribeRequest(audio=clip.to_proto(), language=call.language)
-
-
-def transcript(response: speech_pb2.Transcript) -> Transcript:
-    text = response.text.strip()
-    if not text:
-        raise Skip("the audio transcribed to no words")
-    return Transcript(text, response.duration_s)
+    return clip
 
 
 def bind(call: TranscribeCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    return lambda record: transcript(
-        endpoint.call("Transcribe", transcribe_request(record, call)))
+    def invoke(record: Record) -> Transcript:
+        clip = utterance(record)
+
+        def over_grpc(target: GrpcTarget, timeout: float) -> str:
+            request = speech_pb2.TranscribeRequest(audio=clip.to_proto(), language=call.language)
+            return str(target.invoke("Transcribe", request, timeout).text)
+
+        def over_openai(target: OpenAITarget, timeout: float) -> str:
+            samples = np.frombuffer(clip.pcm, "<i2").reshape(-1, clip.channels)
+            return transcription(target, encode_wav(samples, clip.sample_rate),
+                                     call.language, timeout)
+
+        text = endpoint.run({"grpc": over_grpc, "openai": over_openai}).strip()
+        if not text:
+            raise Skip("the audio transcribed to no words")
+        return Transcript(text, clip.duration_s)
+
+    return invoke
 
 
 def result(call: Any) -> type:
@@ -52,4 +67,4 @@ def result(call: Any) -> type:
 
 METHOD = Method("Transcribe", TranscribeCall, "oricf.v1.SpeechRecognizer",
                 speech_pb2_grpc.SpeechRecognizerStub, health_check("oricf.v1.SpeechRecognizer"),
-                result, bind)
+                result, bind, protocols=frozenset({"grpc", "openai"}))

@@ -22,7 +22,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from oricf.errors import ConfigError
 from oricf.launch.deployment import Deployment
@@ -40,7 +40,7 @@ SLOTS = ("address", "fallback")
 class Wiring:
     """What the launcher adds to the gateway, and what it waits for."""
 
-    endpoints: dict[str, dict[str, str]]  # the overlay's endpoints: name -> {slot: address}
+    endpoints: dict[str, dict[str, Any]]  # the overlay's endpoints: name -> {slot: address}
     remote: dict[str, EndpointConfig]  # endpoints to find SERVING before the gateway starts
 
 
@@ -71,22 +71,29 @@ def gateway_pipeline(deployment: Deployment) -> tuple[PipelineConfig, str]:
 def wire_gateway(deployment: Deployment, started: dict[str, str]) -> Wiring:
     """started: service name -> the address it listens at, as this machine reaches it."""
     pipeline, sources = gateway_pipeline(deployment)
-    endpoints: dict[str, dict[str, str]] = {}
+    endpoints: dict[str, dict[str, Any]] = {}
     for name, address in started.items():
         endpoint = pipeline.endpoints.get(name)
         if endpoint is None:
             continue  # the gateway does not call it
         slot = _slot(deployment, sources, name, endpoint, address)
-        if getattr(endpoint, slot) != address:
+        said = endpoint.targets[slot].address
+        if said != address:
             log.info("gateway: endpoint %s %s %s (the %s started here; the pipeline says %s)",
-                     name, slot, address, name, getattr(endpoint, slot))
-            endpoints[name] = {slot: address}
+                     name, slot, address, name, said)
+            # A fallback of its own (a mapping) keeps its protocol: only its address moves.
+            own = slot == "fallback" and not isinstance(endpoint.fallback, str)
+            endpoints[name] = {slot: {"address": address} if own else address}
     remote = {}
     for i, name in enumerate(deployment.remote):
         if name not in pipeline.endpoints:
             raise ConfigError(f"{deployment.source}: remote[{i}]: the gateway's pipeline has "
                               f"no endpoint '{name}' ({sources}; endpoints: "
                               f"{', '.join(sorted(pipeline.endpoints))})")
+        if pipeline.endpoints[name].protocol != "grpc":
+            raise ConfigError(f"{deployment.source}: remote[{i}]: the endpoint '{name}' speaks "
+                              f"{pipeline.endpoints[name].protocol}; the launcher waits only "
+                              f"for gRPC services (grpc.health.v1)")
         remote[name] = pipeline.endpoints[name]
     return Wiring(endpoints, remote)
 
@@ -94,7 +101,8 @@ def wire_gateway(deployment: Deployment, started: dict[str, str]) -> Wiring:
 def _slot(deployment: Deployment, sources: str, name: str, endpoint: EndpointConfig,
           address: str) -> str:
     """The address or fallback of the endpoint that the service started at `address` is."""
-    given = {slot: getattr(endpoint, slot) for slot in SLOTS if getattr(endpoint, slot)}
+    given = {slot: target.address for slot, target in endpoint.targets.items()
+             if target.protocol == "grpc"}
     exact = [slot for slot, value in given.items() if value == address]
     if exact:
         return exact[0]
@@ -119,8 +127,8 @@ def edge_host_endpoints(deployment: Deployment, host: str) -> dict[str, dict[str
     pipeline, _ = gateway_pipeline(deployment)
     moved: dict[str, dict[str, str]] = {}
     for name, endpoint in pipeline.endpoints.items():
-        for slot in SLOTS:
-            value = getattr(endpoint, slot)
-            if value and not is_loopback(value):
+        for slot, target in endpoint.targets.items():
+            value = target.address
+            if target.protocol == "grpc" and not is_loopback(value):
                 moved.setdefault(name, {})[slot] = f"{host}:{value.rpartition(':')[2]}"
     return moved

@@ -14,7 +14,7 @@ import grpc
 import pytest
 
 from oricf.bench.common import stop
-from oricf.gateway.endpoints import Target
+from oricf.gateway.endpoints import GrpcTarget, TargetConfig
 from oricf.gateway.methods import METHODS
 from oricf.gateway.methods.base import health_check
 from oricf.oip import open_inference_grpc_pb2 as oip
@@ -78,7 +78,7 @@ def test_gateway_fails_over_to_kserve_and_probes_it_without_grpc_health(
     assert counts(outputs) == [4]
     endpoint = pipeline.endpoints["models"]
     assert endpoint.failovers == 1
-    probe = Target(kserve_address, METHODS["Infer"])
+    probe = GrpcTarget(TargetConfig(address=kserve_address), METHODS["Infer"])
     assert probe.serving()
     probe.close()
     with pytest.raises(grpc.RpcError) as error:  # KServe lacks grpc.health.v1

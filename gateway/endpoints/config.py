@@ -1,0 +1,148 @@
+"""An endpoint's YAML: where its server is, how to talk to it, and what a call may take.
+
+    endpoints:
+      llm:
+        address: 127.0.0.1:50053                 # ORICF's own service over gRPC
+        deadline_ms: 20000
+      vlm:
+        protocol: openai                         # any OpenAI-compatible server
+        address: http://edge.local:11434/v1      # e.g. Ollama; vLLM, llama.cpp's server
+        model: gemma3:4b
+        token: {env: EDGE_TOKEN}
+        fallback: {address: 127.0.0.1:50053}     # another protocol: a target of its own
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+from urllib.parse import urlsplit
+
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+
+from oricf.config import Schema
+from oricf.gateway.endpoints.replicas import check_target, several_addresses
+from oricf.tls import ClientTls, TokenSource
+
+Protocol = Literal["grpc", "openai"]
+
+
+class ImageTransport(Schema):
+    transport: Literal["raw", "jpeg"] = Field(
+        "raw", description="raw pixels (onboard: no encode cost) or jpeg (remote: less bandwidth)")
+    jpeg_quality: int = Field(80, ge=1, le=100)
+
+
+class RetryConfig(Schema):
+    """Retries of a call the server refused as busy (gRPC RESOURCE_EXHAUSTED, HTTP 429) or
+    unavailable for a while it named (HTTP 503 with Retry-After), within its deadline: wait
+    what the server asked for, or exponential backoff with jitter if longer."""
+
+    attempts: int = Field(2, ge=0, le=10, description="retries after the first refusal")
+    initial_backoff_ms: int = Field(50, ge=1, le=60_000)
+    max_backoff_ms: int = Field(1000, ge=1, le=600_000)
+
+
+def check_url(value: str) -> str:
+    """An OpenAI-compatible API's base URL: http(s)://host[:port]/path, no credentials."""
+    parts = urlsplit(value)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ValueError(f"'{value}' is not an http:// or https:// URL (e.g. "
+                         f"http://127.0.0.1:11434/v1)")
+    if parts.username or parts.password:
+        raise ValueError(f"'{parts.hostname}': no user or password in the URL; give `token`")
+    if parts.query or parts.fragment:
+        raise ValueError(f"'{value}': a base URL has no query or fragment")
+    return value.rstrip("/")
+
+
+class TargetConfig(Schema):
+    """One server: the protocol it speaks, its address, and how to reach it safely."""
+
+    protocol: Protocol = Field("grpc", description="grpc (ORICF's services, Open Inference "
+                                                   "Protocol servers) or openai")
+    address: str = Field(description="grpc: host:port, or replicas to balance over "
+                                     "(dns:///NAME:PORT, ipv4:IP:PORT,IP:PORT,...); openai: "
+                                     "the API's base URL, http(s)://host:port/v1")
+    model: str | None = Field(None, description="openai: the model's name on the server")
+    tls: ClientTls | None = Field(None, description="TLS to the server (mTLS with cert/key)")
+    token: TokenSource | None = Field(None, description="bearer token sent with every call")
+
+    @field_validator("address")
+    @classmethod
+    def _address(cls, value: str, info: ValidationInfo) -> str:
+        return check_address_for(info.data.get("protocol", "grpc"), value)
+
+    @model_validator(mode="after")
+    def _settings_for_protocol(self) -> TargetConfig:
+        if self.protocol == "openai":
+            if not self.model:
+                raise ValueError("model: required with protocol openai (the name the server "
+                                 "lists at GET /v1/models)")
+            if self.address.startswith("http://") and self.tls is not None:
+                raise ValueError("tls: given, but the address is http://; use https://")
+            if self.tls is not None and self.tls.server_name is not None:
+                raise ValueError("tls.server_name: only with protocol grpc; an https URL "
+                                 "names the host its certificate must have")
+        elif self.model is not None:
+            raise ValueError("model: only with protocol openai (a gRPC service serves one)")
+        if (self.protocol == "grpc" and self.tls is not None and self.tls.server_name is None
+                and several_addresses(self.address)):
+            raise ValueError(f"tls.server_name is needed with several addresses in one "
+                             f"target ({self.address}): the name the replicas' certificate "
+                             f"has")
+        return self
+
+
+def check_address_for(protocol: str, value: str) -> str:
+    if protocol == "openai":
+        return check_url(value)
+    if value.startswith(("http://", "https://")):
+        raise ValueError(f"'{value}' is a URL: say `protocol: openai` (and `model`) for an "
+                         f"OpenAI-compatible server; a gRPC address is host:port")
+    return check_target(value)
+
+
+class EndpointConfig(TargetConfig):
+    """The primary target, inline, and what the calls to it may take."""
+
+    fallback: str | TargetConfig | None = Field(
+        None, description="used while the primary is unavailable: an address (same protocol, "
+                          "model, TLS and token), or a target of its own")
+    deadline_ms: int = Field(1000, gt=0, le=600_000, description="per call")
+    probe_interval_s: float = Field(
+        1.0, gt=0, le=60, description="readiness probe of the primary while on the fallback")
+    image: ImageTransport = ImageTransport()
+    retry: RetryConfig = RetryConfig()
+
+    @field_validator("fallback", mode="before")
+    @classmethod
+    def _fallback_address(cls, value: object, info: ValidationInfo) -> object:
+        if isinstance(value, str):
+            return check_address_for(info.data.get("protocol", "grpc"), value)
+        return value
+
+    @model_validator(mode="after")
+    def _fallback_tls_name(self) -> EndpointConfig:
+        if isinstance(self.fallback, str) and self.protocol == "grpc" \
+                and self.tls is not None and self.tls.server_name is None \
+                and several_addresses(self.fallback):
+            raise ValueError(f"tls.server_name is needed with several addresses in one "
+                             f"target ({self.fallback}): the name the replicas' certificate "
+                             f"has")
+        return self
+
+    @property
+    def targets(self) -> dict[str, TargetConfig]:
+        """{"address": the primary, "fallback": the fallback (if any)}."""
+        primary = TargetConfig(protocol=self.protocol, address=self.address, model=self.model,
+                               tls=self.tls, token=self.token)
+        found = {"address": primary}
+        if isinstance(self.fallback, str):
+            found["fallback"] = primary.model_copy(update={"address": self.fallback})
+        elif self.fallback is not None:
+            found["fallback"] = self.fallback
+        return found
+
+    @property
+    def protocols(self) -> set[str]:
+        return {target.protocol for target in self.targets.values()}

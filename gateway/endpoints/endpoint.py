@@ -1,0 +1,156 @@
+"""An endpoint: the server a route calls, with a deadline on every call, retries while the
+server says it is busy, and failover to a fallback (see the package's docstring)."""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import random
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
+
+import grpc
+
+from oricf.gateway.endpoints.config import EndpointConfig, TargetConfig
+from oricf.gateway.endpoints.grpc import GrpcTarget, Service
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+# A call on one target, with the time left of its deadline (s).
+Work = Callable[[Any, float], T]
+
+FAILOVER_CODES = frozenset({grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED})
+PROBE_TIMEOUT_S = 1.0
+
+
+def _pushback_ms(exc: grpc.RpcError) -> float:
+    """The wait the server asked for (gRPC's grpc-retry-pushback-ms; HTTP's Retry-After),
+    0 if none."""
+    metadata = dict(exc.trailing_metadata() or ())  # type: ignore[attr-defined]
+    try:
+        return max(0.0, float(metadata.get("grpc-retry-pushback-ms", 0)))
+    except (TypeError, ValueError):
+        return 0.0
+
+
+def open_target(config: TargetConfig, service: Service) -> Any:
+    if config.protocol == "openai":
+        from oricf.gateway.endpoints.openai import OpenAITarget  # the openai client, if used
+
+        return OpenAITarget(config)
+    return GrpcTarget(config, service)
+
+
+class Endpoint:
+    """A server the routes call: `service.stub` makes a gRPC target's client on its
+    channel, `service.ready` asks whether a gRPC server is ready (the probe that ends a
+    failover); an OpenAI-compatible target has its own client and probe."""
+
+    def __init__(self, name: str, config: EndpointConfig, service: Service) -> None:
+        self.name = name
+        self.config = config
+        targets = config.targets
+        self.primary = open_target(targets["address"], service)
+        self.fallback = (open_target(targets["fallback"], service)
+                         if "fallback" in targets else None)
+        self.failovers = 0
+        self.recoveries = 0
+        self.retries = 0
+        self._on_fallback = False
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._probe: threading.Thread | None = None
+
+    @property
+    def deadline_s(self) -> float:
+        return self.config.deadline_ms / 1000.0
+
+    @property
+    def active(self) -> Any:
+        with self._lock:
+            return self.fallback if self._on_fallback and self.fallback else self.primary
+
+    def call(self, rpc: str, request: Any) -> Any:
+        """Calls a gRPC rpc on the active target (a gRPC-only endpoint)."""
+        return self.run({"grpc": lambda target, timeout: target.invoke(rpc, request, timeout)})
+
+    def run(self, work: Mapping[str, Work[T]]) -> T:
+        """Runs the work for the active target's protocol; fails over once on UNAVAILABLE or
+        DEADLINE_EXCEEDED, and runs the fallback's work there."""
+        target = self.active
+        try:
+            return self._attempts(target, work)
+        except grpc.RpcError as exc:
+            if self.fallback is None or target is self.fallback or exc.code() not in FAILOVER_CODES:
+                raise
+            self._fail_over(exc)
+            return self._attempts(self.fallback, work)
+
+    def _attempts(self, target: Any, work: Mapping[str, Work[T]]) -> T:
+        """One target, its deadline, and retries while it refuses the call as busy."""
+        deadline = time.monotonic() + self.deadline_s
+        for attempt in itertools.count(1):
+            try:
+                return work[target.protocol](target, max(deadline - time.monotonic(), 0.001))
+            except grpc.RpcError as exc:
+                wait = self._retry_wait(exc, attempt, deadline - time.monotonic())
+                if wait is None:
+                    raise
+                self.retries += 1
+                log.debug("endpoint %s: %s busy, retry %d in %.0f ms", self.name,
+                          target.address, attempt, wait * 1000)
+                time.sleep(wait)
+        raise AssertionError("unreachable")
+
+    def _retry_wait(self, exc: grpc.RpcError, attempt: int, remaining: float) -> float | None:
+        """Seconds to wait before retrying a refused call, or None to give up. Busy is
+        retried; unavailable only when the server said for how long (HTTP 503 with
+        Retry-After), else the endpoint fails over at once."""
+        retry, pushback = self.config.retry, _pushback_ms(exc)
+        busy = exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+        paused = exc.code() == grpc.StatusCode.UNAVAILABLE and pushback > 0
+        if not (busy or paused) or attempt > retry.attempts:
+            return None
+        backoff = min(retry.max_backoff_ms, retry.initial_backoff_ms * 2 ** (attempt - 1))
+        wait_ms = max(backoff * random.uniform(0.5, 1.5), pushback)
+        return wait_ms / 1000 if wait_ms / 1000 < remaining else None
+
+    def _fail_over(self, exc: grpc.RpcError) -> None:
+        assert self.fallback is not None
+        with self._lock:
+            if self._on_fallback:
+                return
+            self._on_fallback = True
+            self.failovers += 1
+            # Started and cleared under the lock that flips the state: never two probes,
+            # never on the fallback without one.
+            self._probe = threading.Thread(target=self._probe_primary, daemon=True,
+                                           name=f"probe-{self.name}")
+            self._probe.start()
+        log.warning("endpoint %s: primary %s failed (%s); using fallback %s until it is "
+                    "ready again", self.name, self.primary.address, exc.code().name,
+                    self.fallback.address)
+
+    def _probe_primary(self) -> None:
+        while not self._stop.wait(self.config.probe_interval_s):
+            if self.primary.serving():
+                with self._lock:
+                    self._on_fallback = False
+                    self._probe = None
+                    self.recoveries += 1
+                log.info("endpoint %s: primary %s is ready again; back on it", self.name,
+                         self.primary.address)
+                return
+
+    def close(self) -> None:
+        self._stop.set()
+        with self._lock:
+            probe = self._probe
+        if probe is not None:
+            probe.join(timeout=PROBE_TIMEOUT_S + 1)
+        self.primary.close()
+        if self.fallback is not None:
+            self.fallback.close()
