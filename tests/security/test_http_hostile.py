@@ -96,6 +96,27 @@ def test_bytes_that_are_not_json_are_400(llm: HttpService, body: bytes) -> None:
         assert_openai_error(response)
 
 
+AUDIO_HEADERS = [b"RIFF\x24\x00\x00\x00WAVEfmt ", b"RIFF\xff\xff\xff\xffWAVE", b"fLaC",
+                 b"fLaC\x00\x00\x00\x22", b"OggS\x00\x02", b"ID3\x04\x00", b"\xff\xfb\x90",
+                 b""]
+
+
+@settings(max_examples=120, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.builds(lambda head, rest: head + rest, st.sampled_from(AUDIO_HEADERS),
+                      st.binary(max_size=3000)),
+       response_format=st.sampled_from(["json", "text", "verbose_json"]))
+def test_fuzzed_uploads_get_clear_answers(asr: HttpService, data: bytes,
+                                          response_format: str) -> None:
+    """Bytes behind the magic of each format the service reads, FFmpeg's formats too."""
+    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", timeout=30,
+                          files={"file": ("fuzz", data)},
+                          data={"response_format": response_format})
+    if response.status_code != 200:
+        assert_openai_error(response)
+    assert asr.process.poll() is None
+
+
 def test_ten_megabyte_bodies_are_refused_with_bounded_memory(llm: HttpService,
                                                              asr: HttpService) -> None:
     before = rss_mb(llm.process.pid), rss_mb(asr.process.pid)
