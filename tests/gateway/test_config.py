@@ -58,7 +58,7 @@ def test_reference_pipeline_keeps_the_fixed_topic_names() -> None:
         "detector": "127.0.0.1:50051", "asr": "127.0.0.1:50052", "llm": "127.0.0.1:50053"}
 
 
-@pytest.mark.parametrize("placement", ["onboard", "edge"])
+@pytest.mark.parametrize("placement", ["onboard", "edge", "ollama"])
 def test_placement_overlays_change_endpoints_only(placement: str) -> None:
     placed = load_pipeline(PEOPLE_QA, [PIPELINES / "placement" / f"{placement}.yaml"])
     assert placed.routes == load_pipeline(PEOPLE_QA).routes
@@ -70,6 +70,9 @@ def test_placement_overlays_change_endpoints_only(placement: str) -> None:
         assert detector.deadline_ms == 800
     else:
         assert detector.address == "127.0.0.1:50051" and detector.image.transport == "raw"
+    if placement == "ollama":
+        llm = placed.endpoints["llm"].targets
+        assert (llm["address"].protocol, llm["fallback"].protocol) == ("openai", "grpc")
 
 
 def test_profile_option_is_gone(capsys: pytest.CaptureFixture[str]) -> None:
