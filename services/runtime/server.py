@@ -12,7 +12,7 @@ import os
 import threading
 import time
 from concurrent import futures
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
@@ -30,6 +30,9 @@ from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.probe import probe_server
 from oricf.services.runtime.spec import ServiceSpec
 from oricf.signals import stop_on_signals
+
+if TYPE_CHECKING:  # Starlette and uvicorn load only for a service that serves HTTP
+    from oricf.services.runtime.http.server import HttpServer
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +97,7 @@ class ServiceHost:
         self.draining = False
         self.http = self._http_server() if settings.http is not None else None
 
-    def _http_server(self) -> Any:
+    def _http_server(self) -> HttpServer:
         """The OpenAI-compatible HTTP API on the same model and call limit (bound now)."""
         from oricf.services.runtime.http import http_server
 
