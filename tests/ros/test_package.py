@@ -116,7 +116,7 @@ def test_the_installed_gateway_runs_as_a_ros_node_and_logs_to_rosout(
             started = next_line(lines, "robot7.oricf_gateway",
                                 "gateway node oricf_gateway: 4 routes", timeout=60)
             assert (started.level, started.function) == (Log.INFO, "__init__")
-            assert started.file.endswith("gateway/node.py")
+            assert started.file.endswith("gateway/ros/node.py")
             assert get_parameters(ros_context, "/robot7/oricf_gateway",
                                   ["config", "placement", "overlays", "sets"]) == [
                 str(PIPELINES / "people_qa.yaml"), "edge", [str(site)], []]
