@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -68,9 +69,22 @@ def compare(args: argparse.Namespace, asked: list[Question]) -> int:
         overrides = ["--config", str(args.config)]
         with both_protocols("llm", *overrides, *_model_args(model, args)) as endpoints:
             asks = {"grpc": _grpc(endpoints), "openai": _openai(endpoints, model)}
-            results = interleave(asked, {name: asks[name] for name in args.protocol})
+            results = interleave(asked, {name: asks[name] for name in args.protocol},
+                                 reset=_other_prompt(endpoints))
         report(f"{model}, oricf serve llm", results, MEASURES)
     return 0
+
+
+def _other_prompt(endpoints: Endpoints) -> Callable[[], None]:
+    """One token for an unrelated prompt: the model's prompt cache then holds only the
+    template's shared prefix, as for any new question, whichever protocol asked last."""
+    stub = language_pb2_grpc.LanguageModelStub(endpoints.grpc)
+    request = language_pb2.GenerateRequest(prompt="Say hello.", max_tokens=1)
+
+    def reset() -> None:
+        stub.Generate(request, timeout=DEADLINE_S)
+
+    return reset
 
 
 def _model_args(model: str, args: argparse.Namespace) -> list[str]:

@@ -70,9 +70,12 @@ def both_protocols(service: str, *args: str) -> Iterator[Endpoints]:
             api.close()
 
 
-def interleave(queries: Sequence[Any], asks: dict[str, Ask], rounds: int = 1
-               ) -> list[Measures]:
-    """Every query over every protocol, the order alternating; one warm-up each first."""
+def interleave(queries: Sequence[Any], asks: dict[str, Ask], rounds: int = 1,
+               reset: Callable[[], None] | None = None) -> list[Measures]:
+    """Every query over every protocol, the order alternating; one warm-up each first.
+    `reset` (not timed) runs before each protocol's turn, so that each meets the service in
+    the same state (a language model's prompt cache: otherwise the second protocol to ask
+    a query finds its prompt already evaluated)."""
     results = {name: Measures(name) for name in asks}
     for ask in asks.values():
         ask(queries[0])
@@ -80,6 +83,8 @@ def interleave(queries: Sequence[Any], asks: dict[str, Ask], rounds: int = 1
     for _ in range(rounds):
         for query in queries:
             for name in order:
+                if reset is not None:
+                    reset()
                 results[name].add(asks[name](query))
             order.reverse()
     return list(results.values())

@@ -6,8 +6,14 @@ import logging
 import os
 
 FORMAT = "%(asctime)s %(levelname)-5s %(name)s: %(message)s"
+# HTTP clients that log every request at INFO (the openai client's httpx): a line per
+# language-model call would drown the log, so they say only what went wrong.
+QUIET = ("httpx", "httpx2", "httpcore", "openai")
 
 
 def setup_logging(level: str | None = None) -> None:
     level_name = (level or os.environ.get("ORICF_LOG_LEVEL") or "INFO").upper()
     logging.basicConfig(level=level_name, format=FORMAT, datefmt="%H:%M:%S", force=True)
+    if logging.getLogger().level > logging.DEBUG:
+        for name in QUIET:
+            logging.getLogger(name).setLevel(logging.WARNING)
