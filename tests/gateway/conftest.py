@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import pytest
 from rclpy.context import Context
 
-from tests.gateway.ros import private_domain
+from tests.gateway.ros.gateway_node import private_domain
 
 
 @pytest.fixture(scope="session")

@@ -11,7 +11,7 @@ import yaml
 from rclpy.context import Context
 
 from tests.gateway.pipelines import PEOPLE_QA
-from tests.gateway.ros import running_probe, wait_for
+from tests.gateway.ros.gateway_node import running_probe, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import oricf_process
 from tests.support.services import running_service

@@ -20,7 +20,7 @@ from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.route import Loader
 from oricf.gateway.values import Frame, Record
 from tests.gateway.pipelines import people_qa
-from tests.gateway.ros import running_gateway
+from tests.gateway.ros.gateway_node import running_gateway
 from tests.support.data import video_frames, video_path
 from tests.support.metrics import Scrape, scrape
 from tests.support.processes import free_port, oricf_process, wait_serving

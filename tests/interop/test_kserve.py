@@ -20,7 +20,7 @@ from oricf.gateway.methods.base import health_check
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.store import ModelStore
-from tests.gateway.test_infer import counts, infer_config
+from tests.gateway.methods.test_infer import counts, infer_config
 from tests.gateway.test_pipeline import FRAMES, run_frames
 from tests.support.processes import free_port
 from tests.support.services import running_service

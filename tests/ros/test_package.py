@@ -20,8 +20,8 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from oricf.config import config_dir
-from tests.gateway.ros import spinning, wait_for
-from tests.gateway.rosout import next_line, rosout_reader
+from tests.gateway.ros.gateway_node import spinning, wait_for
+from tests.gateway.ros.rosout import next_line, rosout_reader
 from tests.ros.conftest import PACKAGE, Workspace
 
 PIPELINES = config_dir() / "pipelines"

@@ -18,7 +18,7 @@ from oricf.errors import ConfigError
 from oricf.gateway.config import InputConfig, load_pipeline
 from oricf.gateway.sources.audio import AudioSource
 from oricf.gateway.values import AudioClip
-from tests.gateway.audio import gateway
+from tests.gateway.sources.audio import gateway
 from tests.support.services import running_service
 from tests.support.speech import QUESTION, QUESTION_WORDS, words
 

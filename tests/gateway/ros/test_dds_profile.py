@@ -20,7 +20,7 @@ from std_msgs.msg import Int32
 
 from oricf.errors import ConfigError
 from oricf.gateway.ros.dds import dds_profile, use_dds_profile
-from tests.gateway.ros import spinning
+from tests.gateway.ros.gateway_node import spinning
 
 PUBLISHED = 40
 NAMESPACE = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
@@ -73,9 +73,9 @@ def counts(ros_context: Context) -> Iterator[tuple[str, queue.Queue[int]]]:
 def publish_from_another_process(topic: str, profile: Path) -> tuple[dict[str, int], str]:
     env = {**os.environ, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
     done = subprocess.run(
-        [sys.executable, "-m", "tests.gateway.event_thread_publisher", topic, str(PUBLISHED)],
+        [sys.executable, "-m", "tests.gateway.ros.event_thread_publisher", topic, str(PUBLISHED)],
         env=env, capture_output=True, text=True, timeout=120,
-        cwd=Path(__file__).resolve().parents[2])
+        cwd=Path(__file__).resolve().parents[3])
     assert done.returncode == 0, done.stdout + done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
 

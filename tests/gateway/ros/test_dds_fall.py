@@ -8,7 +8,7 @@ from rclpy.context import Context
 
 from oricf.config import config_dir
 from tests.gateway.pipelines import shipped_pipeline
-from tests.gateway.ros import running_gateway
+from tests.gateway.ros.gateway_node import running_gateway
 from tests.support.data import image
 from tests.support.services import running_service
 

@@ -11,7 +11,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from tests.gateway.ros import spinning
+from tests.gateway.ros.gateway_node import spinning
 
 # As rcl publishes it: reliable, and kept for late subscribers.
 ROSOUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,

@@ -1,6 +1,6 @@
 """A reliable Int32 publisher that reports how often Fast DDS's event thread woke up.
 
-Run as `python -m tests.gateway.event_thread_publisher TOPIC COUNT` with the environment
+Run as `python -m tests.gateway.ros.event_thread_publisher TOPIC COUNT` with the environment
 of the DDS profile under test: waits for a subscriber, publishes COUNT messages at 50 Hz
 and prints {"wakeups": N, "published": COUNT} as JSON. Fast DDS names that thread
 `dds.ev.<participant>`; Linux counts its sleeps in /proc (voluntary_ctxt_switches).
@@ -18,7 +18,7 @@ from rclpy.node import Node
 from std_msgs.msg import Int32
 
 from oricf.bench.wakeups import wakeups
-from tests.gateway.matching import wait_for_subscriber
+from tests.gateway.ros.matching import wait_for_subscriber
 
 RATE_HZ = 50.0
 EVENT_THREADS = "dds.ev."  # Fast DDS names its event thread dds.ev.<participant>

@@ -1,6 +1,6 @@
 """A camera node ORICF did not write: plain rclpy, no ORICF import, no ORICF settings.
 
-Run as `python -m tests.gateway.foreign_camera_publisher TOPIC VIDEO COUNT RELIABILITY` with
+Run as `python -m tests.gateway.ros.foreign_camera_publisher TOPIC VIDEO COUNT RELIABILITY` with
 no FASTRTPS_DEFAULT_PROFILES_FILE: publishes COUNT raw 640x480 bgr8 frames of VIDEO at 10 fps
 as sensor_msgs/Image, the way common drivers do (RELIABILITY reliable: image_transport's
 default, reliable with depth 10; best_effort: the sensor_data profile, best effort with depth
@@ -20,7 +20,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from tests.gateway.matching import wait_for_subscriber
+from tests.gateway.ros.matching import wait_for_subscriber
 
 WIDTH, HEIGHT = 640, 480
 RATE_HZ = 10.0

@@ -33,12 +33,12 @@ from sensor_msgs.msg import CompressedImage
 
 from oricf.gateway.ros.node import GatewayNode
 from tests.gateway.pipelines import people_qa
-from tests.gateway.ros import Probe, logged, running_gateway, wait_for
+from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_path
 from tests.support.processes import oricf_process
 from tests.support.services import running_service
 
-REPOSITORY = Path(__file__).resolve().parents[2]
+REPOSITORY = Path(__file__).resolve().parents[3]
 SENT = 50  # frames, 5 s at 10 fps
 CAMERA = "camera/image_raw"
 LOST = "never arrived"
@@ -58,7 +58,7 @@ def camera(reliability: str, env: dict[str, str], frames: int = SENT
            ) -> Iterator[subprocess.Popen[str]]:
     """The foreign camera publishing `frames` frames, stopped when the block ends."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "tests.gateway.foreign_camera_publisher", CAMERA,
+        [sys.executable, "-m", "tests.gateway.ros.foreign_camera_publisher", CAMERA,
          str(video_path()), str(frames), reliability],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPOSITORY)
     try:
@@ -186,7 +186,8 @@ def test_a_camera_with_fast_dds_large_data_transports_reaches_the_gateway() -> N
     not one frame arrives, and nothing says why.
 
     Multicast reaches every test run on this machine, so the gateway and the camera get a
-    domain of their own, outside the range the other tests draw from (tests/gateway/ros.py);
+    domain of their own, outside the range the other tests draw from
+    (tests/gateway/ros/gateway_node.py);
     the gateway's own counts tell what it received."""
     subnet = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET",
               "ROS_DOMAIN_ID": str(random.randint(101, 200))}

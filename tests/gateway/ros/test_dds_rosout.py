@@ -13,7 +13,7 @@ from rclpy.context import Context
 
 from oricf.gateway.ros.rosout import GatewayRosNode
 from tests.gateway.pipelines import people_qa
-from tests.gateway.rosout import lines_until, next_line, rosout_reader
+from tests.gateway.ros.rosout import lines_until, next_line, rosout_reader
 
 NOWHERE = {name: "127.0.0.1:9" for name in ("detector", "asr", "llm")}  # nothing listens
 

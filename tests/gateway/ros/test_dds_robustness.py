@@ -11,7 +11,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Int16MultiArray
 
 from tests.gateway.pipelines import people_qa
-from tests.gateway.ros import Probe, logged, running_gateway, wait_for
+from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.services import running_service

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from oricf.config import config_dir
-from tests.gateway.audio import PulseServer, gateway
+from tests.gateway.sources.audio import PulseServer, gateway
 from tests.support.data import video_path
 from tests.support.services import running_service
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words

@@ -9,7 +9,7 @@ from rclpy.context import Context
 from oricf.gateway.values import Frame
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.pipelines import people_qa
-from tests.gateway.ros import running_gateway
+from tests.gateway.ros.gateway_node import running_gateway
 from tests.support.data import video_frames
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving

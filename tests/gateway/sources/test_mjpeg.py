@@ -24,7 +24,7 @@ from oricf.gateway.sources.mjpeg import MAX_PART_BYTES, BadStream, MjpegStream, 
 from oricf.gateway.sources.video import VideoSource
 from oricf.gateway.values import Frame
 from oricf.launch.health import free_port
-from tests.gateway.test_rtsp import counts, gateway
+from tests.gateway.sources.test_rtsp import counts, gateway
 from tests.support.services import running_service
 
 JPEGS = encode_frames(3)
