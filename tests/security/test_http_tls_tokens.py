@@ -19,6 +19,7 @@ import pytest
 from oricf.audio import encode_wav
 from oricf.launch.health import wait_serving
 from oricf.tls import ClientTls, make_certificates
+from tests.support.certs import local_certificates
 from tests.support.openai_http import HttpService, client, http_service
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
@@ -28,10 +29,7 @@ MODEL = "whisper-tiny-en"
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("certs")
-    make_certificates(folder, ["localhost", "127.0.0.1"])
-    (folder / "tokens").write_text(f"another-token\n{TOKEN}\n")
-    return folder
+    return local_certificates(tmp_path_factory, TOKEN)
 
 
 @pytest.fixture(scope="module")

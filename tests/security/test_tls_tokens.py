@@ -21,6 +21,7 @@ from oricf.launch.health import status
 from oricf.tls import ClientTls, make_certificates
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.test_pipeline import FRAMES, pipeline_config, run_frames
+from tests.support.certs import local_certificates
 from tests.support.data import video_frames
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
@@ -31,10 +32,7 @@ TOKEN = "s3cret-token-for-the-detector"
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("certs")
-    make_certificates(folder, ["localhost", "127.0.0.1"])
-    (folder / "tokens").write_text(f"another-token\n{TOKEN}\n")
-    return folder
+    return local_certificates(tmp_path_factory, TOKEN)
 
 
 @pytest.fixture(scope="module")

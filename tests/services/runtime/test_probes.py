@@ -13,9 +13,10 @@ import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
 from oricf.errors import ConfigError
-from oricf.tls import ClientTls, make_certificates
+from oricf.tls import ClientTls
 from oricf.v1 import detector_pb2_grpc
 from tests.services.runtime.test_lifecycle import person_request
+from tests.support.certs import local_certificates
 from tests.support.detections import count
 from tests.support.metrics import scrape
 from tests.support.processes import free_port
@@ -27,9 +28,7 @@ NOT_SERVING = health_pb2.HealthCheckResponse.NOT_SERVING
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("certs")
-    make_certificates(folder, ["localhost", "127.0.0.1"])
-    return folder
+    return local_certificates(tmp_path_factory)
 
 
 def check(address: str, service: str = "") -> int:
