@@ -29,7 +29,7 @@ log = logging.getLogger("oricf")
 
 # verb -> module whose main(argv) -> int handles it
 DELEGATED = {
-    "certs": "oricf.tls",
+    "certs": "oricf.certs",
     "gateway": "oricf.gateway.main",
     "up": "oricf.launch.up",
     "demo": "oricf.demo.main",

@@ -1,39 +1,20 @@
 """Transport security shared by the services, the gateway and the health probe: the YAML
-schemas for TLS and tokens, gRPC credentials from them, and a local CA for a deployment.
-
-    oricf certs DIR --host edge.local --host 127.0.0.1
-
-writes DIR/ca.pem (the deployment's CA; its key ca.key stays with whoever issues
-certificates), server.pem/server.key (for the services; the hosts as subject alternative
-names), client.pem/client.key (for gateways, when services require client certificates) and
-DIR/tokens, one random bearer token for `server.auth` and the gateway's `token`. Keys and
-the token are written readable by their owner only. Certificates use the `cryptography` library.
-"""
+schemas for TLS and tokens, and gRPC credentials and Python SSL contexts from them. A
+deployment's own certificates come from `oricf certs` (oricf.certs)."""
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import hmac
-import ipaddress
 import os
-import secrets
 import ssl
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import grpc
 from pydantic import Field, model_validator
 
 from oricf.config import FilePath, Schema
 from oricf.errors import ConfigError
-
-if TYPE_CHECKING:
-    from cryptography import x509
-    from cryptography.hazmat.primitives.asymmetric.ec import EllipticCurvePrivateKey
-
-VALID_DAYS = 825  # the longest validity clients accept for a server certificate
 
 
 def _read(path: Path, what: str) -> bytes:
@@ -136,87 +117,3 @@ def open_channel(address: str, tls: ClientTls | None,
     if tls is None:
         return grpc.insecure_channel(address, options=list(options))
     return tls.channel(address, list(options))
-
-
-def _name(common_name: str) -> x509.Name:
-    from cryptography import x509
-    from cryptography.x509.oid import NameOID
-
-    return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
-
-
-def _san(hosts: list[str]) -> x509.SubjectAlternativeName:
-    from cryptography import x509
-
-    names: list[x509.GeneralName] = []
-    for host in hosts:
-        try:
-            names.append(x509.IPAddress(ipaddress.ip_address(host)))
-        except ValueError:
-            names.append(x509.DNSName(host))
-    return x509.SubjectAlternativeName(names)
-
-
-def _write_private(path: Path, data: bytes) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "wb") as out:
-        out.write(data)
-
-
-def _write_key(path: Path, key: EllipticCurvePrivateKey) -> None:
-    from cryptography.hazmat.primitives import serialization
-
-    _write_private(path, key.private_bytes(serialization.Encoding.PEM,
-                                           serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
-
-
-def make_certificates(folder: Path, hosts: list[str]) -> None:
-    """A CA, a server certificate for hosts, and a client certificate, into folder."""
-    from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
-    from cryptography.hazmat.primitives.asymmetric import ec
-
-    folder.mkdir(parents=True, exist_ok=True)
-    now = datetime.datetime.now(datetime.timezone.utc)
-    ca_key = ec.generate_private_key(ec.SECP256R1())
-    ca_name = _name("ORICF deployment CA")
-    ca = (x509.CertificateBuilder().subject_name(ca_name).issuer_name(ca_name)
-          .public_key(ca_key.public_key()).serial_number(x509.random_serial_number())
-          .not_valid_before(now).not_valid_after(now + datetime.timedelta(days=3650))
-          .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
-          .sign(ca_key, hashes.SHA256()))
-    _write_key(folder / "ca.key", ca_key)
-    (folder / "ca.pem").write_bytes(ca.public_bytes(serialization.Encoding.PEM))
-    for role, usage in (("server", x509.ExtendedKeyUsageOID.SERVER_AUTH),
-                        ("client", x509.ExtendedKeyUsageOID.CLIENT_AUTH)):
-        key = ec.generate_private_key(ec.SECP256R1())
-        builder = (x509.CertificateBuilder().subject_name(_name(f"oricf-{role}"))
-                   .issuer_name(ca_name).public_key(key.public_key())
-                   .serial_number(x509.random_serial_number()).not_valid_before(now)
-                   .not_valid_after(now + datetime.timedelta(days=VALID_DAYS))
-                   .add_extension(x509.BasicConstraints(ca=False, path_length=None),
-                                  critical=True)
-                   .add_extension(x509.ExtendedKeyUsage([usage]), critical=False))
-        if role == "server":
-            builder = builder.add_extension(_san(hosts), critical=False)
-        cert = builder.sign(ca_key, hashes.SHA256())
-        _write_key(folder / f"{role}.key", key)
-        (folder / f"{role}.pem").write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    if not (folder / "tokens").exists():  # a token already handed out stays valid
-        _write_private(folder / "tokens", (secrets.token_urlsafe(32) + "\n").encode())
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="oricf certs", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("folder", type=Path)
-    parser.add_argument("--host", action="append", default=[],
-                        help="a name or address the services are reached by (repeatable; "
-                             "default localhost and 127.0.0.1)")
-    args = parser.parse_args(argv)
-    hosts = args.host or ["localhost", "127.0.0.1"]
-    make_certificates(args.folder, hosts)
-    print(f"{args.folder}: ca.pem, server.pem/.key ({', '.join(hosts)}), client.pem/.key, "
-          f"tokens")
-    return 0

@@ -17,8 +17,9 @@ import openai
 import pytest
 
 from oricf.audio import encode_wav
+from oricf.certs import make_certificates
 from oricf.launch.health import wait_serving
-from oricf.tls import ClientTls, make_certificates
+from oricf.tls import ClientTls
 from tests.support.certs import local_certificates
 from tests.support.openai_http import HttpService, client, http_service
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words

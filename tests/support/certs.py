@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from oricf.tls import make_certificates
+from oricf.certs import make_certificates
 
 
 def local_certificates(factory: pytest.TempPathFactory, token: str | None = None) -> Path:
