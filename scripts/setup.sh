@@ -29,6 +29,8 @@ APT_PACKAGES+=(libportaudio2)
                           gstreamer1.0-plugins-bad)
 # The audio-input tests play speech into a PulseAudio null sink and capture its monitor.
 ((DEV)) && APT_PACKAGES+=(pulseaudio pulseaudio-utils)
+# The shell scripts (compose/stack.sh, scripts/*.sh) are checked with shellcheck.
+((DEV)) && APT_PACKAGES+=(shellcheck)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")

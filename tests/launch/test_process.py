@@ -36,6 +36,11 @@ def test_output_lines_reach_the_sink_with_the_name() -> None:
     process = ManagedProcess(plan("print('one'); print('two')"), lambda n, s: lines.append((n, s)))
     process.start()
     wait_lines(lines, 2)
+    # The child exits by itself once it has printed; stop() before then would end it with
+    # SIGTERM, which is another test's behaviour.
+    deadline = time.monotonic() + 10
+    while process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
     assert process.stop(grace_s=5) == 0
     assert lines == [("child", "one"), ("child", "two")]
     assert list(process.tail) == ["one", "two"]
