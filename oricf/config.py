@@ -14,10 +14,10 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
-import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, ValidationInfo
 
 from oricf.errors import ConfigError
+from oricf.yamlfile import parse_yaml, read_yaml
 
 # The checkout's root when ORICF runs from one (an editable install); meaningless in an
 # installed wheel, where configs/ ships inside the package instead (see config_dir()).
@@ -124,22 +124,6 @@ def format_location(loc: Iterable[Any]) -> str:
     return text or "(top level)"
 
 
-def read_yaml(path: Path) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: file not found") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise ConfigError(f"{path}: invalid YAML{where}: {problem}") from None
-
-
 def deep_merge(base: Any, overlay: Any) -> Any:
     """Overlay wins; mappings merge key by key, everything else is replaced."""
     if isinstance(base, Mapping) and isinstance(overlay, Mapping):
@@ -159,10 +143,7 @@ def apply_set(data: Any, assignment: str) -> Any:
     keys = path.strip().split(".")
     if not sep or not all(keys):
         raise ConfigError(f"--set {assignment}: expected KEY.PATH=VALUE")
-    try:
-        value = yaml.safe_load(text) if text.strip() else ""
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"--set {path}: the value is not valid YAML: {exc}") from None
+    value = parse_yaml(text, f"--set {path}: the value") if text.strip() else ""
     if isinstance(value, list | dict) and not text.strip().startswith(("[", "{")):
         value = text
     return _set(data, keys, value, path)

@@ -114,7 +114,7 @@ def test_set_assignments_reach_any_key_as_yaml_values() -> None:
     ("routes..url=x", "expected KEY.PATH=VALUE"),
     ("routes.people.outputs.3.jsonl=-", "'3' is not an index of a list of 1 items"),
     ("routes.people.outputs.0.jsonl.x=-", "'x' is under a value that is not a mapping"),
-    ("routes.people.post=[a, b", "the value is not valid YAML"),
+    ("routes.people.post=[a, b", "the value: invalid YAML"),
 ])
 def test_bad_set_assignments_are_refused_clearly(assignment: str, message: str) -> None:
     data = {"routes": {"people": {"outputs": [{"jsonl": "x"}]}}}
