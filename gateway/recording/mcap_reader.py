@@ -4,7 +4,8 @@ power: no summary, a last record half written), damaged, or no MCAP file at all.
 Opening checks what can be checked at once (the file exists, starts like an MCAP file, has a
 readable header record) and reads the summary, the file's index of channels and counts, if
 the file has one. Messages are then read in file order, one record at a time (memory stays
-bounded by a chunk, whatever the length of the recording), chunk checksums validated. Every
+bounded by a chunk, whatever the length of the recording), chunk checksums validated;
+chunks are decompressed within limits (chunks.py), whatever size they claim. Every
 problem becomes a RecordingError naming the file and the byte where reading stopped; the
 parser's own exceptions, whatever their type, never escape.
 """
@@ -20,10 +21,11 @@ from typing import BinaryIO
 
 from mcap.exceptions import EndOfFile, InvalidMagic, RecordLengthLimitExceeded
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Header, Message, Schema
+from mcap.records import Channel, Chunk, Header, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 
+from oricf.gateway.recording.chunks import ChunkReader
 from oricf.gateway.recording.recorder import RecordingError
 
 log = logging.getLogger(__name__)
@@ -75,18 +77,30 @@ class McapFile:
                         self.path, _reason(exc))
             return None
 
-    def _reader(self) -> StreamReader:
+    def _reader(self, emit_chunks: bool = False) -> StreamReader:
         self._file.seek(0)
         # A record longer than the file is damage, not a reason to allocate gigabytes.
-        return StreamReader(self._file, validate_crcs=True, record_size_limit=self.size)
+        # Chunks are unpacked here (chunks.py), within limits, not by the library.
+        return StreamReader(self._file, validate_crcs=True, record_size_limit=self.size,
+                            emit_chunks=emit_chunks)
 
     def records(self) -> Iterator[Schema | Channel | Message]:
         """The schema, channel and message records in file order; RecordingError where the
         file stops being readable (what came before has been yielded)."""
+        chunks = ChunkReader(self.path, self.size)
         try:
-            for record in self._reader().records:
-                if isinstance(record, Schema | Channel | Message):
+            records = self._reader(emit_chunks=True).records
+            while True:
+                start = self._file.tell()  # where the next top-level record begins
+                record = next(records, None)
+                if record is None:
+                    return
+                if isinstance(record, Chunk):
+                    yield from chunks.records(record, start)
+                elif isinstance(record, Schema | Channel | Message):
                     yield record
+        except RecordingError:
+            raise
         except (EndOfFile, RecordLengthLimitExceeded):  # a record longer than what is left
             raise RecordingError(f"{self.path}: ends in the middle of a record (near byte "
                                  f"{self._file.tell():,} of {self.size:,}): the recording was "
