@@ -28,6 +28,7 @@ from pathlib import Path
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, load_pipeline
+from oricf.gateway.recording.pace import check_rate
 from oricf.gateway.recording.recorder import Recorder, RecordingError
 from oricf.gateway.ros.params import Settings, read_parameters
 from oricf.logs import setup_logging
@@ -61,7 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "output as JSON lines")
     parser.add_argument("--rate", type=replay_rate, default=None,
                         help="--replay: 1 plays at the recorded pace (default), 2 twice as "
-                             "fast; 0 as fast as the routes take every message, none dropped")
+                             "fast (0.01 to 1000); 0 as fast as the routes take every "
+                             "message, none dropped")
     return parser
 
 
@@ -70,9 +72,10 @@ def replay_rate(text: str) -> float:
         rate = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 <= rate < float("inf"):
-        raise argparse.ArgumentTypeError("must be 0 (as fast as possible) or more")
-    return rate
+    try:
+        return check_rate(rate)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def replay(config: PipelineConfig, args: argparse.Namespace) -> int:

@@ -9,10 +9,12 @@ rest are skipped. Camera frames are read by oricf.gateway.recording.cdr as the R
 text, numbers and audio are decoded by mcap-ros2-support from the definition in the file
 (or the gateway's own, msgdefs.py, if the file has none).
 
-`rate` 1 plays at the recorded pace, 2 twice as fast; a camera route then keeps only the
-newest frame, as it would live. `rate` 0 plays as fast as the routes take the messages and
-every message is processed, none dropped as stale, so two replays of one file give
-comparable counts. The routes end when the file has been played and they are idle.
+`rate` 1 plays at the recorded pace, 2 twice as fast (0.01 to 1000); a camera route then
+keeps only the newest frame, as it would live. A gap of more than a minute of recorded time
+between messages is skipped with a warning (pace.py). `rate` 0 plays as fast as the
+routes take the messages and every message is processed, none dropped as stale, so two
+replays of one file give comparable counts. The routes end when the file has been played
+and they are idle.
 
 At start, a file that is not MCAP, cannot be opened, or gives a route's topic another type
 is refused (RecordingError: exit code 2). A message that cannot be decoded is logged and
@@ -38,6 +40,7 @@ from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording import definitions as msgdefs
 from oricf.gateway.recording.mcap_reader import McapFile
+from oricf.gateway.recording.pace import Pace
 from oricf.gateway.recording.recorder import Recorder, RecordingError, linked, ros_name
 from oricf.gateway.recording.topic_values import data_record, image_record
 from oricf.gateway.route import Loader
@@ -66,6 +69,7 @@ class Replay:
                  recorder: Recorder | None = None) -> None:
         self.path = path
         self.rate = rate
+        self._pace = Pace(path, rate)  # refuses a rate out of range before the file opens
         self.recorder = recorder
         self.played = 0
         self.skipped = 0  # messages of topics no route reads
@@ -182,6 +186,9 @@ class Replay:
         except RecordingError as exc:
             self.damaged = True
             log.error("%s; the replay ends here", exc)
+        except Exception:  # a bug must still end the replay, or the gateway never exits
+            self.damaged = True
+            log.exception("%s: the replay failed; it ends here", self.path)
         finally:
             self._file.close()
         seconds = time.monotonic() - started
@@ -197,7 +204,6 @@ class Replay:
         ended()
 
     def _play(self, pipeline: Pipeline) -> None:
-        first: tuple[int, float] | None = None  # (log time, when it was played)
         for record in self._file.records():
             if self._stop.is_set():
                 return
@@ -209,10 +215,7 @@ class Replay:
             elif (feed := self._feeds.get(record.channel_id)) is None:
                 self.skipped += 1
             else:
-                if self.rate > 0:
-                    first = first or (record.log_time, time.monotonic())
-                    due = first[1] + (record.log_time - first[0]) / 1e9 / self.rate
-                    self._stop.wait(max(0.0, due - time.monotonic()))
+                self._stop.wait(self._pace.wait_s(record.log_time, time.monotonic()))
                 self._deliver(pipeline, feed, record)
 
     def _checked(self, channel: Channel) -> Feed | None:
