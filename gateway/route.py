@@ -25,6 +25,7 @@ from oricf.gateway.post import chain
 from oricf.gateway.products import ProductStore
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
+from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
 
 log = logging.getLogger(__name__)
@@ -112,4 +113,5 @@ class Route:
         self._throttle.error(f"{self.name}:{code.name}",
                              "route %s: %s call to %s (%s) failed: %s %s", self.name,
                              self.config.call.method, self.endpoint.name,
-                             self.endpoint.active.address, code.name, exc.details())
+                             self.endpoint.active.address, code.name,
+                             quoted(exc.details() or "", 300))  # the server's words

@@ -19,6 +19,7 @@ import numpy as np
 from oricf.audio import check_format
 from oricf.errors import InvalidInput
 from oricf.imaging import ENCODED, RAW_CHANNELS, check_size, decode_image, encode_image
+from oricf.logs import quoted
 from oricf.v1 import common_pb2, speech_pb2
 
 Record = dict[str, Any]
@@ -70,7 +71,7 @@ class Frame:
 def raw_frame(data: bytes, encoding: str, width: int, height: int, step: int) -> Frame:
     """A sensor_msgs/Image's fields -> Frame, refusing anything that cannot be a valid image."""
     if encoding not in RAW_CHANNELS:
-        raise InvalidInput(f"unsupported image encoding '{encoding}'; "
+        raise InvalidInput(f"unsupported image encoding {quoted(encoding)}; "
                            f"use one of: {', '.join(RAW_CHANNELS)}")
     check_size(width, height)
     row = width * RAW_CHANNELS[encoding]
@@ -92,7 +93,7 @@ def compressed_frame(data: bytes, format_: str) -> Frame:
     text = format_.lower()
     encoding = next((e for e in ENCODED if e in text), "jpeg" if "jpg" in text else "")
     if not encoding:
-        raise InvalidInput(f"unsupported compressed image format '{format_}'; "
+        raise InvalidInput(f"unsupported compressed image format {quoted(format_)}; "
                            f"use jpeg or png")
     if not len(data):
         raise InvalidInput("compressed image data is empty")

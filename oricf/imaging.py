@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.logs import quoted
 
 RAW_CHANNELS = {"rgb8": 3, "bgr8": 3, "mono8": 1}
 ENCODED = ("jpeg", "png")
@@ -68,7 +69,7 @@ def decode_image(data: bytes, encoding: str, width: int = 0, height: int = 0,
         encoding = "jpeg"
     if encoding not in ENCODINGS:
         raise InvalidInput(
-            f"unknown image encoding '{encoding}'; use one of: {', '.join(ENCODINGS)}")
+            f"unknown image encoding {quoted(encoding)}; use one of: {', '.join(ENCODINGS)}")
     if not data:
         raise InvalidInput("image data is empty")
     if encoding in RAW_CHANNELS:
@@ -177,7 +178,8 @@ def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> by
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB).tobytes()
     if encoding == "mono8":
         return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).tobytes()
-    raise InvalidInput(f"unknown image encoding '{encoding}'; use one of: {', '.join(ENCODINGS)}")
+    raise InvalidInput(f"unknown image encoding {quoted(encoding)}; "
+                       f"use one of: {', '.join(ENCODINGS)}")
 
 
 def draw_detections(image: np.ndarray, detections: Iterable[Detection]) -> np.ndarray:

@@ -17,3 +17,14 @@ def setup_logging(level: str | None = None) -> None:
     if logging.getLogger().level > logging.DEBUG:
         for name in QUIET:
             logging.getLogger(name).setLevel(logging.WARNING)
+
+
+def quoted(value: object, limit: int = 200) -> str:
+    """A string from outside (a recording, a camera, a client) made safe for a log line or
+    an error that gets logged: quoted and escaped as Python's repr does (a newline cannot
+    forge a second line, an escape sequence cannot recolour the terminal) and clipped, with
+    the full length said, so a huge value cannot flood the log."""
+    text = value if isinstance(value, str) else str(value)
+    if len(text) <= limit:
+        return repr(text)
+    return f"{text[:limit]!r}... ({len(text):,} characters)"

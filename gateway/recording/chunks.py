@@ -23,6 +23,7 @@ from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, Message, Schema
 
 from oricf.gateway.recording.recorder import RecordingError
+from oricf.logs import quoted
 
 MAX_CHUNK_BYTES = 64 << 20  # uncompressed; rosbag2 and --record write chunks under 1 MiB
 MAX_CHUNK_RECORDS = 100_000  # records in one chunk
@@ -88,10 +89,10 @@ class ChunkReader:
             if chunk.compression == "lz4":
                 return _lz4_at_most(chunk.data, limit)
         except (zstandard.ZstdError, RuntimeError, ValueError) as exc:
-            raise self._error(offset, f"cannot be decompressed: {exc}") from None
+            raise self._error(offset, f"cannot be decompressed: {quoted(exc)}") from None
         if chunk.compression == "":
             return chunk.data
-        raise self._error(offset, f"compressed with '{chunk.compression[:40]}', which "
+        raise self._error(offset, f"compressed with {quoted(chunk.compression, 40)}, which "
                                   f"a replay cannot read")
 
     def _error(self, offset: int, problem: str) -> RecordingError:

@@ -27,6 +27,7 @@ from mcap.summary import Summary
 
 from oricf.gateway.recording.chunks import ChunkReader
 from oricf.gateway.recording.recorder import RecordingError
+from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
 
@@ -125,4 +126,5 @@ def _open(path: Path) -> BinaryIO:
 
 
 def _reason(exc: Exception) -> str:
-    return str(exc) or type(exc).__name__
+    """A parser's message, which may quote the file's bytes: escaped and clipped."""
+    return quoted(exc, 300) if str(exc) else type(exc).__name__

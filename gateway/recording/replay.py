@@ -46,6 +46,7 @@ from oricf.gateway.recording.topic_values import data_record, image_record
 from oricf.gateway.route import Loader
 from oricf.gateway.sources.base import OnEnd, Source
 from oricf.gateway.throttle import ThrottledLog
+from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
 
@@ -106,23 +107,24 @@ class Replay:
         self._schemas.update(summary.schemas)
         problems = []
         for channel in summary.channels.values():
-            try:
+            try:  # the file's strings (topics, types, encodings) are quoted where logged
                 self._feeds[channel.id] = self._feed(channel)
             except RecordingError as exc:
                 problems.append(str(exc))
         if problems:
             raise RecordingError("\n".join(problems))
         present = {c.topic for c in summary.channels.values()}
+        shown = ", ".join(sorted(quoted(topic, 80) for topic in present))  # the file's names
         missing = sorted(set(self._wanted) - present)
         if len(missing) == len(self._wanted):
             raise RecordingError(f"{self.path}: none of the routes' topics "
                                  f"({', '.join(sorted(self._wanted))}) is in the file (it "
-                                 f"has: {', '.join(sorted(present)) or 'no topics'})")
+                                 f"has: {shown or 'no topics'})")
         for topic in missing:
             log.warning("%s: no messages on %s (routes %s)", self.path, topic,
                         ", ".join(self._wanted[topic]))
         counts = summary.statistics.message_count if summary.statistics else "?"
-        log.info("%s: %s messages; topics: %s", self.path, counts, ", ".join(sorted(present)))
+        log.info("%s: %s messages; topics: %s", self.path, counts, shown)
 
     def _feed(self, channel: Channel) -> Feed | None:
         """How to play a channel, None if no route reads it; RecordingError if its type or
@@ -131,15 +133,16 @@ class Replay:
         if not routes:
             return None
         schema = self._schemas.get(channel.schema_id)
-        found = msgdefs.type_name(schema.name) if schema is not None else "a type not named"
+        found = msgdefs.type_name(schema.name) if schema is not None else ""
         for name, config in routes.items():
-            if found != config.type:
-                raise RecordingError(f"{self.path}: topic {channel.topic} is {found} in the "
+            if found != config.type:  # the file's type name, quoted: it may be anything
+                told = quoted(found, 80) if found else "a type not named"
+                raise RecordingError(f"{self.path}: topic {channel.topic} is {told} in the "
                                      f"file; route {name} reads {config.type}")
         type_ = found
         if channel.message_encoding != MessageEncoding.CDR:
             raise RecordingError(f"{self.path}: topic {channel.topic} is encoded "
-                                 f"'{channel.message_encoding}', not cdr")
+                                 f"{quoted(channel.message_encoding)}, not cdr")
         assert schema is not None
         decode = None if type_ in IMAGE_INPUTS else self._decoder(channel, schema, type_)
         return Feed(channel.topic, type_, routes, decode)
@@ -152,7 +155,8 @@ class Replay:
             decoder = DecoderFactory().decoder_for(MessageEncoding.CDR, schema)
         except Exception as exc:  # mcap-ros2-support's parser: any failure is a bad schema
             raise RecordingError(f"{self.path}: topic {channel.topic}: its definition of "
-                                 f"{schema.name} cannot be used: {exc}") from None
+                                 f"{quoted(schema.name)} cannot be used: "
+                                 f"{quoted(exc)}") from None
         assert decoder is not None
         return decoder
 
@@ -253,7 +257,7 @@ class Replay:
             self.undecodable += 1
             self._throttle.warning(f"decode:{feed.topic}", "%s: a message on %s (%s) cannot "
                                    "be decoded (%s); skipped", self.path, feed.topic,
-                                   feed.type, exc or type(exc).__name__)
+                                   feed.type, quoted(exc or type(exc).__name__))
             return None
         return {route: _data_loader(config, decoded) for route, config in feed.routes.items()}
 

@@ -27,6 +27,7 @@ from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import Submit
 from oricf.gateway.sources.mjpeg import BadStream, MjpegStream, NotMjpeg, without_credentials
 from oricf.gateway.values import Frame
+from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +96,7 @@ class VideoSource:
             except NotMjpeg:
                 pass  # another kind of stream: FFmpeg reads it
             except STREAM_ERRORS as exc:
-                self._open_error = f" ({exc})"
+                self._open_error = f" ({quoted(exc)})"  # a server's words: escaped
                 return None
         import cv2
 
@@ -136,7 +137,7 @@ class VideoSource:
             try:
                 ended = self._read(capture)
             except STREAM_ERRORS as exc:
-                log.warning("route %s: %s: %s", self.route, self.shown_url, exc)
+                log.warning("route %s: %s: %s", self.route, self.shown_url, quoted(exc))
                 ended = True
             finally:
                 capture.release()

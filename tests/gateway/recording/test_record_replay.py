@@ -245,7 +245,7 @@ BAD_FILES = {
     "empty": (lambda p: p.write_bytes(b""), 2, "the file is empty"),
     "missing": (lambda p: None, 2, "no such file"),
     "a folder": (lambda p: p.mkdir(), 2, "a folder; give the .mcap file in it"),
-    "wrong type": (wrong_type, 2, "topic /camera/image_raw is std_msgs/String in the file; "
+    "wrong type": (wrong_type, 2, "topic /camera/image_raw is 'std_msgs/String' in the file; "
                                   "route people reads sensor_msgs/Image"),
     "cut short": (cut_in_half, 1, "the recording was cut short; the replay ends here"),
 }
@@ -282,7 +282,7 @@ def test_an_undecodable_message_is_skipped_and_the_rest_plays(services: dict[str
     config = pipeline_file(tmp_path, ["people", "typed_question"], services)
     result = gateway_without_ros(tmp_path, "--config", str(config), "--replay", str(path))
     assert result.returncode == 2, result.stderr  # the type is checked before anything plays
-    assert "topic /question is std_msgs/Int32 in the file; route typed_question reads " \
+    assert "topic /question is 'std_msgs/Int32' in the file; route typed_question reads " \
            "std_msgs/String" in result.stderr
     with path.open("wb") as file:
         writer = McapWriter(file)
