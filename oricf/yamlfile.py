@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+import yaml.reader
 from yaml.composer import ComposerError
 from yaml.constructor import ConstructorError
 from yaml.events import AliasEvent
@@ -119,15 +120,20 @@ def parse_yaml(text: str, source: str) -> Any:
     if len(text) > MAX_BYTES:
         raise ConfigError(f"{source}: larger than {MAX_BYTES:,} characters, more than a "
                           f"config can need")
-    loader = LimitedLoader(text)
+    loader = None
     try:
+        loader = LimitedLoader(text)  # checks the characters at once
         return loader.get_single_data()
+    except yaml.reader.ReaderError as exc:
+        raise ConfigError(f"{source}: invalid YAML (character {exc.position:,}): character "
+                          f"#x{exc.character:04x} is not allowed in YAML") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc)
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise ConfigError(f"{source}: invalid YAML{where}: {problem}") from None
     except (ValueError, OverflowError, RecursionError) as exc:  # a constructor's own
         raise ConfigError(f"{source}: invalid YAML: {exc}") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()

@@ -33,6 +33,7 @@ HOSTILE: dict[str, tuple[bytes, str]] = {
     "big integer": (b"timeout_ms: " + b"9" * 5000, "an integer of more than"),
     "self-containing": (b"a: &a [1, *a]\n", "an alias inside the value it names"),
     "impossible date": (b"when: 2001-02-30\n", "day is out of range"),
+    "control character": (b"name: \x1f\n", "character #x001f is not allowed in YAML"),
     "a long list": (b"- x\n" * (MAX_BYTES // 4 + 1), f"larger than {MAX_BYTES:,} bytes"),
     "too many values": (("[" + "1," * (MAX_NODES + 1) + "]").encode(), "values"),
 }
