@@ -310,7 +310,8 @@ def test_recording_flags_refuse_what_cannot_work(services: dict[str, str],
     for args, error in [
             (["--replay", "in.mcap", "--record", "taken.mcap"], "taken.mcap: exists already"),
             (["--rate", "0"], "--rate: only with --replay"),
-            (["--replay", "in.mcap", "--rate", "-1"], "must be 0 (as fast as possible) or more")]:
+            (["--replay", "in.mcap", "--rate", "-1"], "must be 0 (as fast as the routes take the "
+                                                     "messages) or from 0.01 to 1000")]:
         result = gateway_without_ros(tmp_path, "--config", str(config),
                                      *(str(tmp_path / a) if a.endswith(".mcap") else a
                                        for a in args))
