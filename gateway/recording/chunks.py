@@ -48,7 +48,7 @@ class ChunkReader:
         while stream.count < len(data):
             count += 1
             if count > MAX_CHUNK_RECORDS:
-                raise self._error(offset, f"more than {MAX_CHUNK_RECORDS:,} records")
+                raise self._error(offset, f"holds more than {MAX_CHUNK_RECORDS:,} records")
             opcode, length = stream.read1(), stream.read8()
             if length > len(data) - stream.count:
                 raise self._error(offset, "a record longer than the chunk")
@@ -67,8 +67,9 @@ class ChunkReader:
             raise self._error(offset, f"claims {claimed:,} bytes uncompressed, more than "
                                       f"{MAX_CHUNK_BYTES:,}")
         if self.expanded + claimed > self.budget:
-            raise self._error(offset, f"the file's chunks expand to more than "
-                                      f"{self.budget:,} bytes, {MAX_EXPANSION} times its size")
+            raise self._error(offset, f"takes the file's chunks past {self.budget:,} bytes "
+                                      f"uncompressed ({MAX_EXPANSION} times the file's size, "
+                                      f"at least {MIN_TOTAL_BYTES:,})")
         data = self._decompress(chunk, claimed, offset)
         if len(data) > claimed:
             raise self._error(offset, f"holds more than the {claimed:,} bytes it claims")

@@ -16,7 +16,7 @@ import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.records import Chunk, DataEnd, Footer, Header
 
-from oricf.gateway.recording.chunks import MAX_CHUNK_BYTES, MAX_CHUNK_RECORDS
+from oricf.gateway.recording.chunks import MAX_CHUNK_BYTES, MAX_CHUNK_RECORDS, MIN_TOTAL_BYTES
 from oricf.gateway.recording.mcap_reader import MAGIC, McapFile
 from oricf.gateway.recording.recorder import RecordingError
 
@@ -34,20 +34,24 @@ def mcap_with_chunk(path: Path, content: bytes, compression: str, claimed: int |
                            uncompressed_crc=crc, compression=compression, data=data))
 
 
-def write_mcap(path: Path, chunk: Chunk) -> None:
+def write_mcap(path: Path, *chunks: Chunk) -> None:
     builder = RecordBuilder()
     Header(profile="", library="").write(builder)
-    chunk.write(builder)
+    for chunk in chunks:
+        chunk.write(builder)
     DataEnd(data_section_crc=0).write(builder)
     Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(builder)
     path.write_bytes(MAGIC + bytes(builder.end()) + MAGIC)
 
 
-def zeros_stream(size: int) -> bytes:
-    """`size` zero bytes compressed by zstd without holding them in memory."""
+def zeros_stream(size: int, prefix: bytes = b"") -> bytes:
+    """`prefix` and zero bytes up to `size`, compressed by zstd without holding them in
+    memory."""
     out = zstandard.ZstdCompressor(level=3).compressobj(size=size)
-    block = bytes(1 << 20)
-    parts = [out.compress(block) for _ in range(size // len(block))]
+    parts, left = [out.compress(prefix)], size - len(prefix)
+    while left:
+        parts.append(out.compress(bytes(min(left, 1 << 20))))
+        left -= min(left, 1 << 20)
     return b"".join(parts) + out.flush()
 
 
@@ -89,8 +93,23 @@ def test_a_chunk_of_a_million_tiny_records_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "tiny.mcap"
     mcap_with_chunk(path, tiny_records(1_000_000), "zstd")
     assert path.stat().st_size < 10_000
-    with pytest.raises(RecordingError, match=f"more than {MAX_CHUNK_RECORDS:,} records"):
+    with pytest.raises(RecordingError, match=f"holds more than {MAX_CHUNK_RECORDS:,} records"):
         read_all(path)
+
+
+def test_a_files_chunks_together_expand_only_so_much(tmp_path: Path) -> None:
+    """Each chunk within the cap, all of them beyond what a file this small may hold."""
+    size = MAX_CHUNK_BYTES // 2 + 1
+    record = bytes([0x7F]) + (size - 9).to_bytes(8, "little")  # one record a replay skips
+    chunk = Chunk(message_start_time=0, message_end_time=0, uncompressed_size=size,
+                  uncompressed_crc=0, compression="zstd", data=zeros_stream(size, record))
+    path = tmp_path / "many.mcap"
+    write_mcap(path, chunk, chunk)
+    second = CHUNK_AT + 9 + 8 * 3 + 4 + 4 + len("zstd") + 8 + len(chunk.data)
+    with pytest.raises(RecordingError) as err:
+        read_all(path)
+    assert str(err.value).startswith(f"{path}: the chunk at byte {second:,} takes the "
+                                     f"file's chunks past {MIN_TOTAL_BYTES:,} bytes")
 
 
 def test_a_damaged_chunk_is_named(tmp_path: Path) -> None:
