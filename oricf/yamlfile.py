@@ -22,7 +22,7 @@ import yaml.reader
 from yaml.composer import ComposerError
 from yaml.constructor import ConstructorError
 from yaml.events import AliasEvent
-from yaml.nodes import MappingNode, Node, SequenceNode
+from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from oricf.errors import ConfigError
 
@@ -40,14 +40,24 @@ class LimitedLoader(yaml.SafeLoader):
         self._depth = 0
         self._nodes = 0
         self._expanded: dict[int, int] = {}  # id(node) -> nodes it stands for, itself in
+        self._keys: list[str] = []  # where the node being composed is, for errors
 
     def compose_node(self, parent: Node | None, index: Any) -> Node:
+        # PyYAML passes a mapping value its key node, a list item its index.
+        self._keys.append(f"[{index}]" if isinstance(index, int) else
+                          f".{str(index.value)[:40]}" if isinstance(index, ScalarNode) else "")
+        try:
+            return self._compose(parent, index)
+        finally:
+            self._keys.pop()
+
+    def _compose(self, parent: Node | None, index: Any) -> Node:
         if self.check_event(AliasEvent):
             mark = self.peek_event().start_mark
             node = super().compose_node(parent, index)
             if id(node) not in self._expanded:  # the alias is inside the node it names
-                raise ComposerError(None, None, "an alias inside the value it names (a "
-                                    "structure that contains itself)", mark)
+                raise ComposerError(None, None, f"an alias inside the value it names (a "
+                                    f"structure that contains itself) at {self._where()}", mark)
             self._count(self._expanded[id(node)], mark)
             return node
         mark = self.peek_event().start_mark
@@ -65,7 +75,12 @@ class LimitedLoader(yaml.SafeLoader):
         self._nodes += nodes
         if self._nodes > MAX_NODES:
             raise ComposerError(None, None, f"more than {MAX_NODES:,} values (aliases "
-                                "counted as what they repeat)", mark)
+                                f"counted as what they repeat), reached at {self._where()}", mark)
+
+    def _where(self) -> str:
+        """The key path of the node being composed, escaped: a file's keys may be anything."""
+        path = "".join(self._keys).lstrip(".") or "(top level)"
+        return repr(path[-120:])[1:-1]
 
     def construct_yaml_int(self, node: Node) -> int:
         digits = sum(c.isalnum() for c in str(node.value))

@@ -24,14 +24,16 @@ def alias_bomb(levels: int = 9, width: int = 9) -> str:
 
 
 HOSTILE: dict[str, tuple[bytes, str]] = {
-    "alias bomb": (alias_bomb().encode(), f"more than {MAX_NODES:,} values"),
+    "alias bomb": (alias_bomb().encode(), f"more than {MAX_NODES:,} values (aliases counted "
+                   "as what they repeat), reached at l5["),
     "deep nesting": (b"[" * 10_000 + b"]" * 10_000, f"more than {MAX_DEPTH} levels"),
     "deep mapping": ("".join("  " * i + f"k{i}:\n" for i in range(200)).encode(),
                      f"more than {MAX_DEPTH} levels"),
     "latin-1": ("label: caf\xe9\n".encode("latin-1"), "not UTF-8 text (byte 10)"),
     "utf-16": ("name: edge\n".encode("utf-16"), "not UTF-8 text"),
     "big integer": (b"timeout_ms: " + b"9" * 5000, "an integer of more than"),
-    "self-containing": (b"a: &a [1, *a]\n", "an alias inside the value it names"),
+    "self-containing": (b"a: {b: [0, &a [1, *a]]}\n", "an alias inside the value it names "
+                        "(a structure that contains itself) at a.b[1][1]"),
     "impossible date": (b"when: 2001-02-30\n", "day is out of range"),
     "control character": (b"name: \x1f\n", "character #x001f is not allowed in YAML"),
     "a long list": (b"- x\n" * (MAX_BYTES // 4 + 1), f"larger than {MAX_BYTES:,} bytes"),
