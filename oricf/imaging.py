@@ -8,6 +8,7 @@ Internally images are BGR uint8 arrays (OpenCV's order, and YOLOX's input order)
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ ENCODED = ("jpeg", "png")
 ENCODINGS = (*ENCODED, *RAW_CHANNELS)
 # Larger than any camera a robot carries (8K is 33 Mpx); refuses absurd sizes before allocating.
 MAX_PIXELS = 40_000_000
+# Decoding needs the result and its own buffers (see decoded_bytes).
+DECODE_WORK_FACTOR = 2
 
 
 @dataclass(frozen=True)
@@ -61,41 +64,22 @@ def check_size(width: int, height: int, max_pixels: int = MAX_PIXELS) -> None:
             f"image size {width}x{height} is over the limit of {max_pixels:,} pixels")
 
 
-def decode_image(data: bytes, encoding: str, width: int = 0, height: int = 0,
-                 max_pixels: int = MAX_PIXELS) -> np.ndarray:
-    """Bytes -> BGR uint8 array of shape (height, width, 3)."""
-    encoding = encoding.lower()
-    if encoding == "jpg":
-        encoding = "jpeg"
-    if encoding not in ENCODINGS:
-        raise InvalidInput(
-            f"unknown image encoding {quoted(encoding)}; use one of: {', '.join(ENCODINGS)}")
+def image_size(data: bytes, encoding: str, width: int = 0, height: int = 0,
+               max_pixels: int = MAX_PIXELS) -> tuple[int, int]:
+    """(width, height) the decoded image will have, with everything that can be checked
+    before decoding checked: encoding, raw length, the file's header, size, scans."""
+    encoding = _encoding_name(encoding)
     if not data:
         raise InvalidInput("image data is empty")
     if encoding in RAW_CHANNELS:
-        return _decode_raw(data, encoding, width, height, max_pixels)
-    return _decode_encoded(data, encoding, width, height, max_pixels)
-
-
-def _decode_raw(data: bytes, encoding: str, width: int, height: int,
-                max_pixels: int) -> np.ndarray:
-    check_size(width, height, max_pixels)
-    channels = RAW_CHANNELS[encoding]
-    expected = width * height * channels
-    if len(data) != expected:
-        raise InvalidInput(
-            f"{encoding} image {width}x{height} needs {expected:,} bytes "
-            f"({width}x{height}x{channels}), got {len(data):,}")
-    pixels = np.frombuffer(data, dtype=np.uint8).reshape(height, width, channels)
-    if encoding == "rgb8":
-        return cv2.cvtColor(pixels, cv2.COLOR_RGB2BGR)
-    if encoding == "mono8":
-        return cv2.cvtColor(pixels, cv2.COLOR_GRAY2BGR)
-    return pixels
-
-
-def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
-                    max_pixels: int) -> np.ndarray:
+        check_size(width, height, max_pixels)
+        channels = RAW_CHANNELS[encoding]
+        expected = width * height * channels
+        if len(data) != expected:
+            raise InvalidInput(
+                f"{encoding} image {width}x{height} needs {expected:,} bytes "
+                f"({width}x{height}x{channels}), got {len(data):,}")
+        return width, height
     # The size comes from the file's own header, before anything is decoded: a few bytes
     # must never make the decoder allocate gigabytes.
     kind, actual_w, actual_h = encoded_size(data)
@@ -106,10 +90,50 @@ def _decode_encoded(data: bytes, encoding: str, width: int, height: int,
         raise InvalidInput(
             f"image declared as {width}x{height} but the {encoding.upper()} is "
             f"{actual_w}x{actual_h}")
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if image is None or image.shape[:2] != (actual_h, actual_w):
+    return actual_w, actual_h
+
+
+def decoded_bytes(width: int, height: int) -> int:
+    """The memory decoding an image of this size may take, for a budget: the BGR result
+    and the decoder's own working memory (a progressive JPEG keeps every coefficient until
+    its last scan)."""
+    return width * height * 3 * DECODE_WORK_FACTOR
+
+
+def decode_image(data: bytes, encoding: str, width: int = 0, height: int = 0,
+                 max_pixels: int = MAX_PIXELS) -> np.ndarray:
+    """Bytes -> BGR uint8 array of shape (height, width, 3).
+
+    EXIF orientation is not applied: the array is the stored pixel grid, the one the
+    header's size describes, so boxes found in it are in the grid the caller sent."""
+    encoding = _encoding_name(encoding)
+    width, height = image_size(data, encoding, width, height, max_pixels)
+    if encoding in RAW_CHANNELS:
+        return _convert_raw(data, encoding, width, height)
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8),
+                         cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
+    if image is None or image.shape[:2] != (height, width):
         raise InvalidInput(f"image data is not a valid {encoding.upper()} file")
     return image
+
+
+def _encoding_name(encoding: str) -> str:
+    encoding = encoding.lower()
+    if encoding == "jpg":
+        encoding = "jpeg"
+    if encoding not in ENCODINGS:
+        raise InvalidInput(
+            f"unknown image encoding {quoted(encoding)}; use one of: {', '.join(ENCODINGS)}")
+    return encoding
+
+
+def _convert_raw(data: bytes, encoding: str, width: int, height: int) -> np.ndarray:
+    pixels = np.frombuffer(data, dtype=np.uint8).reshape(height, width, RAW_CHANNELS[encoding])
+    if encoding == "rgb8":
+        return cv2.cvtColor(pixels, cv2.COLOR_RGB2BGR)
+    if encoding == "mono8":
+        return cv2.cvtColor(pixels, cv2.COLOR_GRAY2BGR)
+    return pixels
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -118,23 +142,33 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 # Markers without a length field: RST0-7 and TEM.
 JPEG_STANDALONE = frozenset(range(0xD0, 0xD8)) | {0x01}
+# In entropy-coded data 0xFF is followed by 0x00 (a stuffed byte) or a restart marker; any
+# other byte after it (but 0xFF, a fill byte) is the next marker.
+JPEG_NEXT_MARKER = re.compile(rb"\xff[^\x00\xd0-\xd7\xff]")
+# Decoders pass over the whole image once per scan, so repeating scans multiplies the CPU a
+# small file costs. Encoders write far fewer (libjpeg's progressive script: 10 for colour,
+# 18 for CMYK).
+MAX_JPEG_SCANS = 64
 
 
 def encoded_size(data: bytes) -> tuple[str, int, int]:
     """("jpeg" or "png", width, height) from the file's header, whatever it is labelled;
-    raises InvalidInput for anything else or a header that cannot be read."""
+    raises InvalidInput for anything else, a header that cannot be read, or a JPEG with
+    more than MAX_JPEG_SCANS scans."""
     if data.startswith(PNG_SIGNATURE):
         if len(data) < 24 or data[12:16] != b"IHDR":
             raise InvalidInput("PNG file without its IHDR header (corrupt or truncated)")
         return "png", int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
     if data.startswith(b"\xff\xd8"):
-        width, height = _jpeg_frame_size(data)
+        width, height, after = _jpeg_frame_size(data)
+        _count_jpeg_scans(data, after)
         return "jpeg", width, height
     raise InvalidInput("image data is neither a JPEG nor a PNG file")
 
 
-def _jpeg_frame_size(data: bytes) -> tuple[int, int]:
-    """Walks the JPEG's marker segments to its frame header (SOFn)."""
+def _jpeg_frame_size(data: bytes) -> tuple[int, int, int]:
+    """Walks the JPEG's marker segments to its frame header (SOFn): width, height and where
+    the segment after it starts."""
     i, end = 2, len(data)
     while i < end:
         if data[i] != 0xFF:
@@ -157,10 +191,37 @@ def _jpeg_frame_size(data: bytes) -> tuple[int, int]:
         if marker in JPEG_FRAMES:
             if i + 7 > end:
                 break
-            return int.from_bytes(data[i + 5:i + 7], "big"), int.from_bytes(data[i + 3:i + 5],
-                                                                               "big")
+            return (int.from_bytes(data[i + 5:i + 7], "big"),
+                    int.from_bytes(data[i + 3:i + 5], "big"), i + length)
         i += length
     raise InvalidInput("JPEG file is corrupt or truncated before its frame header")
+
+
+def _count_jpeg_scans(data: bytes, i: int) -> int:
+    """Counts the scans (SOS segments) from i to the end of the image, refusing more than
+    MAX_JPEG_SCANS. Segments are skipped by their length, so a thumbnail inside EXIF does
+    not count; entropy-coded data is searched for the next marker."""
+    scans, end = 0, len(data)
+    while (found := JPEG_NEXT_MARKER.search(data, i)) is not None:
+        marker = data[found.start() + 1]
+        i = found.start() + 2
+        if marker == 0xD9:  # end of image: what follows is not decoded
+            break
+        if marker in JPEG_STANDALONE:
+            continue
+        if i + 2 > end:
+            break
+        length = int.from_bytes(data[i:i + 2], "big")
+        if length < 2:
+            break  # corrupt: the decoder refuses it
+        if marker == 0xDA:
+            scans += 1
+            if scans > MAX_JPEG_SCANS:
+                raise InvalidInput(
+                    f"JPEG file has more than {MAX_JPEG_SCANS} scans; refused because every "
+                    f"scan is another pass over the whole image")
+        i += length
+    return scans
 
 
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> bytes:

@@ -40,6 +40,8 @@ DATATYPES: dict[str, Datatype] = {d.name: d for d in (
     Datatype("BYTES", "O", "bytes_contents", "tensor(string)", "string"),
 )}
 DATATYPE_NAMES = tuple(DATATYPES)
+# numpy's limit: an array cannot have more dimensions.
+MAX_DIMS = 64
 
 
 def datatype(name: str) -> Datatype:
@@ -92,12 +94,34 @@ class TensorSpec:
 
 
 def element_count(shape: Sequence[int]) -> int:
+    if len(shape) > MAX_DIMS:
+        raise InvalidInput(f"shape has {len(shape)} dimensions; at most {MAX_DIMS}")
     count = 1
     for dim in shape:
         if dim < 0:
             raise InvalidInput(f"shape {list(shape)}: dimensions must be >= 0")
         count *= dim
     return count
+
+
+def check_input_shape(name: str, shape: Sequence[int]) -> None:
+    """Refuses what no model can run on: too many dimensions, negative ones, and empty
+    tensors (a zero dimension, which a network's reshapes fail on)."""
+    if len(shape) > MAX_DIMS:
+        raise InvalidInput(f"input '{clip(name)}': {len(shape)} dimensions; at most "
+                           f"{MAX_DIMS}")
+    if element_count(shape) == 0:
+        raise InvalidInput(f"input '{clip(name)}': shape {list(shape)}: dimensions must be "
+                           f"> 0 (an empty tensor)")
+
+
+def input_bytes(type_name: str, shape: Sequence[int], raw: bytes | None = None) -> int:
+    """The bytes an input tensor takes as an array, from its datatype and shape (BYTES: its
+    raw contents' length), known before it is converted."""
+    kind = datatype(type_name)
+    if kind.name == "BYTES":
+        return len(raw) if raw is not None else element_count(shape) * 8
+    return element_count(shape) * np.dtype(kind.numpy).itemsize
 
 
 def clip(text: str, limit: int = 64) -> str:

@@ -14,7 +14,15 @@ from typing import Any
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.models.tensors import Datatype, clip, datatype, datatype_of, element_count
+from oricf.models.tensors import (
+    Datatype,
+    check_input_shape,
+    clip,
+    datatype,
+    datatype_of,
+    element_count,
+    input_bytes,
+)
 from oricf.oip import open_inference_grpc_pb2 as oip
 
 
@@ -98,11 +106,25 @@ def request_inputs(request: oip.ModelInferRequest) -> dict[str, np.ndarray]:
         if raw and tensor.HasField("contents"):
             raise InvalidInput(f"input '{clip(tensor.name)}': contents and raw_input_contents "
                                f"are both set")
+        check_input_shape(tensor.name, tensor.shape)
         tensors[tensor.name] = (from_raw(tensor.name, tensor.datatype, tensor.shape, raw[i])
                                 if raw else
                                 from_contents(tensor.name, tensor.datatype, tensor.shape,
                                               tensor.contents))
     return tensors
+
+
+def request_bytes(request: oip.ModelInferRequest) -> int:
+    """The bytes a request's input tensors take as arrays, known before any is converted
+    (for a memory budget); shapes no model can run on are refused first."""
+    raw = request.raw_input_contents
+    total = 0
+    for i, tensor in enumerate(request.inputs):
+        check_input_shape(tensor.name, tensor.shape)
+        # Only a BYTES tensor's size needs its contents: reading an entry copies it.
+        contents = raw[i] if tensor.datatype == "BYTES" and i < len(raw) else None
+        total += input_bytes(tensor.datatype, tensor.shape, contents)
+    return total
 
 
 def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[str] = (),

@@ -17,8 +17,8 @@ from typing import TypeAlias
 import grpc
 import numpy as np
 
-from oricf.errors import InvalidInput
-from oricf.imaging import Detection, decode_image
+from oricf.errors import InvalidInput, Overloaded
+from oricf.imaging import Detection, decode_image, decoded_bytes, image_size
 from oricf.models.heads import Detections, Prepared
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
@@ -26,8 +26,9 @@ from oricf.services.models.model import DeclaredModel, DetectArgs
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.batch_calls import run_batched
 from oricf.services.runtime.batching import Batcher
-from oricf.services.runtime.errors import status_for
+from oricf.services.runtime.errors import check_deadline, status_for
 from oricf.services.runtime.info import model_info_response
+from oricf.services.runtime.limits import MemoryBudget
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
@@ -62,6 +63,8 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         self.labels = labels
         self.default_min_score = default_min_score
         self.batcher = batcher
+        self.budget = MemoryBudget(config.server.max_inflight_bytes,
+                                   config.server.retry_after_ms)
 
     def Detect(self, request: detector_pb2.DetectRequest,
                context: grpc.ServicerContext) -> detector_pb2.DetectResponse:
@@ -109,7 +112,7 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
                            ) -> Frame | detector_pb2.DetectResponse:
         try:
             return self.prepare(request)
-        except InvalidInput as exc:  # one bad frame must not end the stream
+        except (InvalidInput, Overloaded) as exc:  # one bad frame must not end the stream
             code, message = status_for(exc)
             log.debug("frame %d refused: %s", request.frame_id, message)
             return detector_pb2.DetectResponse(
@@ -124,19 +127,30 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
 
     def detect(self, request: detector_pb2.DetectRequest,
                context: grpc.ServicerContext | None = None) -> detector_pb2.DetectResponse:
-        return self.respond(self.prepare(request), context)
+        frame = self.prepare(request)
+        if context is not None:
+            # Decoding may have taken the caller's whole deadline: no one waits for the rest.
+            check_deadline(context, "before inference could start")
+        return self.respond(frame, context)
 
     def prepare(self, request: detector_pb2.DetectRequest) -> Frame:
-        """Everything before the network: checks, image decoding, letterboxing."""
+        """Everything before the network: checks, image decoding, letterboxing. The decoded
+        image is held in the memory budget until it is letterboxed (a frame keeps only the
+        network's input)."""
         started = time.perf_counter()
         model = self.slot.get()
         min_score = self._min_score(request.min_score)
         class_ids = self.labels.resolve(request.labels)
-        image = decode_image(request.image.data, request.image.encoding, request.image.width,
-                             request.image.height, self.config.images.max_pixels)
-        decode_ms = (time.perf_counter() - started) * 1e3
-        return Frame(request.frame_id, image.shape[1], image.shape[0], model.prepare(image),
-                     class_ids, min_score, started, decode_ms)
+        image = request.image
+        args = (image.data, image.encoding, image.width, image.height,
+                self.config.images.max_pixels)
+        width, height = image_size(*args)
+        with self.budget.hold(decoded_bytes(width, height), f"a {width}x{height} image"):
+            pixels = decode_image(*args)
+            decode_ms = (time.perf_counter() - started) * 1e3
+            prepared = model.prepare(pixels)
+        return Frame(request.frame_id, width, height, prepared, class_ids, min_score, started,
+                     decode_ms)
 
     def respond(self, frame: Frame, context: grpc.ServicerContext | None = None,
                 cancel: bool = True) -> detector_pb2.DetectResponse:

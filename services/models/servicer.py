@@ -9,15 +9,16 @@ declared pre-processing. That is how a remote gateway sends camera frames as JPE
 from __future__ import annotations
 
 import logging
+from contextlib import ExitStack
 
 import grpc
 import numpy as np
 
 from oricf import __version__
 from oricf.errors import InvalidInput, NotFound
-from oricf.imaging import decode_image, encoded_size
+from oricf.imaging import decode_image, decoded_bytes, encoded_size, image_size
 from oricf.models.tensors import clip
-from oricf.models.wire import infer_response, request_inputs
+from oricf.models.wire import infer_response, request_bytes, request_inputs
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services.models.batching import Feeds, rows_of
@@ -27,11 +28,16 @@ from oricf.services.models.repository import ModelRepository
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.batch_calls import run_batched
 from oricf.services.runtime.batching import Batcher
+from oricf.services.runtime.errors import check_deadline
+from oricf.services.runtime.limits import MemoryBudget
 
 log = logging.getLogger(__name__)
 
 VERSION = "1"  # every declared model is served as its one version
 PLATFORMS = {"onnxruntime": "onnxruntime_onnx", "openvino": "openvino"}
+# A network's intermediate tensors grow with its input's shape, to several times its bytes:
+# an input tensor counts this many times its own size against the memory budget.
+TENSOR_WORK_FACTOR = 8
 
 
 class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
@@ -40,6 +46,8 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
         self.slot = slot
         self.config = config
         self.batchers = batchers or {}
+        self.budget = MemoryBudget(config.server.max_inflight_bytes,
+                                   config.server.retry_after_ms)
 
     def ServerLive(self, request: oip.ServerLiveRequest, context: grpc.ServicerContext
                    ) -> oip.ServerLiveResponse:
@@ -79,25 +87,35 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
     def ModelInfer(self, request: oip.ModelInferRequest, context: grpc.ServicerContext
                    ) -> oip.ModelInferResponse:
         model = self._model(request.model_name, request.model_version)
+        wanted = self._wanted_outputs(model, request)
+        with ExitStack() as held:  # what the call holds of the budget, until it ends
+            held.enter_context(self.budget.hold(request_bytes(request) * TENSOR_WORK_FACTOR,
+                                                "the request's tensors"))
+            feeds = self._decode_images(model, request_inputs(request), held)
+            unknown = sorted(set(feeds) - {spec.name for spec in model.inputs})
+            if unknown:
+                raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
+                                   f"(inputs: {', '.join(s.name for s in model.inputs)})")
+            # Decoding may have taken the caller's whole deadline: no one waits for the rest.
+            check_deadline(context, "before inference could start")
+            batcher = self.batchers.get(model.name)
+            outputs = model.infer(feeds) if batcher is None else \
+                self._batched(batcher, model, feeds, context)
+            if wanted:
+                outputs = {name: outputs[name] for name in wanted}
+            response = infer_response(model.name, outputs, request.id)
+        response.model_version = VERSION
+        return response
+
+    @staticmethod
+    def _wanted_outputs(model: DeclaredModel, request: oip.ModelInferRequest) -> list[str]:
         wanted = [o.name for o in request.outputs]
         known = {spec.name for spec in model.outputs}
         for name in wanted:
             if name not in known:
                 raise InvalidInput(f"model {model.name} has no output '{clip(name)}' "
                                    f"(outputs: {', '.join(sorted(known))})")
-        feeds = self._decode_images(model, request_inputs(request))
-        unknown = sorted(set(feeds) - {spec.name for spec in model.inputs})
-        if unknown:
-            raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
-                               f"(inputs: {', '.join(s.name for s in model.inputs)})")
-        batcher = self.batchers.get(model.name)
-        outputs = model.infer(feeds) if batcher is None else \
-            self._batched(batcher, model, feeds, context)
-        if wanted:
-            outputs = {name: outputs[name] for name in wanted}
-        response = infer_response(model.name, outputs, request.id)
-        response.model_version = VERSION
-        return response
+        return wanted
 
     @staticmethod
     def _batched(batcher: Batcher[Feeds, Feeds], model: DeclaredModel, feeds: Feeds,
@@ -114,9 +132,10 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
                            f"(served: {VERSION})")
         return model
 
-    def _decode_images(self, model: DeclaredModel, feeds: dict[str, np.ndarray]
-                       ) -> dict[str, np.ndarray]:
-        """An encoded image under the image input's name -> the declared input tensor."""
+    def _decode_images(self, model: DeclaredModel, feeds: dict[str, np.ndarray],
+                       held: ExitStack) -> dict[str, np.ndarray]:
+        """An encoded image under the image input's name -> the declared input tensor; its
+        decoding's memory held in the budget with `held`."""
         head = model.head
         if head is None or head.input_name not in feeds:
             return feeds
@@ -128,5 +147,9 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
                                f"got {value.size}")
         data = bytes(value.reshape(-1)[0])
         kind, _, _ = encoded_size(data)  # whichever of the two it is
-        pixels = decode_image(data, kind, max_pixels=self.config.images.max_pixels)
+        max_pixels = self.config.images.max_pixels
+        width, height = image_size(data, kind, max_pixels=max_pixels)
+        held.enter_context(self.budget.hold(decoded_bytes(width, height),
+                                            f"a {width}x{height} image"))
+        pixels = decode_image(data, kind, max_pixels=max_pixels)
         return {**feeds, **head.prepare(pixels).feeds}

@@ -10,6 +10,9 @@ from oricf.tls import ServerTls, TokenSource
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
 DEFAULT_MAX_MESSAGE_MB = 16
+# A robot's computer shares a few gigabytes among all its services: enough for one image at
+# the largest size a service accepts (imaging.MAX_PIXELS), or many camera frames at once.
+DEFAULT_MAX_INFLIGHT_MB = 512
 
 
 class HttpSettings(Schema):
@@ -53,6 +56,10 @@ class ServerSettings(Schema):
     max_concurrent_rpcs: int = Field(
         8, ge=1, le=1024, description="calls beyond this get RESOURCE_EXHAUSTED at once")
     grace_s: float = Field(5.0, ge=0, le=600, description="drain time for in-flight calls")
+    max_inflight_mb: float = Field(
+        DEFAULT_MAX_INFLIGHT_MB, gt=0, le=65_536,
+        description="decoded images and input tensors that calls may hold at once, estimated "
+                    "before decoding; a call that does not fit gets RESOURCE_EXHAUSTED")
     tls: ServerTls | None = Field(None, description="serve TLS (mTLS with client_ca)")
     auth: TokenSource | None = Field(None, description="require one of these bearer tokens")
     reflection: bool = Field(True, description="serve gRPC reflection (grpcurl without protos)")
@@ -77,6 +84,10 @@ class ServerSettings(Schema):
     @property
     def max_message_bytes(self) -> int:
         return int(self.max_message_mb * 1024 * 1024)
+
+    @property
+    def max_inflight_bytes(self) -> int:
+        return int(self.max_inflight_mb * 1024 * 1024)
 
 
 class ServiceConfig(Schema):

@@ -77,6 +77,8 @@ def _abort(context: grpc.ServicerContext, exc: Exception, method: str) -> None:
         return
     code, message = status_for(exc, method)
     log.debug("%s -> %s: %s", method, code.name, message)
+    if isinstance(exc, Overloaded) and exc.retry_after_ms is not None:
+        context.set_trailing_metadata(((PUSHBACK_KEY, str(exc.retry_after_ms)),))
     context.abort(code, message)
 
 
