@@ -97,3 +97,17 @@ def test_headers_that_cannot_be_read_are_refused_before_decoding(data: bytes,
                                                                  message: str) -> None:
     with pytest.raises(InvalidInput, match=message):
         decode_image(data, "png" if data.startswith(b"\x89") else "jpeg")
+
+
+def test_jpeg_scans_are_counted_in_the_marker_walk() -> None:
+    """Scans inside an APP segment (an EXIF thumbnail) are skipped with the segment; 64
+    scans decode, 65 are refused before decoding."""
+    from tests.support.jpegs import progressive, with_repeated_scans
+
+    real = progressive(np.full((16, 16, 3), 90, np.uint8))  # libjpeg's script: 10 scans
+    thumbnail = b"Exif\x00\x00" + b"\xff\xda\x00\x08" * 100
+    app1 = b"\xff\xe1" + (len(thumbnail) + 2).to_bytes(2, "big") + thumbnail
+    assert decode_image(real[:2] + app1 + real[2:], "jpeg").shape == (16, 16, 3)
+    assert decode_image(with_repeated_scans(real, 54), "jpeg").shape == (16, 16, 3)
+    with pytest.raises(InvalidInput, match="more than 64 scans"):
+        decode_image(with_repeated_scans(real, 55), "jpeg")
