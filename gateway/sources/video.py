@@ -5,10 +5,13 @@ The newest frame wins: the route takes frames as it can and the rest are dropped
 route's worker keeps only the newest). `fps` caps how often frames are handed over: a
 stream's extra frames are skipped, a file is played at that rate (without `fps`, as fast as
 it decodes). A file ends the route at its end, or starts again with `loop`; a stream or
-device that cannot be opened or stops sending is reopened with backoff, and each attempt is
-logged. RTSP runs over TCP unless OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g.
-"rtsp_transport;udp"). An HTTP URL that serves Motion JPEG is read without FFmpeg and its
-frames are handed on as the JPEG bytes that came (mjpeg.py); any other URL, FFmpeg decodes.
+device that cannot be opened or stops sending is reopened with backoff: every reconnect
+waits, and the wait grows until frames have flowed for STEADY_S (a camera that accepts and
+drops each connection is not hammered); each attempt to open is logged, and the warnings a
+broken stream repeats on every connection are throttled. RTSP runs over TCP unless
+OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g. "rtsp_transport;udp"). An HTTP URL that
+serves Motion JPEG is read without FFmpeg and its frames are handed on as the JPEG bytes
+that came (mjpeg.py); any other URL, FFmpeg decodes.
 URLs are logged without their user and password.
 """
 
@@ -26,6 +29,7 @@ from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import Submit
 from oricf.gateway.sources.mjpeg import BadStream, MjpegStream, NotMjpeg, without_credentials
+from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Frame
 from oricf.logs import quoted
 
@@ -33,6 +37,7 @@ log = logging.getLogger(__name__)
 
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 10.0
+STEADY_S = 10.0  # frames flowing this long make the next reconnect start from the shortest wait
 STREAM_TIMEOUT_MS = 5000
 
 
@@ -79,6 +84,7 @@ class VideoSource:
         self._submit = submit
         self._on_end = on_end
         self._stop = threading.Event()
+        self._throttle = ThrottledLog(log)
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"video-{route}")
 
     def start(self) -> None:
@@ -92,7 +98,7 @@ class VideoSource:
         self._open_error = ""
         if self.url.startswith(("http://", "https://")):
             try:
-                return MjpegStream(self.url, STREAM_TIMEOUT_MS / 1e3)
+                return MjpegStream(self.url, STREAM_TIMEOUT_MS / 1e3, self._stop)
             except NotMjpeg:
                 pass  # another kind of stream: FFmpeg reads it
             except STREAM_ERRORS as exc:
@@ -128,28 +134,39 @@ class VideoSource:
                 self.reconnects += 1
                 log.warning("route %s: cannot open %s%s; trying again in %.1f s", self.route,
                             self.shown_url, self._open_error, backoff)
-                self._stop.wait(backoff)
-                backoff = min(backoff * 2, RECONNECT_MAX_S)
-                continue
-            if self.reconnects or is_live(self.url):
-                log.info("route %s: %s opened", self.route, self.shown_url)
-            backoff = RECONNECT_MIN_S
-            try:
-                ended = self._read(capture)
-            except STREAM_ERRORS as exc:
-                log.warning("route %s: %s: %s", self.route, self.shown_url, quoted(exc))
-                ended = True
-            finally:
-                capture.release()
-            if ended and not is_live(self.url) and not self.config.loop:
-                log.info("route %s: %s ended after %d frames", self.route, self.shown_url,
-                         self.frames)
-                break
-            if ended and is_live(self.url):
+            else:
+                opened, frames = time.monotonic(), self.frames
+                ended = self._session(capture)
+                if self._stop.is_set() or (ended and not is_live(self.url)
+                                           and not self.config.loop):
+                    if ended and not self._stop.is_set():
+                        log.info("route %s: %s ended after %d frames", self.route,
+                                 self.shown_url, self.frames)
+                    break
+                if not is_live(self.url):
+                    continue  # a looping file starts again at once
+                if self.frames > frames and time.monotonic() - opened >= STEADY_S:
+                    backoff = RECONNECT_MIN_S
                 self.reconnects += 1
-                log.warning("route %s: %s stopped sending; reconnecting", self.route,
-                            self.shown_url)
+                self._throttle.warning("stopped", "route %s: %s stopped sending; reconnecting "
+                                       "in %.1f s", self.route, self.shown_url, backoff)
+            self._stop.wait(backoff)
+            backoff = min(backoff * 2, RECONNECT_MAX_S)
         self._on_end(self.route)
+
+    def _session(self, capture: Capture) -> bool:
+        """Reads an opened capture until it ends or fails (True) or the source stops (False)."""
+        if self.reconnects or is_live(self.url):
+            log.info("route %s: %s opened", self.route, self.shown_url)
+        try:
+            return self._read(capture)
+        except STREAM_ERRORS as exc:
+            if not self._stop.is_set():
+                self._throttle.warning(f"error:{type(exc).__name__}", "route %s: %s: %s",
+                                       self.route, self.shown_url, quoted(exc))
+            return True
+        finally:
+            capture.release()
 
     def _read(self, capture: Capture) -> bool:
         """Hands frames over until the source ends (True) or the source is stopped (False)."""
