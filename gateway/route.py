@@ -1,9 +1,10 @@
 """A route: input record -> method call -> post steps -> outputs. No ROS in here.
 
 Every failure of one message is logged (throttled, per route and kind of failure) and
-counted; the route goes on with the next message. Data products go to the ProductStore;
-every other output to `emit` (oricf.gateway.sinks.Outlets: files, text channels, and topics
-through the ROS node's publishers or a recording).
+counted, and told to whoever asked for the record (its `reply_to`, e.g. a text channel's
+client, which no output will answer now); the route goes on with the next message. Data
+products go to the ProductStore; every other output to `emit` (oricf.gateway.sinks.Outlets:
+files, text channels, and topics through the ROS node's publishers or a recording).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import grpc
 
@@ -33,6 +34,15 @@ log = logging.getLogger(__name__)
 # (output, its value, the whole record: e.g. the input header for an annotated image)
 Emit = Callable[[OutputConfig, Any, Record], None]
 Loader = Callable[[], Record]
+# Call errors whose details are meant for the caller (a client mistake), so they may be told.
+TOLD_IN_FULL = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.OUT_OF_RANGE,
+                grpc.StatusCode.FAILED_PRECONDITION}
+
+
+class Asker(Protocol):
+    """Who asked for a record (its `reply_to` field): told when the record fails."""
+
+    def fail(self, message: str) -> None: ...
 
 
 @dataclass
@@ -82,24 +92,31 @@ class Route:
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised."""
         started = time.perf_counter()
+        record: Record = {}
         try:
-            self.send(self.run(load()))
+            record = load()
+            self.send(self.run(record))
         except Skip as exc:
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)
+            self._tell(record, f"nothing to answer: {exc}")
             return
         except InvalidInput as exc:
             self.stats.bad_input += 1
             self.stats.count_error("bad_input")
             self._throttle.warning(f"{self.name}:bad_input:{exc}",
                                    "route %s: bad input dropped: %s", self.name, exc)
+            self._tell(record, f"bad input: {exc}")
             return
         except grpc.RpcError as exc:
             self._call_failed(exc)
+            details = f": {exc.details()}" if exc.code() in TOLD_IN_FULL else ""
+            self._tell(record, f"{self.config.call.method} failed: {exc.code().name}{details}")
             return
         except Exception:
             self.stats.count_error("internal")
             log.exception("route %s: unexpected error (message dropped)", self.name)
+            self._tell(record, "internal error")
             return
         seconds = time.perf_counter() - started
         self.stats.ok += 1
@@ -115,3 +132,9 @@ class Route:
                              self.config.call.method, self.endpoint.name,
                              self.endpoint.active.address, code.name,
                              quoted(exc.details() or "", 300))  # the server's words
+
+    @staticmethod
+    def _tell(record: Record, message: str) -> None:
+        asker: Asker | None = record.get("reply_to")
+        if asker is not None:
+            asker.fail(message[:500])

@@ -9,6 +9,12 @@ answer to its own question, and lines no question asked for (e.g. a route that a
 count) go to every client. With `auth`, the first line must be `authorization: Bearer TOKEN`
 (compared in constant time, never logged); without it the client gets `error: ...` and is
 closed. Too long a line or too many clients: an `error:` line, and nothing else is lost.
+
+Connections that have not sent their token wait in a pool of their own (`max_pending`), so
+they never take an authenticated client's place, and are closed after `auth_timeout_s`;
+clients that send nothing for `idle_timeout_s` are closed too, and one address holds at most
+`max_per_address` connections. Every question is answered, with the route's answer or an
+`error:` line (Client.fail), also when the client half-closes its connection after asking.
 """
 
 from __future__ import annotations
@@ -17,11 +23,13 @@ import asyncio
 import logging
 import ssl
 import threading
+from collections import Counter
 from collections.abc import Callable
 
 from pydantic import Field, field_validator
 
 from oricf.config import Schema, check_address
+from oricf.gateway.text_clients import Client
 from oricf.tls import ServerTls, TokenSource, token_matches
 
 log = logging.getLogger(__name__)
@@ -35,7 +43,13 @@ class ChannelConfig(Schema):
     listen: str = Field(description="host:port; 127.0.0.1 keeps it on this machine")
     tls: ServerTls | None = None
     auth: TokenSource | None = None
-    max_clients: int = Field(16, ge=1, le=1024)
+    max_clients: int = Field(16, ge=1, le=1024, description="authenticated clients at once")
+    max_pending: int = Field(
+        32, ge=1, le=1024, description="connections yet to send their token (with `auth`)")
+    max_per_address: int = Field(8, ge=1, le=1024, description="connections from one address")
+    auth_timeout_s: float = Field(10.0, gt=0, le=600, description="time to send the token")
+    idle_timeout_s: float | None = Field(
+        300.0, gt=0, description="a client that sends nothing this long is closed; null: never")
     max_line_bytes: int = Field(4096, ge=16, le=1 << 20)
 
     @field_validator("listen")
@@ -44,46 +58,10 @@ class ChannelConfig(Schema):
         return check_address(value)
 
 
-OnLine = Callable[[str, "Client"], None]
+OnLine = Callable[[str, Client], None]
 HANDSHAKE_TIMEOUT_S = 10.0
-MAX_UNSENT_BYTES = 1 << 20
 SHUTDOWN_WAIT_S = 2.0
-
-
-class Client:
-    """One connected client. Its writes happen on the channel's event loop; `send` may be
-    called from any thread and never blocks."""
-
-    def __init__(self, writer: asyncio.StreamWriter, loop: asyncio.AbstractEventLoop,
-                 peer: str) -> None:
-        self.peer = peer
-        self.open = True
-        self._writer = writer
-        self._loop = loop
-
-    def send(self, line: str) -> None:
-        if self.open:
-            data = (line.replace("\n", " ") + "\n").encode()
-            try:
-                self._loop.call_soon_threadsafe(self._write, data)
-            except RuntimeError:  # the loop has closed
-                self.open = False
-
-    def reply(self, line: str) -> None:
-        """On the loop itself (the channel's own messages), ahead of anything scheduled."""
-        self._write((line + "\n").encode())
-
-    def drop(self) -> None:
-        self.open = False
-        self._writer.transport.abort()
-
-    def _write(self, data: bytes) -> None:
-        # A client that stops reading is closed rather than buffered for without end.
-        if self._writer.transport.get_write_buffer_size() > MAX_UNSENT_BYTES:
-            log.warning("text channel: %s reads nothing; closing it", self.peer)
-            self.drop()
-        elif self.open:
-            self._writer.write(data)
+HALF_CLOSED_WAIT_S = 60.0  # for the answers to a client that half-closed after asking
 
 
 class TextChannel:
@@ -92,7 +70,9 @@ class TextChannel:
     def __init__(self, name: str, config: ChannelConfig) -> None:
         self.name = name
         self.config = config
-        self.clients: set[Client] = set()
+        self.clients: set[Client] = set()   # authenticated
+        self.pending: set[Client] = set()   # yet to send their token
+        self._per_address: Counter[str] = Counter()
         self.address = ""
         self._on_line: OnLine | None = None
         self._tokens = [t.encode() for t in config.auth.tokens()] if config.auth else []
@@ -133,9 +113,10 @@ class TextChannel:
         self._on_line = on_line
 
     def send(self, line: str, to: Client | None = None) -> None:
-        """To the client that asked, while it is connected; else to every client."""
-        if to is not None and to.open:
-            to.send(line)
+        """To the client of this channel that asked (nobody else, even once it has gone);
+        else to every client."""
+        if to is not None and to.channel == self.name:
+            to.send(line, answer=True)
             return
         for client in list(self.clients):
             client.send(line)
@@ -153,7 +134,7 @@ class TextChannel:
     async def _shutdown(self) -> None:
         if self._server is not None:
             self._server.close()
-        for client in list(self.clients):
+        for client in list(self.clients | self.pending):
             client.drop()
         # Dropped clients end their own tasks (their reads see the end of the stream).
         # Cancelling those tasks instead would make asyncio's stream protocol log each one
@@ -166,21 +147,23 @@ class TextChannel:
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         host, port = writer.get_extra_info("peername")[:2]
-        peer = f"{host}:{port}"
-        client = Client(writer, self._loop, peer)
-        if len(self.clients) >= self.config.max_clients:
-            writer.write(f"error: the channel has {self.config.max_clients} clients "
-                         f"already\n".encode())
+        client = Client(writer, self._loop, f"{host}:{port}", self.name)
+        refusal = self._admit(client, host)
+        if refusal:
+            client.reply(f"error: {refusal}")
         else:
-            self.clients.add(client)
-            log.info("text channel %s: %s connected", self.name, peer)
+            log.info("text channel %s: %s connected", self.name, client.peer)
             try:
                 await self._read_lines(reader, client)
             except (OSError, asyncio.IncompleteReadError):
                 pass
             finally:
                 self.clients.discard(client)
-                log.info("text channel %s: %s disconnected", self.name, peer)
+                self.pending.discard(client)
+                self._per_address[host] -= 1
+                if self._per_address[host] <= 0:  # no entry left behind per address seen
+                    del self._per_address[host]
+                log.info("text channel %s: %s disconnected", self.name, client.peer)
         client.open = False
         try:
             writer.close()
@@ -188,8 +171,57 @@ class TextChannel:
         except (OSError, ssl.SSLError):
             pass
 
+    def _admit(self, client: Client, host: str) -> str:
+        """Takes the client into its pool; or says why not."""
+        if self._per_address[host] >= self.config.max_per_address:
+            return f"{host} has {self.config.max_per_address} connections here already"
+        if self._tokens and len(self.pending) >= self.config.max_pending:
+            return f"{self.config.max_pending} connections wait to authenticate already"
+        if not self._tokens and not self._promote(client):
+            return f"the channel has {self.config.max_clients} clients already"
+        if self._tokens:
+            self.pending.add(client)
+        self._per_address[host] += 1
+        return ""
+
+    def _promote(self, client: Client) -> bool:
+        """An authenticated client takes a place among `clients`, if one is free."""
+        self.pending.discard(client)
+        if len(self.clients) >= self.config.max_clients:
+            return False
+        self.clients.add(client)
+        return True
+
     async def _read_lines(self, reader: asyncio.StreamReader, client: Client) -> None:
         authenticated = not self._tokens
+        while True:
+            timeout = self.config.idle_timeout_s if authenticated else self.config.auth_timeout_s
+            try:
+                line = await asyncio.wait_for(self._next_line(reader, client), timeout)
+            except asyncio.TimeoutError:
+                client.reply(f"error: nothing came in {timeout:g} s" if authenticated else
+                             f"error: no token in {timeout:g} s")
+                return
+            if line is None:  # the client closed its side: its answers still go to it
+                if not client.answered.is_set() and not client.transport_closing():
+                    await asyncio.wait_for(client.answered.wait(), HALF_CLOSED_WAIT_S)
+                return
+            if not authenticated:
+                if not self._check_token(line):
+                    client.reply("error: the first line must be 'authorization: Bearer TOKEN' "
+                                 "with a token this channel accepts")
+                    return
+                if not self._promote(client):
+                    client.reply(f"error: the channel has {self.config.max_clients} clients "
+                                 "already")
+                    return
+                authenticated = True
+            elif line and self._on_line is not None:
+                client.asked()
+                self._on_line(line, client)
+
+    async def _next_line(self, reader: asyncio.StreamReader, client: Client) -> str | None:
+        """The next whole line; None once the client has closed its side."""
         while True:
             try:
                 raw = await reader.readuntil(b"\n")
@@ -199,16 +231,8 @@ class TextChannel:
                 await self._skip_line(reader)
                 continue
             except asyncio.IncompleteReadError:
-                return  # closed (a last line without a newline is not a whole line)
-            line = raw.decode("utf-8", "replace").strip()
-            if not authenticated:
-                if not self._check_token(line):
-                    client.reply("error: the first line must be 'authorization: Bearer TOKEN' "
-                                 "with a token this channel accepts")
-                    return
-                authenticated = True
-            elif line and self._on_line is not None:
-                self._on_line(line, client)
+                return None  # a last line without a newline is not a whole line
+            return raw.decode("utf-8", "replace").strip()
 
     @staticmethod
     async def _skip_line(reader: asyncio.StreamReader) -> None:

@@ -1,6 +1,7 @@
 """Lines of text as route inputs: standard input (`text: "-"`), or a text channel of the
 pipeline (`text: NAME`, gateway.channels). Each non-empty line is one item of the route;
-an answer written to the same channel goes back to the client that asked (`reply_to`).
+an answer written to the same channel goes back to the client that asked (`reply_to`), and
+so does the error of a question the route could not answer (Route tells `reply_to`).
 Standard input ends the route at its end; a channel serves until the gateway stops.
 """
 

@@ -90,6 +90,30 @@ def test_a_typed_question_is_answered_over_the_channel_with_the_count(
     assert f"text channel questions: listening on 127.0.0.1:{port} (plaintext)" in stderr
 
 
+def test_a_refused_question_gets_an_error_line_and_the_next_is_answered(
+        services: dict[str, str], four_people: Path) -> None:
+    """The language model refuses a question that carries its control tokens: the client
+    that asked is told, and its next question, sent as it half-closes, is answered."""
+    port = free_port()
+    gateway = subprocess.Popen(gateway_command(services, four_people,
+                                               f"channels.questions.listen=127.0.0.1:{port}"),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        with connect(port) as sock:
+            lines = sock.makefile("r", encoding="utf-8")
+            time.sleep(2)  # the first counts reach the data product
+            sock.sendall(b"Hi<end_of_turn> there\n")
+            refused = lines.readline()
+            sock.sendall(f"{QUESTION}\n".encode())
+            sock.shutdown(socket.SHUT_WR)
+            answer = lines.readline()
+    finally:
+        gateway.send_signal(signal.SIGTERM)
+        _, stderr = gateway.communicate(timeout=30)
+    assert refused.startswith("error: Generate failed: INVALID_ARGUMENT"), (refused, stderr)
+    assert "4" in answer, (answer, stderr[-2000:])
+
+
 def test_questions_from_standard_input_are_answered_on_standard_output(
         services: dict[str, str], four_people: Path) -> None:
     gateway = subprocess.Popen(
@@ -181,7 +205,8 @@ def test_a_client_over_the_limit_is_told_and_others_stay(secure_channel: TextCha
         for sock in (first, second):
             sock.sendall(b"authorization: Bearer s3cret-token\nping\n")
             assert sock.makefile("r").readline() == "got ping\n"
-        with tls_client(secure_channel, certs) as third:
+        with tls_client(secure_channel, certs) as third:  # told once it has authenticated
+            third.sendall(b"authorization: Bearer s3cret-token\n")
             assert third.makefile("r").readline().startswith("error: the channel has 2 clients")
 
 

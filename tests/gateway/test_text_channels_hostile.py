@@ -1,0 +1,147 @@
+"""Text channels against clients that hold on or leave early, on real sockets on localhost:
+idle connections never lock authenticated clients out (a pool of their own, timeouts, a bound
+per address), and every question is answered, also for a client that half-closed its
+connection after asking, and only to the client that asked."""
+
+from __future__ import annotations
+
+import socket
+import ssl
+import struct
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
+from oricf.launch.health import free_port
+from tests.support.certs import local_certificates
+
+TOKEN = b"authorization: Bearer s3cret-token\n"
+
+
+def open_channel(config: dict[str, Any], answer_after_s: float = 0.0) -> TextChannel:
+    """A channel whose route answers each line with `got LINE`, from another thread."""
+    channel = TextChannel("questions", ChannelConfig.model_validate(
+        {"listen": f"127.0.0.1:{free_port()}", **config}))
+    channel.start()
+
+    def echo(line: str, client: Client) -> None:
+        threading.Timer(answer_after_s, channel.send, (f"got {line}", client)).start()
+
+    channel.read_by(echo)
+    return channel
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return local_certificates(tmp_path_factory, token="s3cret-token")
+
+
+def secure(certs: Path, **config: Any) -> dict[str, Any]:
+    return {"tls": {"cert": certs / "server.pem", "key": certs / "server.key"},
+            "auth": {"file": certs / "tokens"}, **config}
+
+
+def connect(channel: TextChannel, certs: Path | None = None) -> socket.socket:
+    host, port = channel.address.rsplit(":", 1)
+    sock = socket.create_connection((host, int(port)), timeout=10)
+    if certs is None:
+        return sock
+    context = ssl.create_default_context(cafile=str(certs / "ca.pem"))
+    return context.wrap_socket(sock, server_hostname="localhost")
+
+
+def line_of(sock: socket.socket) -> str:
+    return sock.makefile("r", encoding="utf-8").readline()
+
+
+@pytest.fixture
+def channels() -> Iterator[list[TextChannel]]:
+    opened: list[TextChannel] = []
+    yield opened
+    for channel in opened:
+        channel.close()
+
+
+def settle(channel: TextChannel, connected: int) -> None:
+    deadline = time.monotonic() + 2
+    while len(channel.clients) + len(channel.pending) < connected and \
+            time.monotonic() < deadline:
+        time.sleep(0.02)
+
+
+def test_idle_connections_never_take_an_authenticated_clients_place(
+        certs: Path, channels: list[TextChannel]) -> None:
+    channel = open_channel(secure(certs, max_clients=2, auth_timeout_s=30))
+    channels.append(channel)
+    with ExitStack() as stack:
+        for _ in range(4):  # TLS done, then nothing: more than max_clients
+            stack.enter_context(connect(channel, certs))
+        settle(channel, 4)
+        with connect(channel, certs) as sock:
+            sock.sendall(TOKEN + b"ping\n")
+            assert line_of(sock) == "got ping\n"
+
+
+@pytest.mark.parametrize(("config", "first_line", "told"), [
+    ({"auth_timeout_s": 0.5}, b"", "error: no token in 0.5 s\n"),
+    ({"idle_timeout_s": 0.5}, TOKEN, "error: nothing came in 0.5 s\n"),
+])
+def test_a_client_that_sends_nothing_is_told_and_closed(
+        certs: Path, channels: list[TextChannel], config: dict[str, Any], first_line: bytes,
+        told: str) -> None:
+    channel = open_channel(secure(certs, **config))
+    channels.append(channel)
+    with connect(channel, certs) as sock:
+        sock.sendall(first_line)
+        lines = sock.makefile("r", encoding="utf-8")
+        assert lines.readline() == told
+        assert lines.readline() == ""  # closed
+
+
+@pytest.mark.parametrize(("config", "told"), [
+    ({"max_per_address": 3}, "error: 127.0.0.1 has 3 connections here already\n"),
+    ({"max_pending": 3}, "error: 3 connections wait to authenticate already\n"),
+])
+def test_connections_beyond_a_bound_are_told(certs: Path, channels: list[TextChannel],
+                                             config: dict[str, Any], told: str) -> None:
+    channel = open_channel(secure(certs, **config))
+    channels.append(channel)
+    with ExitStack() as stack:
+        for _ in range(3):
+            stack.enter_context(connect(channel, certs))
+        settle(channel, 3)
+        with connect(channel, certs) as sock:
+            assert line_of(sock) == told
+
+
+def test_a_client_that_half_closes_after_asking_gets_its_answer(
+        channels: list[TextChannel]) -> None:
+    channel = open_channel({}, answer_after_s=0.5)
+    channels.append(channel)
+    with connect(channel) as sock:
+        sock.sendall(b"hello\n")
+        sock.shutdown(socket.SHUT_WR)  # as `nc -N` does at the end of its input
+        lines = sock.makefile("r", encoding="utf-8")
+        assert lines.readline() == "got hello\n"
+        assert lines.readline() == ""  # then the channel closes
+
+
+def test_the_answer_to_a_client_that_left_goes_to_nobody_else(
+        channels: list[TextChannel]) -> None:
+    channel = open_channel({}, answer_after_s=0.5)
+    channels.append(channel)
+    with connect(channel) as other:
+        with connect(channel) as asker:
+            asker.sendall(b"my secret question\n")
+            time.sleep(0.1)  # the line reached the channel
+            asker.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            # closed with a reset: gone for good, not merely done sending
+        time.sleep(1)  # the answer came meanwhile
+        channel.send("for everyone")  # a line no question asked for
+        assert line_of(other) == "for everyone\n"
