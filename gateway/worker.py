@@ -3,7 +3,8 @@
 `latest` (camera routes): one pending item; a newer one replaces it and counts a drop, so
 the route always works on the newest frame. `queue` (text, audio): up to queue_size items
 in order; when full the oldest is dropped (and counted). Items are loaders (callables that
-build the record), so a dropped message is never even converted.
+build the record), so a dropped message is never even converted; an item with an `on_drop`
+method is told (a text channel's question, so that its client gets an `error:` line).
 
 A camera route runs its items in its receive thread instead (`handle_here`): there DDS keeps
 the newest frame (history depth 1) while the route is busy, so the hand-off to another thread,
@@ -47,12 +48,18 @@ class RouteWorker(Generic[T]):
         self._thread.start()
 
     def submit(self, item: T) -> None:
+        dropped: list[T] = []
         with self._cond:
             self.stats.received += 1
             if len(self._pending) == self._pending.maxlen:
-                self.stats.dropped += 1  # deque(maxlen) discards the oldest on append
+                self.stats.dropped += 1
+                dropped.append(self._pending.popleft())
             self._pending.append(item)
             self._cond.notify()
+        for old in dropped:  # outside the lock: telling may take a while
+            on_drop = getattr(old, "on_drop", None)
+            if callable(on_drop):
+                on_drop()
 
     def handle_here(self, item: T, missed: int = 0) -> None:
         """Handles item in the calling thread; `missed` newer-replaced items never arrived."""

@@ -15,8 +15,24 @@ from typing import TextIO
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import OnEnd, Submit
 from oricf.gateway.text_channels import Channels, Client
+from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
+
+
+class Question:
+    """A line as the route's loader; its client is told if the route's queue drops it."""
+
+    def __init__(self, line: str, client: Client | None) -> None:
+        self.line = line
+        self.client = client
+
+    def __call__(self) -> Record:
+        return {"text": self.line, "reply_to": self.client}
+
+    def on_drop(self) -> None:
+        if self.client is not None:
+            self.client.fail("too many questions waiting; this one was dropped")
 
 
 class TextSource:
@@ -46,7 +62,7 @@ class TextSource:
 
     def _take(self, line: str, client: Client | None = None) -> None:
         self.lines += 1
-        self._submit(lambda: {"text": line, "reply_to": client})
+        self._submit(Question(line, client))
 
     def _read_stdin(self) -> None:
         for raw in self._stdin:

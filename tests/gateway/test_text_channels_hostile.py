@@ -1,7 +1,8 @@
 """Text channels against clients that hold on or leave early, on real sockets on localhost:
 idle connections never lock authenticated clients out (a pool of their own, timeouts, a bound
-per address), and every question is answered, also for a client that half-closed its
-connection after asking, and only to the client that asked."""
+per address), and every question is answered (an `error:` line for one the route's queue
+dropped), also for a client that half-closed its connection after asking, and only to the
+client that asked."""
 
 from __future__ import annotations
 
@@ -17,7 +18,10 @@ from typing import Any
 
 import pytest
 
-from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
+from oricf.gateway.config import InputConfig
+from oricf.gateway.sources.text import Question, TextSource
+from oricf.gateway.text_channels import ChannelConfig, Channels, Client, TextChannel
+from oricf.gateway.worker import RouteWorker
 from oricf.launch.health import free_port
 from tests.support.certs import local_certificates
 
@@ -145,3 +149,46 @@ def test_the_answer_to_a_client_that_left_goes_to_nobody_else(
         time.sleep(1)  # the answer came meanwhile
         channel.send("for everyone")  # a line no question asked for
         assert line_of(other) == "for everyone\n"
+
+
+def test_a_question_the_routes_queue_drops_is_told_so(channels: list[TextChannel]) -> None:
+    """The route is busy and its queue holds two questions: the oldest waiting ones are
+    dropped as more come, and their client hears of it."""
+    channel = open_channel({})
+    channels.append(channel)
+    release = threading.Event()
+
+    def busy_route(load: Question) -> None:
+        record = load()
+        release.wait(10)
+        channel.send(f"answered {record['text']}", record["reply_to"])
+
+    worker: RouteWorker[Question] = RouteWorker("ask", busy_route, "queue", queue_size=2)
+    worker.start()
+    source = TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
+                        FixedChannels(channel))
+    source.start()
+    try:
+        with connect(channel) as sock:
+            lines = sock.makefile("r", encoding="utf-8")
+            sock.sendall(b"q0\n")
+            deadline = time.monotonic() + 10
+            while not worker.busy and time.monotonic() < deadline:
+                time.sleep(0.01)
+            sock.sendall(b"q1\nq2\nq3\nq4\n")  # q0 runs; q1 and q2 give way to q3 and q4
+            told = [lines.readline() for _ in range(2)]
+            release.set()
+            answers = [lines.readline() for _ in range(3)]
+    finally:
+        release.set()
+        worker.stop()
+    assert told == ["error: too many questions waiting; this one was dropped\n"] * 2
+    assert answers == ["answered q0\n", "answered q3\n", "answered q4\n"]
+
+
+class FixedChannels(Channels):
+    """The pipeline's channels, here the one channel the test opened."""
+
+    def __init__(self, channel: TextChannel) -> None:
+        super().__init__({})
+        self._open[channel.name] = channel
