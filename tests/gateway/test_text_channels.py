@@ -5,6 +5,7 @@ many clients), none of which stops it serving the next client."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import signal
 import socket
@@ -15,6 +16,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 import pytest
@@ -70,21 +72,35 @@ def connect(port: int, timeout: float = 30) -> socket.socket:
             time.sleep(0.2)
 
 
-def test_a_typed_question_is_answered_over_the_channel_with_the_count(
-        services: dict[str, str], four_people: Path) -> None:
+class Gateway(subprocess.Popen[str]):
+    stderr_text = ""
+
+
+@contextlib.contextmanager
+def channel_gateway(services: dict[str, str], four_people: Path
+                    ) -> Iterator[tuple[int, Gateway, Any, socket.socket]]:
+    """`oricf gateway` with its text channel on a free port, a client connected once the
+    first counts reached the data product; stopped with SIGTERM, its stderr kept."""
     port = free_port()
-    gateway = subprocess.Popen(gateway_command(services, four_people,
-                                               f"channels.questions.listen=127.0.0.1:{port}"),
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    gateway = Gateway(gateway_command(services, four_people,
+                                      f"channels.questions.listen=127.0.0.1:{port}"),
+                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         with connect(port) as sock:
             lines = sock.makefile("r", encoding="utf-8")
             time.sleep(2)  # the first counts reach the data product
-            sock.sendall(f"{QUESTION}\n".encode())
-            answer = lines.readline()
+            yield port, gateway, lines, sock
     finally:
         gateway.send_signal(signal.SIGTERM)
-        _, stderr = gateway.communicate(timeout=30)
+        _, gateway.stderr_text = gateway.communicate(timeout=30)
+
+
+def test_a_typed_question_is_answered_over_the_channel_with_the_count(
+        services: dict[str, str], four_people: Path) -> None:
+    with channel_gateway(services, four_people) as (port, gateway, lines, sock):
+        sock.sendall(f"{QUESTION}\n".encode())
+        answer = lines.readline()
+    stderr = gateway.stderr_text
     assert "4" in answer, (answer, stderr[-2000:])
     assert gateway.returncode == 0, stderr[-2000:]
     assert f"text channel questions: listening on 127.0.0.1:{port} (plaintext)" in stderr
@@ -94,22 +110,13 @@ def test_a_refused_question_gets_an_error_line_and_the_next_is_answered(
         services: dict[str, str], four_people: Path) -> None:
     """The language model refuses a question that carries its control tokens: the client
     that asked is told, and its next question, sent as it half-closes, is answered."""
-    port = free_port()
-    gateway = subprocess.Popen(gateway_command(services, four_people,
-                                               f"channels.questions.listen=127.0.0.1:{port}"),
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        with connect(port) as sock:
-            lines = sock.makefile("r", encoding="utf-8")
-            time.sleep(2)  # the first counts reach the data product
-            sock.sendall(b"Hi<end_of_turn> there\n")
-            refused = lines.readline()
-            sock.sendall(f"{QUESTION}\n".encode())
-            sock.shutdown(socket.SHUT_WR)
-            answer = lines.readline()
-    finally:
-        gateway.send_signal(signal.SIGTERM)
-        _, stderr = gateway.communicate(timeout=30)
+    with channel_gateway(services, four_people) as (_, gateway, lines, sock):
+        sock.sendall(b"Hi<end_of_turn> there\n")
+        refused = lines.readline()
+        sock.sendall(f"{QUESTION}\n".encode())
+        sock.shutdown(socket.SHUT_WR)
+        answer = lines.readline()
+    stderr = gateway.stderr_text
     assert refused.startswith("error: Generate failed: INVALID_ARGUMENT"), (refused, stderr)
     assert "4" in answer, (answer, stderr[-2000:])
 
