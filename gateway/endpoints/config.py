@@ -85,12 +85,16 @@ class TargetConfig(Schema):
                                  "names the host its certificate must have")
         elif self.model is not None:
             raise ValueError("model: only with protocol openai (a gRPC service serves one)")
-        if (self.protocol == "grpc" and self.tls is not None and self.tls.server_name is None
-                and several_addresses(self.address)):
-            raise ValueError(f"tls.server_name is needed with several addresses in one "
-                             f"target ({self.address}): the name the replicas' certificate "
-                             f"has")
+        _check_server_name(self.protocol, self.address, self.tls)
         return self
+
+
+def _check_server_name(protocol: str, address: str, tls: ClientTls | None) -> None:
+    """TLS to replicas listed by address cannot take the certificate's name from a host."""
+    if (protocol == "grpc" and tls is not None and tls.server_name is None
+            and several_addresses(address)):
+        raise ValueError(f"tls.server_name is needed with several addresses in one target "
+                         f"({address}): the name the replicas' certificate has")
 
 
 def check_address_for(protocol: str, value: str) -> str:
@@ -123,12 +127,8 @@ class EndpointConfig(TargetConfig):
 
     @model_validator(mode="after")
     def _fallback_tls_name(self) -> EndpointConfig:
-        if isinstance(self.fallback, str) and self.protocol == "grpc" \
-                and self.tls is not None and self.tls.server_name is None \
-                and several_addresses(self.fallback):
-            raise ValueError(f"tls.server_name is needed with several addresses in one "
-                             f"target ({self.fallback}): the name the replicas' certificate "
-                             f"has")
+        if isinstance(self.fallback, str):  # the primary's TLS, at the fallback's address
+            _check_server_name(self.protocol, self.fallback, self.tls)
         return self
 
     @property
@@ -142,7 +142,3 @@ class EndpointConfig(TargetConfig):
         elif self.fallback is not None:
             found["fallback"] = self.fallback
         return found
-
-    @property
-    def protocols(self) -> set[str]:
-        return {target.protocol for target in self.targets.values()}
