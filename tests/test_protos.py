@@ -20,14 +20,15 @@ def test_generated_stubs_are_up_to_date(tmp_path: Path) -> None:
 
 
 def test_stubs_import_through_the_project_namespace() -> None:
-    from oricf.v1 import detector_pb2, language_pb2, speech_pb2
+    from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
 
     services = {
         s.full_name
-        for module in (detector_pb2, speech_pb2, language_pb2)
+        for module in (detector_pb2, speech_pb2, language_pb2, synthesis_pb2)
         for s in module.DESCRIPTOR.services_by_name.values()
     }
-    assert services == {"oricf.v1.Detector", "oricf.v1.SpeechRecognizer", "oricf.v1.LanguageModel"}
+    assert services == {"oricf.v1.Detector", "oricf.v1.SpeechRecognizer", "oricf.v1.LanguageModel",
+                        "oricf.v1.SpeechSynthesizer"}
 
 
 def test_this_environment_runs_protobuf_6() -> None:
@@ -55,6 +56,7 @@ def test_stubs_run_on_protobuf_7_too(tmp_path: Path) -> None:
         (package / folder).symlink_to(PROTO_ROOT / "oricf" / folder)
     script = ("import google.protobuf as p; assert p.__version__.startswith('7.'), p.__version__\n"
               "from oricf.v1 import detector_pb2_grpc, language_pb2_grpc, speech_pb2_grpc\n"
+              "from oricf.v1 import synthesis_pb2_grpc\n"
               "from oricf.oip import open_inference_grpc_pb2_grpc\n"
               "print('ok', p.__version__)\n")
     result = subprocess.run([python, "-c", script], capture_output=True, text=True,
