@@ -38,10 +38,16 @@ class Box:
 
 @dataclass(frozen=True)
 class Detection:
+    """One object found in an image. The track fields are set by the gateway's `track`
+    step and stay None for a detection that no tracker has seen."""
     label: str
     class_id: int
     score: float
     box: Box
+    # Stable across frames while the tracker follows the same object.
+    track_id: int | None = None
+    # Motion of the box centre in pixels per second (x right, y down).
+    velocity: tuple[float, float] | None = None
 
 
 def label_counts(detections: Iterable[Detection], labels: Iterable[str] = ()) -> dict[str, int]:
