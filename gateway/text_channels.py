@@ -134,13 +134,17 @@ class TextChannel:
     async def _shutdown(self) -> None:
         if self._server is not None:
             self._server.close()
-        for client in list(self.clients | self.pending):
-            client.drop()
-        # Dropped clients end their own tasks (their reads see the end of the stream).
+        clients = list(self.clients | self.pending)
+        for client in clients:
+            client.close()  # lines written before (a stopping route's errors) still go out
+        # Closed clients end their own tasks (their reads see the end of the stream).
         # Cancelling those tasks instead would make asyncio's stream protocol log each one
-        # as an error; only a task still running after the wait is cancelled.
+        # as an error; only a task still running after the wait is cancelled, and a client
+        # that does not read what is left for it is cut off.
         tasks = [task for task in asyncio.all_tasks() if task is not asyncio.current_task()]
         _, pending = await asyncio.wait(tasks, timeout=SHUTDOWN_WAIT_S) if tasks else ((), ())
+        for client in clients:
+            client.drop()
         for task in pending:
             task.cancel()
         await asyncio.gather(*pending, return_exceptions=True)

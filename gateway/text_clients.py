@@ -54,7 +54,14 @@ class Client:
         """Whether nothing can reach the client any more (TLS closes both sides at once)."""
         return self._writer.transport.is_closing()
 
+    def close(self) -> None:
+        """No more lines; what was written still goes out before the connection closes."""
+        self.open = False
+        self.answered.set()
+        self._writer.transport.close()
+
     def drop(self) -> None:
+        """Cut off now: what was not sent yet is lost."""
         self.open = False
         self.answered.set()
         self._writer.transport.abort()

@@ -4,7 +4,8 @@
 the route always works on the newest frame. `queue` (text, audio): up to queue_size items
 in order; when full the oldest is dropped (and counted). Items are loaders (callables that
 build the record), so a dropped message is never even converted; an item with an `on_drop`
-method is told (a text channel's question, so that its client gets an `error:` line).
+method is told why, when the queue drops it and when the worker stops with it still waiting
+(a text channel's question, so that its client gets an `error:` line).
 
 A camera route runs its items in its receive thread instead (`handle_here`): there DDS keeps
 the newest frame (history depth 1) while the route is busy, so the hand-off to another thread,
@@ -56,10 +57,7 @@ class RouteWorker(Generic[T]):
                 dropped.append(self._pending.popleft())
             self._pending.append(item)
             self._cond.notify()
-        for old in dropped:  # outside the lock: telling may take a while
-            on_drop = getattr(old, "on_drop", None)
-            if callable(on_drop):
-                on_drop()
+        tell_dropped(dropped, "too many questions waiting; this one was dropped")
 
     def handle_here(self, item: T, missed: int = 0) -> None:
         """Handles item in the calling thread; `missed` newer-replaced items never arrived."""
@@ -122,10 +120,21 @@ class RouteWorker(Generic[T]):
             return self._cond.wait_for(lambda: not self._pending and not self._busy, timeout)
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Drops what is pending; lets the item in progress finish (bounded by its deadline)."""
+        """Drops what is pending, telling each item; lets the item in progress finish
+        (bounded by its deadline)."""
         with self._cond:
             self._stopping = True
+            dropped = list(self._pending)
             self._pending.clear()
             self._cond.notify_all()
+        tell_dropped(dropped, "the gateway is stopping; this question was not answered")
         if self._thread.is_alive():
             self._thread.join(timeout)
+
+
+def tell_dropped(items: list[T], reason: str) -> None:
+    """Outside the worker's lock: telling may take a while."""
+    for item in items:
+        on_drop = getattr(item, "on_drop", None)
+        if callable(on_drop):
+            on_drop(reason)

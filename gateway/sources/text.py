@@ -30,9 +30,9 @@ class Question:
     def __call__(self) -> Record:
         return {"text": self.line, "reply_to": self.client}
 
-    def on_drop(self) -> None:
+    def on_drop(self, reason: str) -> None:
         if self.client is not None:
-            self.client.fail("too many questions waiting; this one was dropped")
+            self.client.fail(reason)
 
 
 class TextSource:

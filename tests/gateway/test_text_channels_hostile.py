@@ -186,6 +186,46 @@ def test_a_question_the_routes_queue_drops_is_told_so(channels: list[TextChannel
     assert answers == ["answered q0\n", "answered q3\n", "answered q4\n"]
 
 
+def test_questions_waiting_when_the_gateway_stops_are_told_so() -> None:
+    """The route is busy with one question and two wait: stopping the gateway (its workers,
+    then its channels) answers the waiting two with an error line, the one in progress with
+    its answer, and only then closes the connection."""
+    channel = open_channel({})
+    release = threading.Event()
+
+    def busy_route(load: Question) -> None:
+        record = load()
+        release.wait(10)
+        channel.send(f"answered {record['text']}", record["reply_to"])
+
+    worker: RouteWorker[Question] = RouteWorker("ask", busy_route, "queue", queue_size=4)
+    worker.start()
+    source = TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
+                        FixedChannels(channel))
+    source.start()
+    try:
+        with connect(channel) as sock:
+            lines = sock.makefile("r", encoding="utf-8")
+            sock.sendall(b"q0\n")
+            deadline = time.monotonic() + 10
+            while not worker.busy and time.monotonic() < deadline:
+                time.sleep(0.01)
+            sock.sendall(b"q1\nq2\n")
+            while worker.depth < 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            worker.stop(timeout=0.1)  # as the gateway stops: q0 is still running
+            release.set()
+            assert worker.idle(10)
+            channel.close()
+            received = lines.readlines()  # to the end: the channel closed the connection
+    finally:
+        release.set()
+        worker.stop()
+        channel.close()
+    assert received == ["error: the gateway is stopping; this question was not answered\n"] * 2 \
+        + ["answered q0\n"]
+
+
 class FixedChannels(Channels):
     """The pipeline's channels, here the one channel the test opened."""
 
