@@ -1,7 +1,7 @@
 """The `oricf` command.
 
-    oricf serve detector|asr|llm|models [--config FILE] [--overlay FILE ...] [--listen HOST:PORT]
-                [--metrics-listen HOST:PORT] [--http-listen HOST:PORT]
+    oricf serve detector|asr|llm|tts|models [--config FILE] [--overlay FILE ...]
+                [--listen HOST:PORT] [--metrics-listen HOST:PORT] [--http-listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
     oricf up DEPLOYMENT.yaml
@@ -108,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbs = parser.add_subparsers(dest="verb", required=True)
 
     serve = verbs.add_parser("serve", help="run a model service")
-    serve.add_argument("service", choices=["detector", "asr", "llm", "models"])
+    serve.add_argument("service", choices=["detector", "asr", "llm", "tts", "models"])
     serve.add_argument("--config", type=Path,
                        help="service YAML (default configs/services/NAME.yaml)")
     serve.add_argument("--overlay", type=Path, action="append", default=[],
@@ -125,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="serve Prometheus metrics at http://HOST:PORT/metrics "
                             "(docs/metrics.md)")
     serve.add_argument("--http-listen", metavar="HOST:PORT",
-                       help="also serve the OpenAI-compatible HTTP API there (llm, asr; "
+                       help="also serve the OpenAI-compatible HTTP API there (llm, asr, tts; "
                             "docs/openai.md)")
     serve.set_defaults(run=cmd_serve)
 

@@ -13,12 +13,12 @@ DEV=0
 VENV="${ORICF_VENV:-.venv}"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
 LLAMA_VERSION="0.3.36"
-MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
+MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en piper-joe-medium gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
 
 step() { printf '\n==> %s\n' "$*"; }
 die() { printf 'setup: %s\n' "$*" >&2; exit 1; }
 
-step "system packages (espeak-ng and sox synthesize the spoken questions)"
+step "system packages (espeak-ng: the speech service's phonemes and voice, and the spoken test questions; sox)"
 APT_PACKAGES=(espeak-ng sox)
 # PortAudio, which the gateway's audio inputs (microphones) capture through.
 APT_PACKAGES+=(libportaudio2)

@@ -13,6 +13,7 @@ REGISTRY = {
     "detector": "oricf.services.detector.service:SPEC",
     "asr": "oricf.services.asr.service:SPEC",
     "llm": "oricf.services.llm.service:SPEC",
+    "tts": "oricf.services.tts.service:SPEC",
     "models": "oricf.services.models.service:SPEC",
 }
 

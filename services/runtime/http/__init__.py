@@ -31,8 +31,8 @@ def http_server(spec: ServiceSpec, slot: ModelSlot[Any], config: ServiceConfig,
     settings = config.server
     assert settings.http is not None
     if spec.http_routes is None:
-        raise ConfigError(f"server.http: the {spec.name} service has no HTTP API (the llm and "
-                          f"asr services have one)")
+        raise ConfigError(f"server.http: the {spec.name} service has no HTTP API (the llm, "
+                          f"asr and tts services have one)")
     routes = spec.http_routes(slot, config)
     app = build_app(routes, slot, settings, limit, registry, draining)
     return HttpServer(app, settings.http, settings.tls, settings.grace_s, spec.name)

@@ -1,0 +1,135 @@
+"""Speech synthesis over OpenAI's audio API: POST /v1/audio/speech and GET /v1/models.
+
+The JSON body becomes the same checked job as a gRPC Synthesize (model.prepare), so a bad
+`input` or `voice` is a 400 in OpenAI's error shape before any audio is made. The audio is
+sent as it is made, sentence by sentence: `pcm` as raw 16-bit little-endian mono samples at
+the voice's rate (the `x-sample-rate` header says which; OpenAI's own is 24 kHz), `wav` as
+one WAV file whose header carries the streamed-length placeholder (as `espeak-ng --stdout`
+writes), since its length is not known when the first sentence goes out.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import AsyncGenerator, AsyncIterator
+from typing import Any
+
+from starlette.requests import Request
+from starlette.responses import Response, StreamingResponse
+from starlette.routing import Route
+
+from oricf.audio import STREAMED_DATA_SIZE, WAVE_FORMAT_PCM
+from oricf.errors import InvalidInput
+from oricf.services.runtime import ModelSlot
+from oricf.services.runtime.http.app import check_model, models_route
+from oricf.services.runtime.http.calls import Presence, iterate_blocking, read_json
+from oricf.services.runtime.http.errors import InvalidParam
+from oricf.services.tts.config import TtsConfig
+from oricf.services.tts.model import Job, SpokenSentence, SynthesisModel
+
+FORMATS = {"wav": "audio/wav", "pcm": "audio/pcm"}
+PARAMS = {"text": "input", "voice": "voice", "speed": "speed"}  # the model's names -> the API's
+KNOWN_FIELDS = {"model", "input", "voice", "response_format", "speed", "instructions",
+                "stream_format"}
+
+
+def streamed_wav_header(sample_rate: int) -> bytes:
+    """A mono 16-bit WAV header whose sizes are the placeholder for a stream."""
+    fmt = struct.pack("<HHIIHH", WAVE_FORMAT_PCM, 1, sample_rate, sample_rate * 2, 2, 16)
+    return (b"RIFF" + struct.pack("<I", STREAMED_DATA_SIZE + 36) + b"WAVE"
+            + b"fmt " + struct.pack("<I", len(fmt)) + fmt
+            + b"data" + struct.pack("<I", STREAMED_DATA_SIZE))
+
+
+def _text(body: dict[str, Any], name: str, default: str = "") -> str:
+    value = body.get(name, default)
+    if value is None:
+        return default
+    if not isinstance(value, str):
+        raise InvalidParam(f"{name}: must be a string", param=name)
+    return value
+
+
+def _speed(body: dict[str, Any]) -> float:
+    value = body.get("speed", 1.0)
+    if value is None:
+        return 1.0
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value):
+        raise InvalidParam("speed: must be a number from 0.25 to 4.0", param="speed")
+    return float(value)
+
+
+def _options(body: dict[str, Any]) -> str:
+    """The response format, refusing what this service does not do."""
+    unknown = sorted(set(body) - KNOWN_FIELDS)
+    if unknown:
+        raise InvalidParam(f"{unknown[0][:40]}: not a field of this API", param=unknown[0][:40])
+    response_format = _text(body, "response_format", "wav")
+    if response_format not in FORMATS:
+        raise InvalidParam(f"response_format: '{response_format[:40]}' is not available here; "
+                           f"use {' or '.join(FORMATS)}", param="response_format")
+    if _text(body, "instructions"):
+        raise InvalidParam("instructions: these voices take no instructions",
+                           param="instructions")
+    if _text(body, "stream_format", "audio") != "audio":
+        raise InvalidParam("stream_format: only 'audio' is available", param="stream_format")
+    return response_format
+
+
+def _prepare(model: SynthesisModel, body: dict[str, Any]) -> Job:
+    """The checked job; a refusal names the field as this API calls it (input, not text)."""
+    try:
+        return model.prepare(_text(body, "input"), _text(body, "voice"), _speed(body))
+    except InvalidInput as exc:
+        field, _, rest = str(exc).partition(": ")
+        param = PARAMS.get(field)
+        if param is None:
+            raise
+        raise InvalidParam(f"{param}: {rest}", param=param) from None
+
+
+class Speech:
+    def __init__(self, slot: ModelSlot[SynthesisModel], config: TtsConfig) -> None:
+        self.slot = slot
+        self.name = config.name
+
+    def routes(self) -> list[Route]:
+        return [Route("/v1/audio/speech", self.speech, methods=["POST"]),
+                models_route(self.name)]
+
+    async def speech(self, request: Request) -> Response:
+        body = await read_json(request)
+        check_model(_text(body, "model"), self.name)
+        response_format = _options(body)
+        model = self.slot.get()
+        job = _prepare(model, body)
+        presence = Presence()
+        sentences = iterate_blocking(model.speak(job), presence)
+        try:
+            # The first sentence is made before the answer starts, so a failure is still
+            # an HTTP status rather than a cut stream.
+            first = await anext(sentences)
+        except BaseException:
+            await sentences.aclose()
+            raise
+        rate = job.voice.sample_rate
+        head = streamed_wav_header(rate) if response_format == "wav" else b""
+        return StreamingResponse(_audio(head, first, sentences),
+                                 media_type=FORMATS[response_format],
+                                 headers={"x-sample-rate": str(rate)})
+
+
+async def _audio(head: bytes, first: SpokenSentence,
+                 rest: AsyncGenerator[SpokenSentence, None]) -> AsyncIterator[bytes]:
+    try:
+        yield head + first.samples.astype("<i2").tobytes()
+        async for sentence in rest:
+            yield sentence.samples.astype("<i2").tobytes()
+    finally:
+        await rest.aclose()
+
+
+def routes(slot: ModelSlot[SynthesisModel], config: TtsConfig) -> list[Route]:
+    return Speech(slot, config).routes()

@@ -1,0 +1,124 @@
+"""Piper voices (VITS exported to ONNX) on onnxruntime, with phonemes from espeak-ng.
+
+Piper's own runtime (piper-tts 1.x) is GPL-3.0, so ORICF runs the voice's ONNX file itself:
+the voice's `.onnx.json` gives the phoneme-to-id table, the sample rate, the espeak-ng voice
+and the default scales; the program espeak-ng (espeak.py) gives the IPA phonemes; the ids go
+through the network in Piper's layout (start, pad after each phoneme, end).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.errors import ConfigError
+from oricf.services.tts import espeak
+
+if TYPE_CHECKING:
+    from oricf.store import ModelStore
+
+log = logging.getLogger(__name__)
+
+WEIGHTS = "model.onnx"
+VOICE_CONFIG = "model.onnx.json"
+BOS, EOS, PAD = "^", "$", "_"
+SENTENCE_ENDS = ".!?"
+
+
+class PiperVoiceConfig(Schema):
+    """A Piper voice from the model store; scales left unset come from its .onnx.json."""
+
+    engine: Literal["piper"]
+    model: str = Field(description="catalog name in configs/models.yaml, e.g. piper-joe-medium")
+    threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads")
+    noise_scale: float | None = Field(None, ge=0, le=2, description="voice variation")
+    length_scale: float | None = Field(None, gt=0, le=4, description=">1 speaks slower")
+    noise_w: float | None = Field(None, ge=0, le=2, description="phoneme length variation")
+
+
+class PiperVoice:
+    def __init__(self, name: str, config: PiperVoiceConfig, store: ModelStore) -> None:
+        self.name = name
+        self.config = config
+        entry = store.entry(config.model)
+        self.weights = store.path(config.model, WEIGHTS)
+        self.voice_config = store.path(config.model, VOICE_CONFIG)
+        self.model = config.model
+        self.license = entry.license
+        self.sha256 = next(f.sha256 for f in entry.files if f.name == WEIGHTS)
+        self.runtime = "onnxruntime"
+        self.sample_rate = 0
+        self.espeak_voice = ""
+        self._ids: dict[str, int] = {}
+        self._scales = np.zeros(3, dtype=np.float32)
+        self._session: Any = None
+
+    def load(self) -> None:
+        import onnxruntime as ort
+
+        self._read_voice_config()
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = self.config.threads
+        options.inter_op_num_threads = 1
+        self._session = ort.InferenceSession(str(self.weights), options,
+                                             providers=["CPUExecutionProvider"])
+        self.runtime = f"onnxruntime {ort.__version__} + {espeak.version()}"
+        self.speak("Ready.", 1.0)  # the first run allocates onnxruntime's buffers
+
+    def _read_voice_config(self) -> None:
+        where = f"{self.model}/{VOICE_CONFIG}"
+        try:
+            voice = json.loads(self.voice_config.read_text())
+            self.sample_rate = int(voice["audio"]["sample_rate"])
+            self.espeak_voice = str(voice["espeak"]["voice"])
+            self._ids = {p: int(ids[0]) for p, ids in voice["phoneme_id_map"].items()}
+            inference = voice.get("inference", {})
+        except (ValueError, KeyError, TypeError, IndexError) as exc:
+            raise ConfigError(f"{where}: not a Piper voice config ({exc})") from None
+        if voice.get("phoneme_type", "espeak") != "espeak" or voice.get("num_speakers", 1) != 1:
+            raise ConfigError(f"{where}: only one-speaker voices with espeak phonemes are run")
+        c = self.config
+        self._scales = np.array([
+            c.noise_scale if c.noise_scale is not None else inference.get("noise_scale", 0.667),
+            c.length_scale if c.length_scale is not None else inference.get("length_scale", 1.0),
+            c.noise_w if c.noise_w is not None else inference.get("noise_w", 0.8)],
+            dtype=np.float32)
+
+    def close(self) -> None:
+        self._session = None
+
+    def describe(self) -> dict[str, str]:
+        noise, length, noise_w = (f"{v:g}" for v in self._scales)
+        return {"engine": "piper", "model": self.model, "espeak_voice": self.espeak_voice,
+                "sample_rate": str(self.sample_rate), "threads": str(self.config.threads),
+                "noise_scale": noise, "length_scale": length, "noise_w": noise_w}
+
+    def phoneme_ids(self, sentence: str) -> list[int]:
+        """Piper's input for one sentence: its clauses' phonemes joined by commas, the
+        sentence's own end mark, each phoneme's id followed by the pad id."""
+        clauses = espeak.phonemes(sentence, self.espeak_voice)
+        end = sentence[-1] if sentence[-1] in SENTENCE_ENDS else "."
+        text = ", ".join(clauses) + end
+        ids, pad = [self._ids[BOS], self._ids[PAD]], self._ids[PAD]
+        for phoneme in text:
+            if phoneme in self._ids:  # marks the voice was not trained on are left out
+                ids += [self._ids[phoneme], pad]
+        ids.append(self._ids[EOS])
+        return ids
+
+    def speak(self, sentence: str, speed: float) -> np.ndarray:
+        session = self._session
+        if session is None:
+            raise RuntimeError(f"voice {self.name} is not loaded")
+        ids = np.array([self.phoneme_ids(sentence)], dtype=np.int64)
+        scales = self._scales.copy()
+        scales[1] /= speed
+        audio = session.run(None, {"input": ids,
+                                   "input_lengths": np.array([ids.shape[1]], dtype=np.int64),
+                                   "scales": scales})[0]
+        return (np.clip(audio.reshape(-1), -1.0, 1.0) * 32767).astype(np.int16)
