@@ -27,12 +27,15 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from oricf.audio import VadSettings
 from oricf.config import Schema, read_with_overlays, resolve_path, validate
 from oricf.errors import ConfigError
+from oricf.gateway.agents.policy import AgentPolicy
+from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
+from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS, CallConfig
 from oricf.gateway.post import PostStep
 from oricf.gateway.text_channels import ChannelConfig
@@ -40,7 +43,8 @@ from oricf.metrics import MetricsConfig
 
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
-OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image"]
+OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image",
+                     "std_msgs/Int16MultiArray"]
 # The record field each input type fills (checked against `from`, templates).
 INPUT_FIELDS: dict[str, str] = {
     "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
@@ -51,7 +55,7 @@ IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
 # The keys of InputConfig that name a source; a route has exactly one.
 SOURCE_KEYS = ("topic", "product", "url", "audio", "text")
 # The keys of OutputConfig that name a sink; an output has exactly one.
-SINK_KEYS = ("topic", "product", "jsonl", "text", "frames")
+SINK_KEYS = ("topic", "product", "jsonl", "text", "frames", "audio", "wav")
 
 
 class VadConfig(VadSettings):
@@ -78,6 +82,11 @@ class InputConfig(Schema):
     sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
     channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
     vad: VadConfig | None = Field(None, description="audio: voice activity settings")
+    while_speaking: Literal["mute", "barge_in"] | None = Field(
+        None, description="audio, while a speaker output plays: mute (hear silence, so the "
+                          "robot never hears itself; the default) or barge_in (a new "
+                          "utterance stops the speech; for a headset or an echo-cancelled "
+                          "microphone)")
     keep: Literal["latest", "queue"] | None = Field(
         None, description="latest: newest only, older ones dropped (always for images); "
                           "queue: keep up to queue_size in order (default otherwise)")
@@ -97,8 +106,8 @@ class InputConfig(Schema):
             raise ValueError(f"give exactly one of {', '.join(SOURCE_KEYS)}")
         if self.url is None and (self.fps is not None or self.loop):
             raise ValueError("fps, loop: only with url")
-        if self.audio is None and self.vad is not None:
-            raise ValueError("vad: only with audio")
+        if self.audio is None and (self.vad is not None or self.while_speaking is not None):
+            raise ValueError("vad, while_speaking: only with audio")
         if self.topic is None and self.type is not None:
             raise ValueError("type: only with topic (the other inputs carry their own kind)")
         if self.topic is not None and self.type is None:
@@ -125,6 +134,13 @@ class InputConfig(Schema):
         return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
 
 
+class SpeakerConfig(Schema):
+    """A speaker: an audio output device that plays speech (gateway.sinks.speaker)."""
+
+    device: str = Field("default", description="'default', an index, a PortAudio name, or "
+                                               "a PulseAudio sink")
+
+
 class OutputConfig(Schema):
     topic: str | None = None
     type: OutputType | None = None
@@ -136,6 +152,9 @@ class OutputConfig(Schema):
     frames: str | None = Field(
         None, description="images to a folder (numbered JPEGs), a .jpg/.png file (the newest "
                           "frame), or a video file (.mp4, .avi, .mkv)")
+    audio: SpeakerConfig | None = Field(None, description="speech played on an audio device")
+    wav: str | None = Field(
+        None, description="speech into a WAV file, appended (the file is new at start)")
     max_age_s: float = Field(5.0, gt=0, description="product: older values count as stale")
     source: str = Field(alias="from", description="the record field to send")
 
@@ -167,6 +186,20 @@ class PipelineConfig(Schema):
     routes: dict[str, RouteConfig] = Field(min_length=1)
     metrics: MetricsConfig | None = Field(
         None, description="serve Prometheus metrics at http://LISTEN/metrics (off if absent)")
+    control: ControlConfig | None = Field(
+        None, description="the local control API (`oricf mcp --attach`; off if absent)")
+    agent: AgentPolicy | None = Field(
+        None, description="what an agent may send, where, how fast (none if absent)")
+    foxglove: LiveViewConfig | None = Field(
+        None, description="serve the live view over the Foxglove WebSocket protocol (off if "
+                          "absent; docs/live-view.md)")
+
+    _origin: str = PrivateAttr("pipeline")  # the files it was read from, for errors
+
+    @property
+    def origin(self) -> str:
+        """The file (and overlays) the pipeline was read from, as errors name it."""
+        return self._origin
 
     @property
     def uses_ros(self) -> bool:
@@ -218,6 +251,12 @@ def _channel_problems(config: PipelineConfig) -> Iterator[str]:
             if text not in (None, "-") and text not in config.channels:
                 yield (f"routes.{name}.{key}: no channel '{text}' (channels: "
                        f"{', '.join(sorted(config.channels)) or 'none'}; or '-')")
+    for name, target in (config.agent.targets.items() if config.agent else ()):
+        for key in ("channel", "approval_channel"):
+            channel = getattr(target, key)
+            if channel is not None and channel not in config.channels:
+                yield (f"agent.targets.{name}.{key}: no channel '{channel}' (channels: "
+                       f"{', '.join(sorted(config.channels)) or 'none'})")
 
 
 def _reference_problems(config: PipelineConfig) -> Iterator[str]:
@@ -266,6 +305,7 @@ def _protocol_problems(route: str, method: str, endpoint: EndpointConfig | None
 def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> PipelineConfig:
     """Validates parsed YAML, then every cross-reference; errors name source and key."""
     config = validate(data, PipelineConfig, source, base_dir)
+    config._origin = source
     problems = [f"{source}: {problem}" for problem in
                 (*_reference_problems(config), *_channel_problems(config))]
     if problems:

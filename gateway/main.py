@@ -3,7 +3,7 @@
     oricf gateway --config configs/pipelines/people_qa.yaml \\
         [--overlay configs/pipelines/placement/edge.yaml ...] \\
         [--set routes.people.input.url=rtsp://camera.local/stream ...] \\
-        [--record run.mcap] [--replay run.mcap [--rate 0]] \\
+        [--record run.mcap] [--replay run.mcap [--rate 0]] [--foxglove 127.0.0.1:8765] \\
         [--ros-args -r __node:=my_gateway ...]
 
 Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`, and as the
@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--metrics-listen", metavar="HOST:PORT",
                         help="serve Prometheus metrics at http://HOST:PORT/metrics (the "
                              "pipeline's `metrics.listen`; docs/metrics.md)")
+    parser.add_argument("--foxglove", metavar="HOST:PORT",
+                        help="serve the live view (Foxglove WebSocket protocol) at "
+                             "ws://HOST:PORT, for Foxglove or Lichtblick to open (the "
+                             "pipeline's `foxglove.listen`; docs/live-view.md)")
     parser.add_argument("--record", type=Path, metavar="OUT.mcap",
                         help="record every topic input and output into this new MCAP file "
                              "(rosbag2's layout; see docs/record-replay.md)")
@@ -111,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     sets = list(settings.sets)
     if args.metrics_listen:  # JSON: a YAML string whatever the address looks like
         sets.append(f"metrics.listen={json.dumps(args.metrics_listen)}")
+    if args.foxglove:
+        sets.append(f"foxglove.listen={json.dumps(args.foxglove)}")
     path, overlays = settings.files()
     config = load_pipeline(path, overlays, sets=sets)
     if args.check:

@@ -6,19 +6,25 @@ and publishes what `emit` receives. Tests and benchmarks drive this class direct
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Callable, Collection
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
 from oricf.gateway.route import Emit, Loader, Route
+from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
 from oricf.metrics import MetricsServer
+
+if TYPE_CHECKING:
+    from oricf.gateway.live_view.view import LiveView
 
 log = logging.getLogger(__name__)
 
@@ -27,9 +33,11 @@ ERROR_LOG_INTERVAL_S = 10.0
 
 class Pipeline:
     def __init__(self, config: PipelineConfig, emit: Emit,
-                 products: ProductStore | None = None) -> None:
+                 products: ProductStore | None = None, speaking: Speaking | None = None
+                 ) -> None:
         self.config = config
         self.products = products or ProductStore()
+        self.speaking = speaking or Speaking()
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
         self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)])
@@ -39,16 +47,24 @@ class Pipeline:
                 if output.product is not None:
                     self.products.declare(output.product, output.max_age_s)
         self.metrics_server: MetricsServer | None = None
+        self.live_view: LiveView | None = None
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}
         for name, rc in config.routes.items():
             route = Route(name, rc, self.endpoints[rc.call.service], self.products, emit,
-                          throttle)
+                          throttle, self.speaking)
             self.routes[name] = route
             self.workers[name] = RouteWorker(name, route.process, rc.input.mode,
                                              rc.input.queue_size)
             if rc.input.product is not None:
                 self.products.subscribe(rc.input.product, self._feeder(name))
+        self.speaking.on_interrupt(self._drop_pending_speech)
+
+    def _drop_pending_speech(self) -> None:
+        """Barge-in: sentences waiting to be synthesized are dropped."""
+        for name, rc in self.config.routes.items():
+            if rc.call.method == "Synthesize":
+                self.workers[name].clear()
 
     def _feeder(self, route: str) -> Callable[[Any], None]:
         def feed(value: Any) -> None:
@@ -68,6 +84,8 @@ class Pipeline:
         those through handle_here from threads of its own."""
         if self.config.metrics is not None:  # first: an address in use stops the start
             self.metrics_server = MetricsServer(self.config.metrics, pipeline_registry(self))
+        if self.config.foxglove is not None:
+            self._start_live_view(self.config.foxglove)
         for name, worker in self.workers.items():
             if name not in inline:
                 worker.start()
@@ -77,6 +95,18 @@ class Pipeline:
                       if METHODS[self.config.method_of(name)].image_transport else "")
             log.info("endpoint %s: %s%s, deadline %d ms%s", name, endpoint.primary.address,
                      fallback, endpoint.config.deadline_ms, images)
+
+    def _start_live_view(self, config: LiveViewConfig) -> None:
+        from oricf.gateway.live_view.states import states
+        from oricf.gateway.live_view.view import LiveView  # foxglove-sdk, only when used
+
+        view = LiveView(config, self.config.node_name)
+        view.start(lambda: states(self))
+        self.live_view = view
+        for route in self.routes.values():
+            route.watchers.append(view.show)
+        for product in self.products.declared():
+            self.products.subscribe(product, functools.partial(view.show_product, product))
 
     def idle(self, timeout: float) -> bool:
         return all(worker.idle(timeout) for worker in self.workers.values())
@@ -96,3 +126,5 @@ class Pipeline:
         self.log_stats()
         if self.metrics_server is not None:
             self.metrics_server.close()
+        if self.live_view is not None:
+            self.live_view.stop()

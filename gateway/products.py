@@ -44,6 +44,11 @@ class ProductStore:
         with self._lock:
             self._max_age[name] = max_age_s
 
+    def declared(self) -> list[str]:
+        """The names of every declared product."""
+        with self._lock:
+            return list(self._max_age)
+
     def subscribe(self, name: str, listener: Listener) -> None:
         """listener(value) is called (in the writer's thread) on every new value."""
         with self._lock:

@@ -1,5 +1,10 @@
 """A route: input record -> method call -> post steps -> outputs. No ROS in here.
 
+A method whose call streams (a Generate cut into sentences, a Synthesize sentence by
+sentence) hands on pieces of its result as they come (`Partial`): each goes at once to the
+outputs that take its fields, before post steps (which run on the whole result). A barge-in
+(oricf.gateway.speaking) ends such a stream: what it would still say is dropped.
+
 Every failure of one message is logged (throttled, per route and kind of failure) and
 counted, and told to whoever asked for the record (its `reply_to`, e.g. a text channel's
 client, which no output will answer now); the route goes on with the next message. Data
@@ -11,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -20,10 +25,11 @@ import grpc
 from oricf.errors import InvalidInput
 from oricf.gateway.config import OutputConfig, RouteConfig
 from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.methods import METHODS, Skip
+from oricf.gateway.methods import METHODS, Partial, Skip
 from oricf.gateway.methods.base import result_fields
 from oricf.gateway.post import chain
 from oricf.gateway.products import ProductStore
+from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 from oricf.logs import quoted
@@ -61,26 +67,60 @@ class RouteStats:
 
 class Route:
     def __init__(self, name: str, config: RouteConfig, endpoint: Endpoint,
-                 products: ProductStore, emit: Emit, throttle: ThrottledLog) -> None:
+                 products: ProductStore, emit: Emit, throttle: ThrottledLog,
+                 speaking: Speaking | None = None) -> None:
         self.name = name
         self.config = config
         self.endpoint = endpoint
         self.products = products
         self.stats = RouteStats()
+        # (time.monotonic() when done, the record): the newest one that went through, for
+        # readers such as the control API's `look` (oricf.gateway.control)
+        self.latest: tuple[float, Record] | None = None
+        # Called with each record after its outputs (the live view): they must not block.
+        self.watchers: list[Callable[[str, Record], None]] = []
         self._emit = emit
         self._post = chain(config.post)
         self._throttle = throttle
+        self._speaking = speaking or Speaking()
         self._invoke = METHODS[config.call.method].bind(config.call, endpoint, products)
 
     def run(self, record: Record) -> Record:
         """Call and post-process one record; returns it with every field filled in."""
         record.setdefault("route", self.name)
-        record.update(result_fields(self._invoke(record)))
+        asked_at = time.monotonic()
+        result = self._invoke(record)
+        if isinstance(result, Iterator):
+            result = self._stream(record, result, asked_at)
+        record.update(result_fields(result))
         self._post(record)
         return record
 
-    def send(self, record: Record) -> None:
+    def _stream(self, record: Record, items: Iterator[Any], asked_at: float) -> Any:
+        """Sends each Partial on as it comes; the result that ends the stream."""
+        result = None
+        try:
+            for item in items:
+                if not isinstance(item, Partial):
+                    result = item
+                    continue
+                with self._speaking.lock:  # a barge-in now drops this piece, or is after it
+                    if not self._speaking.current(asked_at):
+                        raise Skip("interrupted by a new utterance (barge-in)")
+                    self.send({**record, **item.fields}, item.fields.keys())
+        finally:
+            close = getattr(items, "close", None)
+            if close is not None:
+                close()
+        if result is None:
+            raise RuntimeError(f"{self.config.call.method} stream ended without a result")
+        return result
+
+    def send(self, record: Record, only: Collection[str] | None = None) -> None:
+        """The record's fields to the outputs (`only`: to those that take these fields)."""
         for output in self.config.outputs:
+            if only is not None and output.source not in only:
+                continue
             value = record.get(output.source)
             if value is None:  # e.g. no annotated image this time
                 continue
@@ -88,6 +128,8 @@ class Route:
                 self.products.put(output.product, value)
             else:
                 self._emit(output, value, record)
+        for watch in self.watchers:
+            watch(self.name, record)
 
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised."""
@@ -96,6 +138,7 @@ class Route:
         try:
             record = load()
             self.send(self.run(record))
+            self.latest = (time.monotonic(), record)
         except Skip as exc:
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)

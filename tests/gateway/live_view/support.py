@@ -1,0 +1,122 @@
+"""A pipeline with its live view in this process (the people_video pipeline on vtest.avi and
+a real detector), and what a viewer receives, decoded with the protobuf schemas the server
+advertises (google.protobuf, not the SDK's own classes)."""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import json
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+from oricf.config import config_dir, deep_merge, read_yaml
+from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.sinks import Outlets
+from oricf.gateway.sources import pipeline_sources
+from oricf.gateway.values import Record
+from tests.support.data import video_path
+
+PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
+SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+def video_pipeline(detector: str, foxglove: dict[str, Any] | None = None,
+                   fps: float = 20) -> PipelineConfig:
+    """people_video.yaml on vtest.avi at `fps`, counts to a product (plotted) and JSON lines
+    to nowhere, with a live view on a free loopback port."""
+    data = deep_merge(read_yaml(PIPELINE), {
+        "endpoints": {"detector": {"address": detector}},
+        "routes": {"people": {"input": {"url": str(video_path()), "fps": fps, "loop": True},
+                              "outputs": [{"product": "people_count", "from": "count"}]}},
+        "foxglove": {"listen": "127.0.0.1:0", **(foxglove or {})}})
+    return parse_pipeline(data, f"{PIPELINE} (test overlay)", PIPELINE.parent)
+
+
+@dataclass
+class Running:
+    pipeline: Pipeline
+    records: list[Record] = field(default_factory=list)
+
+    @property
+    def url(self) -> str:
+        assert self.pipeline.live_view is not None
+        return self.pipeline.live_view.url
+
+
+@contextmanager
+def running(config: PipelineConfig) -> Iterator[Running]:
+    """The pipeline started with its sources; every record the route finished is kept."""
+    outlets = Outlets(config)
+    pipeline = Pipeline(config, outlets)
+    run = Running(pipeline)
+    lock = threading.Lock()
+
+    def keep(route: str, record: Record) -> None:
+        with lock:
+            run.records.append(dict(record))
+
+    for route in pipeline.routes.values():
+        route.watchers.append(keep)
+    sources = pipeline_sources(pipeline, outlets.channels, lambda route: None)
+    outlets.start()
+    pipeline.start()
+    for source in sources:
+        source.start()
+    try:
+        yield run
+    finally:
+        for source in sources:
+            source.stop()
+        pipeline.stop()
+        outlets.close()
+
+
+class Decoder:
+    """Channels as advertised, and their messages decoded by schema (protobuf from the
+    advertised FileDescriptorSet, or JSON)."""
+
+    def __init__(self) -> None:
+        self.channels: dict[int, dict[str, Any]] = {}
+        self._pool = descriptor_pool.DescriptorPool()
+        self._types: dict[str, Any] = {}
+
+    def advertise(self, channels: list[dict[str, Any]]) -> None:
+        for channel in channels:
+            self.channels[channel["id"]] = channel
+            if channel["encoding"] == "protobuf" and channel["schemaName"] not in self._types:
+                files = descriptor_pb2.FileDescriptorSet.FromString(
+                    base64.b64decode(channel["schema"]))
+                for file in files.file:
+                    with contextlib.suppress(TypeError):  # added by another schema
+                        self._pool.Add(file)
+                self._types[channel["schemaName"]] = message_factory.GetMessageClass(
+                    self._pool.FindMessageTypeByName(channel["schemaName"]))
+
+    def decode(self, channel_id: int, data: bytes) -> tuple[str, Any]:
+        """(topic, message) of a message on an advertised channel."""
+        channel = self.channels[channel_id]
+        if channel["encoding"] == "json":
+            return channel["topic"], json.loads(data)
+        return channel["topic"], self._types[channel["schemaName"]].FromString(data)
+
+
+def message_data(frame: bytes) -> tuple[int, int, bytes]:
+    """A binary Message Data frame (op 1): (subscription id, log time ns, payload)."""
+    assert frame[0] == 1, frame[:1]
+    return (int.from_bytes(frame[1:5], "little"), int.from_bytes(frame[5:13], "little"),
+            frame[13:])
+
+
+def subscribe_all(decoder: Decoder, topics: set[str] | None = None) -> str:
+    """The Subscribe message for every advertised channel (or those of `topics`); the
+    subscription id is the channel id."""
+    return json.dumps({"op": "subscribe", "subscriptions": [
+        {"id": cid, "channelId": cid} for cid, ch in decoder.channels.items()
+        if topics is None or ch["topic"] in topics]})
