@@ -36,14 +36,14 @@ ABBREVIATIONS = {
     "Jan.": "January", "Feb.": "February", "Aug.": "August", "Sept.": "September",
     "Oct.": "October", "Nov.": "November", "Dec.": "December",
 }
-# Units written after a number: (singular, plural).
+# Units written after a number: (singular, plural), spelt as the en-US voices say them.
 UNITS = {
-    "mm": ("millimetre", "millimetres"), "cm": ("centimetre", "centimetres"),
-    "m": ("metre", "metres"), "km": ("kilometre", "kilometres"), "g": ("gram", "grams"),
+    "mm": ("millimeter", "millimeters"), "cm": ("centimeter", "centimeters"),
+    "m": ("meter", "meters"), "km": ("kilometer", "kilometers"), "g": ("gram", "grams"),
     "kg": ("kilogram", "kilograms"), "ms": ("millisecond", "milliseconds"),
     "s": ("second", "seconds"), "h": ("hour", "hours"), "min": ("minute", "minutes"),
-    "km/h": ("kilometre per hour", "kilometres per hour"),
-    "m/s": ("metre per second", "metres per second"), "°C": ("degree Celsius", "degrees Celsius"),
+    "km/h": ("kilometer per hour", "kilometers per hour"),
+    "m/s": ("meter per second", "meters per second"), "°C": ("degree Celsius", "degrees Celsius"),
     "°F": ("degree Fahrenheit", "degrees Fahrenheit"), "°": ("degree", "degrees"),
     "V": ("volt", "volts"), "W": ("watt", "watts"), "Hz": ("hertz", "hertz"),
 }
