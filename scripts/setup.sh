@@ -12,7 +12,9 @@ DEV=0
 [[ "${1:-}" == "--dev" ]] && DEV=1
 VENV="${ORICF_VENV:-.venv}"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
-LLAMA_VERSION="0.3.36"
+# LLAMA_VERSION, CMAKE_ARGS and LLAMA_WHEELS: the llama.cpp build for this CPU
+# shellcheck source=scripts/llama-wheel.sh
+source scripts/llama-wheel.sh
 MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en piper-joe-medium gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
 
 step() { printf '\n==> %s\n' "$*"; }
@@ -31,6 +33,8 @@ APT_PACKAGES+=(libportaudio2)
 ((DEV)) && APT_PACKAGES+=(pulseaudio pulseaudio-utils)
 # The shell scripts (compose/stack.sh, scripts/*.sh) are checked with shellcheck.
 ((DEV)) && APT_PACKAGES+=(shellcheck)
+# The live view's tests connect with the Foxglove protocol's own client, run by Node.js.
+((DEV)) && APT_PACKAGES+=(nodejs npm)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
@@ -50,19 +54,7 @@ PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
 "${PIP[@]}" install --upgrade pip
 
 step "llama-cpp-python $LLAMA_VERSION (compiled once per CPU type, then reused from $CACHE/wheels)"
-# llama.cpp is built for this CPU's instruction sets, named one by one from /proc/cpuinfo
-# rather than -march=native: native turns AMX on where the CPU has it, and AMX code crashes
-# the process where the kernel does not grant it AMX state (many virtual machines). The
-# cache folder is keyed by the build options, so another CPU type builds its own wheel.
-CPU_FLAGS=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
-CMAKE_ARGS="-DGGML_NATIVE=OFF"
-for pair in avx:AVX avx2:AVX2 fma:FMA f16c:F16C bmi2:BMI2 avx_vnni:AVX_VNNI avx512f:AVX512 \
-            avx512vbmi:AVX512_VBMI avx512_vnni:AVX512_VNNI avx512_bf16:AVX512_BF16; do
-    [[ "$CPU_FLAGS" == *" ${pair%%:*} "* ]] && CMAKE_ARGS+=" -DGGML_${pair#*:}=ON"
-done
-export CMAKE_ARGS
-CPU_KEY=$(echo "$LLAMA_VERSION $CMAKE_ARGS" | sha256sum | cut -c1-12)
-WHEELS="$CACHE/wheels/$CPU_KEY"
+WHEELS="$LLAMA_WHEELS"
 mkdir -p "$WHEELS"
 if ! ls "$WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
     echo "building llama-cpp-python (about 5-10 minutes on 2 cores): $CMAKE_ARGS"
@@ -77,6 +69,14 @@ EXTRAS="asr,llm,ros,audio"
 # colcon builds ros/oricf_gateway, the ROS 2 package, with this Python, as on a robot
 # (tests/ros; docs/ros.md). colcon-core needs setuptools < 80.
 ((DEV)) && "${PIP[@]}" install "colcon-core>=0.15,<0.22" "colcon-ros>=0.4,<0.6"
+# The Foxglove WebSocket protocol's client library from npm, pinned, into the cache once
+# (tests/gateway/live_view find it there; ORICF_NODE_MODULES overrides).
+if ((DEV)) && [[ ! -f "$CACHE/node/node_modules/@foxglove/ws-protocol/package.json" ]]; then
+    mkdir -p "$CACHE/node"
+    npm install --prefix "$CACHE/node" --no-audit --no-fund --no-save \
+        @foxglove/ws-protocol@0.8.0 ws@8.23.0 >/dev/null \
+        || die "npm could not install @foxglove/ws-protocol (the live view's test client)"
+fi
 
 step "models and sample data (checked by sha256)"
 "$VENV/bin/oricf" models pull "${MODELS[@]}"

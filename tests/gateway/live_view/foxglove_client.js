@@ -1,0 +1,35 @@
+// A viewer built on the Foxglove WebSocket protocol's own client library
+// (@foxglove/ws-protocol, from npm): connects, subscribes to every channel it is told of,
+// and prints what it receives as JSON lines until SECONDS have passed.
+//   node foxglove_client.js URL SECONDS [TOKEN]
+const { FoxgloveClient } = require("@foxglove/ws-protocol");
+const WebSocket = require("ws");
+
+const [url, seconds, token] = process.argv.slice(2);
+const headers = token ? { Authorization: `Bearer ${token}` } : {};
+const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL], { headers });
+const client = new FoxgloveClient({ ws });
+const channels = new Map();
+const print = (line) => process.stdout.write(JSON.stringify(line) + "\n");
+
+client.on("serverInfo", (info) => print({ serverInfo: info }));
+client.on("advertise", (advertised) => {
+  print({ advertise: advertised });
+  for (const channel of advertised) {
+    channels.set(client.subscribe(channel.id), channel.id);
+  }
+});
+client.on("message", ({ subscriptionId, timestamp, data }) => {
+  const bytes = Buffer.from(data.buffer, data.byteOffset, data.byteLength);
+  print({ message: { channelId: channels.get(subscriptionId), logTime: String(timestamp),
+                     data: bytes.toString("base64") } });
+});
+client.on("error", (error) => print({ error: String(error) }));
+client.on("close", (event) => {
+  print({ close: event.code });
+  process.exit(0);
+});
+setTimeout(() => {
+  client.close();
+  process.exit(0);
+}, Number(seconds) * 1000);

@@ -1,0 +1,138 @@
+"""The live view end to end: the people_video pipeline on vtest.avi with the real detector,
+watched by the Foxglove protocol's own client (npm @foxglove/ws-protocol under Node.js) and
+by viewers that stop reading."""
+
+from __future__ import annotations
+
+import json
+import resource
+import time
+from collections.abc import Iterator
+
+import cv2
+import numpy as np
+import pytest
+from websockets.sync.client import connect
+
+from oricf.imaging import Detection
+from tests.gateway.live_view.support import (
+    Decoder,
+    Running,
+    message_data,
+    running,
+    subscribe_all,
+    video_pipeline,
+)
+from tests.gateway.live_view.viewers import official_client
+from tests.support.services import RunningService, running_service
+
+MAX_FPS = 4.0
+
+
+@pytest.fixture(scope="module")
+def detector() -> Iterator[RunningService]:
+    with running_service("detector") as service:
+        yield service
+
+
+@pytest.fixture()
+def gateway(detector: RunningService) -> Iterator[Running]:
+    with running(video_pipeline(detector.address, {"max_fps": MAX_FPS})) as run:
+        yield run
+
+
+def boxes(points: list[object]) -> set[tuple[float, ...]]:
+    return {tuple(round(v, 2) for p in [a.points[0], a.points[2]] for v in (p.x, p.y))  # type: ignore[attr-defined]
+            for a in points}
+
+
+def detection_boxes(detections: list[Detection]) -> set[tuple[float, ...]]:
+    return {tuple(round(v, 2) for v in (d.box.x_min, d.box.y_min, d.box.x_max, d.box.y_max))
+            for d in detections}
+
+
+def test_the_official_client_sees_frames_and_annotations_that_match_the_detections(
+        gateway: Running) -> None:
+    started = time.monotonic()
+    got = official_client(gateway.url, seconds=6)
+    elapsed = time.monotonic() - started
+    assert got.topics["/people/image"] == "foxglove.CompressedImage"
+    assert got.topics["/people/detections"] == "foxglove.ImageAnnotations"
+    for topic in ("/people/count", "/products/people_count", "/endpoints/detector",
+                  "/routes/people/state"):
+        assert topic in got.topics, sorted(got.topics)
+
+    images = got.messages["/people/image"]
+    assert 3 <= len(images) <= MAX_FPS * elapsed + 1  # the cap holds whatever the load
+    for _, image in images:
+        assert image.format == "jpeg" and image.frame_id == "people"
+        pixels = cv2.imdecode(np.frombuffer(image.data, np.uint8), cv2.IMREAD_COLOR)
+        assert pixels.shape == (576, 768, 3)
+
+    # Every annotation message is one frame's detections: its boxes, its captions.
+    sent = [r["detections"] for r in gateway.records]
+    annotations = got.messages["/people/detections"]
+    assert len(annotations) == len(images)
+    assert sum(len(a.points) for _, a in annotations) >= 3
+    for ns, annotation in annotations:
+        shown = boxes(list(annotation.points))
+        match = next(d for d in sent if detection_boxes(d) == shown)
+        assert sorted(t.text for t in annotation.texts) == sorted(
+            f"{d.label} {d.score:.2f}" for d in match)
+        assert annotation.points and all(p.type == 2 for p in annotation.points)  # LINE_LOOP
+        assert any(ns == image_ns for image_ns, _ in images)  # sent with its frame
+
+    counts = [m["value"] for _, m in got.messages["/people/count"]]
+    assert counts and all(0 <= c <= 15 for c in counts)
+    endpoint = got.messages["/endpoints/detector"][-1][1]
+    assert endpoint["active"] == gateway.pipeline.endpoints["detector"].primary.address
+    assert endpoint["on_fallback"] is False and endpoint["latency_ms"] > 0
+
+
+def rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -> None:
+    """One viewer subscribes to the frames and never reads again; the route goes on, a
+    second viewer still gets frames, and nothing piles up in the gateway."""
+    stalled = connect(gateway.url, subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
+                      max_queue=1)
+    decoder = Decoder()
+    with stalled:
+        stalled.recv(timeout=5)  # serverInfo
+        while not any(c["topic"] == "/people/image" for c in decoder.channels.values()):
+            decoder.advertise(json.loads(stalled.recv(timeout=10))["channels"])
+        stalled.send(subscribe_all(decoder))
+        time.sleep(2)  # the stalled viewer's buffers fill
+        before_ok, before_rss = gateway.pipeline.routes["people"].stats.ok, rss_mb()
+        images = watch(gateway.url, seconds=8)
+        handled = gateway.pipeline.routes["people"].stats.ok - before_ok
+        assert handled >= 20, handled
+        assert images >= 10, images
+        assert rss_mb() - before_rss < 150
+    # The gateway still takes viewers afterwards.
+    assert watch(gateway.url, seconds=3) >= 2
+
+
+def watch(url: str, seconds: float) -> int:
+    """A Python viewer that reads everything for `seconds`: the images it got."""
+    decoder, images = Decoder(), 0
+    with connect(url, subprotocols=["foxglove.sdk.v1"]) as viewer:  # type: ignore[list-item]
+        deadline = time.monotonic() + seconds
+        subscribed = 0
+        while time.monotonic() < deadline:
+            try:
+                frame = viewer.recv(timeout=0.5)
+            except TimeoutError:
+                continue
+            if isinstance(frame, str):
+                message = json.loads(frame)
+                if message["op"] == "advertise":
+                    decoder.advertise(message["channels"])
+                    viewer.send(subscribe_all(decoder, {"/people/image"}))
+                    subscribed += 1
+                continue
+            channel, _, _ = message_data(frame)
+            images += decoder.channels[channel]["topic"] == "/people/image"
+    return images
