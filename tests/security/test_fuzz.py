@@ -18,10 +18,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from oricf.oip import open_inference_grpc_pb2 as oip
-from oricf.v1 import detector_pb2, language_pb2, speech_pb2
+from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
 from tests.support.services import RunningService, running_service
 
-EXAMPLES = 70  # per RPC: 15 RPCs, at least 1,050 requests of 1-3 messages
+EXAMPLES = 70  # per RPC: 18 RPCs, at least 1,260 requests of 1-3 messages
 # Refusals a client may get for a hostile request. INTERNAL and UNKNOWN are bugs;
 # DEADLINE_EXCEEDED would mean the service did not answer in time.
 ACCEPTABLE = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
@@ -36,6 +36,7 @@ SERVICES: dict[str, tuple[ServiceDescriptor, dict[str, Any]]] = {
     "llm": (language_pb2.DESCRIPTOR.services_by_name["LanguageModel"],
             {"generation": {"max_tokens": 2, "max_tokens_limit": 4}}),
     "models": (oip.DESCRIPTOR.services_by_name["GRPCInferenceService"], {}),
+    "tts": (synthesis_pb2.DESCRIPTOR.services_by_name["SpeechSynthesizer"], {}),
 }
 CASES = [(service, method.name) for service, (descriptor, _) in SERVICES.items()
          for method in descriptor.methods]
