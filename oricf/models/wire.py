@@ -8,12 +8,19 @@ before anything is allocated, and errors name the tensor.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.models.shared_memory import (
+    BYTE_SIZE,
+    OFFSET,
+    REGION,
+    SharedMemoryRef,
+    tensor_ref,
+)
 from oricf.models.tensors import (
     Datatype,
     check_input_shape,
@@ -93,24 +100,59 @@ def to_raw(array: np.ndarray) -> tuple[Datatype, bytes]:
     return kind, np.ascontiguousarray(array, dtype=np.dtype(kind.numpy)).tobytes()
 
 
-def request_inputs(request: oip.ModelInferRequest) -> dict[str, np.ndarray]:
-    """A request's input tensors, raw or typed; duplicates and miscounts refused."""
+# Reads the bytes a shared-memory reference names (the server's registry).
+ReadShared = Callable[[SharedMemoryRef], bytes]
+
+
+def _sources(request: oip.ModelInferRequest) -> list[int | SharedMemoryRef]:
+    """Where each input's bytes are: an index into raw_input_contents, or a shared-memory
+    region. Raw contents are the inputs' that are not in shared memory, in order (what
+    tritonclient sends); -1: the input has typed contents."""
     raw = request.raw_input_contents
-    if raw and len(raw) != len(request.inputs):
-        raise InvalidInput(f"raw_input_contents has {len(raw)} entries for "
-                           f"{len(request.inputs)} inputs")
+    sources: list[int | SharedMemoryRef] = []
+    for tensor in request.inputs:
+        ref = tensor_ref(tensor.parameters, f"input '{clip(tensor.name)}'")
+        sources.append(ref if ref is not None else
+                       sum(isinstance(s, int) for s in sources) if raw else -1)
+    in_wire = sum(isinstance(s, int) for s in sources)
+    if raw and len(raw) != in_wire:
+        raise InvalidInput(f"raw_input_contents has {len(raw)} entries for {in_wire} inputs "
+                           f"not in shared memory")
+    return sources
+
+
+def request_inputs(request: oip.ModelInferRequest, read: ReadShared | None = None
+                   ) -> dict[str, np.ndarray]:
+    """A request's input tensors, raw, typed or in shared memory (read by `read`);
+    duplicates and miscounts refused."""
+    raw = request.raw_input_contents
     tensors: dict[str, np.ndarray] = {}
-    for i, tensor in enumerate(request.inputs):
-        if tensor.name in tensors:
-            raise InvalidInput(f"input '{clip(tensor.name)}' is given twice")
-        if raw and tensor.HasField("contents"):
-            raise InvalidInput(f"input '{clip(tensor.name)}': contents and raw_input_contents "
-                               f"are both set")
-        check_input_shape(tensor.name, tensor.shape)
-        tensors[tensor.name] = (from_raw(tensor.name, tensor.datatype, tensor.shape, raw[i])
-                                if raw else
-                                from_contents(tensor.name, tensor.datatype, tensor.shape,
-                                              tensor.contents))
+    for tensor, source in zip(request.inputs, _sources(request), strict=True):
+        name = tensor.name
+        if name in tensors:
+            raise InvalidInput(f"input '{clip(name)}' is given twice")
+        check_input_shape(name, tensor.shape)
+        if isinstance(source, SharedMemoryRef):
+            if read is None:
+                raise InvalidInput(f"input '{clip(name)}': shared memory is not served here")
+            if tensor.HasField("contents"):
+                raise InvalidInput(f"input '{clip(name)}': contents and shared memory are "
+                                   f"both set")
+            # Checked before reading: the copy is never larger than the tensor it makes.
+            needed = input_bytes(tensor.datatype, tensor.shape, b"")
+            if tensor.datatype != "BYTES" and source.byte_size != needed:
+                raise InvalidInput(f"input '{clip(name)}': shared_memory_byte_size "
+                                   f"{source.byte_size:,}, but {tensor.datatype} "
+                                   f"{list(tensor.shape)} takes {needed:,} bytes")
+            tensors[name] = from_raw(name, tensor.datatype, tensor.shape, read(source))
+        elif source >= 0:
+            if tensor.HasField("contents"):
+                raise InvalidInput(f"input '{clip(name)}': contents and raw_input_contents "
+                                   f"are both set")
+            tensors[name] = from_raw(name, tensor.datatype, tensor.shape, raw[source])
+        else:
+            tensors[name] = from_contents(name, tensor.datatype, tensor.shape,
+                                          tensor.contents)
     return tensors
 
 
@@ -119,10 +161,14 @@ def request_bytes(request: oip.ModelInferRequest) -> int:
     (for a memory budget); shapes no model can run on are refused first."""
     raw = request.raw_input_contents
     total = 0
-    for i, tensor in enumerate(request.inputs):
+    for tensor, source in zip(request.inputs, _sources(request), strict=True):
         check_input_shape(tensor.name, tensor.shape)
+        if tensor.datatype == "BYTES" and isinstance(source, SharedMemoryRef):
+            total += source.byte_size
+            continue
         # Only a BYTES tensor's size needs its contents: reading an entry copies it.
-        contents = raw[i] if tensor.datatype == "BYTES" and i < len(raw) else None
+        contents = raw[source] if tensor.datatype == "BYTES" and isinstance(source, int) \
+            and source >= 0 else None
         total += input_bytes(tensor.datatype, tensor.shape, contents)
     return total
 
@@ -140,10 +186,23 @@ def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[s
     return request
 
 
-def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str = ""
+def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str = "",
+                   placed: Mapping[str, SharedMemoryRef] | None = None
                    ) -> oip.ModelInferResponse:
+    """The response: raw contents for every output but those placed in shared memory, which
+    carry its parameters instead (as Triton answers)."""
     response = oip.ModelInferResponse(model_name=model, id=request_id)
-    _add_raw(response.outputs, response.raw_output_contents, outputs)
+    placed = placed or {}
+    for name, array in outputs.items():
+        ref = placed.get(name)
+        if ref is None:
+            _add_raw(response.outputs, response.raw_output_contents, {name: array})
+            continue
+        tensor = response.outputs.add(name=name, datatype=datatype_of(array).name,
+                                      shape=array.shape)
+        set_parameter(tensor.parameters[REGION], ref.region)
+        set_parameter(tensor.parameters[OFFSET], ref.offset)
+        set_parameter(tensor.parameters[BYTE_SIZE], ref.byte_size)
     return response
 
 
@@ -156,14 +215,28 @@ def _add_raw(tensors: Any, contents: Any, arrays: dict[str, np.ndarray]) -> None
 
 
 def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:
-    """A response's output tensors, raw or typed, in order."""
+    """A response's output tensors, raw or typed, in order; those in shared memory are left
+    out (shared_outputs says where they are)."""
     raw = response.raw_output_contents
-    if raw and len(raw) != len(response.outputs):
+    wire = [t for t in response.outputs
+            if tensor_ref(t.parameters, f"output '{clip(t.name)}'") is None]
+    if raw and len(raw) != len(wire):
         raise InvalidInput(f"raw_output_contents has {len(raw)} entries for "
-                           f"{len(response.outputs)} outputs")
+                           f"{len(wire)} outputs not in shared memory")
     return {t.name: (from_raw(t.name, t.datatype, t.shape, raw[i]) if raw else
                      from_contents(t.name, t.datatype, t.shape, t.contents))
-            for i, t in enumerate(response.outputs)}
+            for i, t in enumerate(wire)}
+
+
+def shared_outputs(response: oip.ModelInferResponse
+                   ) -> dict[str, tuple[str, list[int], SharedMemoryRef]]:
+    """The outputs placed in shared memory: name -> (datatype, shape, where)."""
+    found = {}
+    for tensor in response.outputs:
+        ref = tensor_ref(tensor.parameters, f"output '{clip(tensor.name)}'")
+        if ref is not None:
+            found[tensor.name] = (tensor.datatype, list(tensor.shape), ref)
+    return found
 
 
 def set_parameter(parameter: oip.InferParameter, value: Any) -> None:

@@ -8,6 +8,7 @@ from oricf.config import FilePath, Schema, config_dir
 from oricf.imaging import MAX_PIXELS
 from oricf.services.runtime import ServiceConfig
 from oricf.services.runtime.batching import BatchingSettings
+from oricf.services.runtime.shared_memory import SharedMemorySettings
 
 
 class DetectionSettings(Schema):
@@ -29,3 +30,6 @@ class DetectorConfig(ServiceConfig):
     batching: BatchingSettings | None = Field(
         None, description="dynamic batching: requests of different callers share one "
                           "inference (off if absent; the model's batch dimension must be free)")
+    shared_memory: SharedMemorySettings = Field(
+        default_factory=SharedMemorySettings,
+        description="images in system shared memory from clients on this host")

@@ -6,12 +6,15 @@ import grpc
 
 from oricf.errors import ConfigError
 from oricf.models.declaration import DetectionTask, load_declaration
+from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.servicer import DetectorServicer
 from oricf.services.models.model import DeclaredModel
 from oricf.services.runtime import ModelSlot, ServiceSpec
 from oricf.services.runtime.batching import Batcher
+from oricf.services.runtime.shared_memory import SharedMemoryRegistry
+from oricf.services.runtime.shared_memory_rpcs import SharedMemoryServicer
 from oricf.store import ModelStore
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
@@ -36,8 +39,13 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
         batcher = Batcher(SPEC.name, config.batching, slot.peek().detect_batch,
                           config.server.retry_after_ms)
         slot.attach(batcher)
+    registry = (SharedMemoryRegistry(config.shared_memory) if config.shared_memory.enabled
+                else None)
     detector_pb2_grpc.add_DetectorServicer_to_server(
-        DetectorServicer(slot, config, labels, min_score, batcher), server)
+        DetectorServicer(slot, config, labels, min_score, batcher, registry), server)
+    if registry is not None:  # clients register the regions that requests name
+        oip_grpc.add_GRPCInferenceServiceServicer_to_server(SharedMemoryServicer(registry),
+                                                            server)
 
 
 SPEC = ServiceSpec(

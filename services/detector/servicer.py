@@ -20,6 +20,7 @@ import numpy as np
 from oricf.errors import InvalidInput, Overloaded
 from oricf.imaging import Detection, decode_image, decoded_bytes, image_size
 from oricf.models.heads import Detections, Prepared
+from oricf.models.shared_memory import SharedMemoryRef, check_region_name
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.models.model import DeclaredModel, DetectArgs
@@ -29,6 +30,7 @@ from oricf.services.runtime.batching import Batcher
 from oricf.services.runtime.errors import check_deadline, status_for
 from oricf.services.runtime.info import model_info_response
 from oricf.services.runtime.limits import MemoryBudget
+from oricf.services.runtime.shared_memory import SharedMemoryRegistry
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
@@ -57,8 +59,10 @@ StreamItem: TypeAlias = Frame | detector_pb2.DetectResponse | BaseException | No
 class DetectorServicer(detector_pb2_grpc.DetectorServicer):
     def __init__(self, slot: ModelSlot[DeclaredModel], config: DetectorConfig,
                  labels: LabelSpace, default_min_score: float,
-                 batcher: Batcher[DetectArgs, Detections] | None = None) -> None:
+                 batcher: Batcher[DetectArgs, Detections] | None = None,
+                 shared_memory: SharedMemoryRegistry | None = None) -> None:
         self.slot = slot
+        self.shared_memory = shared_memory
         self.config = config
         self.labels = labels
         self.default_min_score = default_min_score
@@ -142,15 +146,29 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         min_score = self._min_score(request.min_score)
         class_ids = self.labels.resolve(request.labels)
         image = request.image
-        args = (image.data, image.encoding, image.width, image.height,
-                self.config.images.max_pixels)
-        width, height = image_size(*args)
-        with self.budget.hold(decoded_bytes(width, height), f"a {width}x{height} image"):
-            pixels = decode_image(*args)
-            decode_ms = (time.perf_counter() - started) * 1e3
-            prepared = model.prepare(pixels)
+        region = request.image_region if request.HasField("image_region") else None
+        if region is not None and image.data:
+            raise InvalidInput("image.data and image_region are both set")
+        # The region's bytes are read within the budget: a copy, as large as it says.
+        with self.budget.hold(region.byte_size if region else 0, "the image's region"):
+            data = self._region_bytes(region) if region else image.data
+            args = (data, image.encoding, image.width, image.height,
+                    self.config.images.max_pixels)
+            width, height = image_size(*args)
+            with self.budget.hold(decoded_bytes(width, height), f"a {width}x{height} image"):
+                pixels = decode_image(*args)
+                decode_ms = (time.perf_counter() - started) * 1e3
+                prepared = model.prepare(pixels)
         return Frame(request.frame_id, width, height, prepared, class_ids, min_score, started,
                      decode_ms)
+
+    def _region_bytes(self, region: detector_pb2.SharedMemoryRef) -> bytes:
+        if self.shared_memory is None:
+            raise InvalidInput("image_region: shared memory is off on this server "
+                               "(shared_memory.enabled)")
+        ref = SharedMemoryRef(check_region_name(region.region), region.offset,
+                              region.byte_size)
+        return self.shared_memory.read(ref)
 
     def respond(self, frame: Frame, context: grpc.ServicerContext | None = None,
                 cancel: bool = True) -> detector_pb2.DetectResponse:

@@ -8,6 +8,7 @@ from oricf.config import FilePath, Schema
 from oricf.imaging import MAX_PIXELS
 from oricf.services.runtime import ServiceConfig
 from oricf.services.runtime.batching import BatchingSettings
+from oricf.services.runtime.shared_memory import SharedMemorySettings
 
 
 class EncodedImageSettings(Schema):
@@ -21,3 +22,6 @@ class ModelsConfig(ServiceConfig):
     batching: dict[str, BatchingSettings] = Field(
         default_factory=dict,
         description="model name -> dynamic batching for it (its batch dimension must be free)")
+    shared_memory: SharedMemorySettings = Field(
+        default_factory=SharedMemorySettings,
+        description="system shared memory for clients on this host (Triton's extension)")

@@ -13,6 +13,7 @@ from oricf.services.models.repository import ModelRepository
 from oricf.services.models.servicer import InferenceServicer
 from oricf.services.runtime import ModelSlot, ServiceSpec
 from oricf.services.runtime.batching import Batcher
+from oricf.services.runtime.shared_memory import SharedMemoryRegistry
 from oricf.store import ModelStore
 
 
@@ -30,8 +31,10 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],
                                  batch_runner(model, settings.max_batch_size),
                                  config.server.retry_after_ms)
         slot.attach(batchers[name])
+    shared = config.shared_memory
+    registry = SharedMemoryRegistry(shared) if shared.enabled else None
     oip_grpc.add_GRPCInferenceServiceServicer_to_server(
-        InferenceServicer(slot, config, batchers), server)
+        InferenceServicer(slot, config, batchers, registry), server)
 
 
 SPEC = ServiceSpec(

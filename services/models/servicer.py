@@ -1,9 +1,12 @@
 """inference.GRPCInferenceService (the Open Inference Protocol) over declared models.
 
 ModelInfer runs a model on its own tensors. For a model with an image task, its image
-input may instead come as an encoded image (a BYTES tensor of one JPEG or PNG under the
-input's name): the service decodes it, refusing oversized or lying images, and applies the
-declared pre-processing. That is how a remote gateway sends camera frames as JPEG.
+input may instead come as an encoded image or raw UINT8 pixels (services/models/images.py):
+the service decodes it, refusing oversized or lying images, and applies the declared
+pre-processing; a detection model then also returns decoded detections when asked
+(services/models/decoded.py). That is how a remote gateway sends camera frames as JPEG and
+gets a few hundred bytes back. Inputs and outputs may name regions of system shared memory
+(SharedMemoryServicer) instead of carrying their bytes, as with Triton.
 """
 
 from __future__ import annotations
@@ -16,13 +19,20 @@ import numpy as np
 
 from oricf import __version__
 from oricf.errors import InvalidInput, NotFound
-from oricf.imaging import decode_image, decoded_bytes, encoded_size, image_size
+from oricf.models.shared_memory import SharedMemoryRef, tensor_ref
 from oricf.models.tensors import clip
-from oricf.models.wire import infer_response, request_bytes, request_inputs
+from oricf.models.wire import (
+    infer_response,
+    parameter_value,
+    request_bytes,
+    request_inputs,
+    to_raw,
+)
 from oricf.oip import open_inference_grpc_pb2 as oip
-from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services.models.batching import Feeds, rows_of
 from oricf.services.models.config import ModelsConfig
+from oricf.services.models.decoded import decode_ask, decoded
+from oricf.services.models.images import image_feeds
 from oricf.services.models.model import DeclaredModel
 from oricf.services.models.repository import ModelRepository
 from oricf.services.runtime import ModelSlot
@@ -30,6 +40,8 @@ from oricf.services.runtime.batch_calls import run_batched
 from oricf.services.runtime.batching import Batcher
 from oricf.services.runtime.errors import check_deadline
 from oricf.services.runtime.limits import MemoryBudget
+from oricf.services.runtime.shared_memory import SharedMemoryRegistry
+from oricf.services.runtime.shared_memory_rpcs import SharedMemoryServicer
 
 log = logging.getLogger(__name__)
 
@@ -40,9 +52,11 @@ PLATFORMS = {"onnxruntime": "onnxruntime_onnx", "openvino": "openvino"}
 TENSOR_WORK_FACTOR = 8
 
 
-class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
+class InferenceServicer(SharedMemoryServicer):
     def __init__(self, slot: ModelSlot[ModelRepository], config: ModelsConfig,
-                 batchers: dict[str, Batcher[Feeds, Feeds]] | None = None) -> None:
+                 batchers: dict[str, Batcher[Feeds, Feeds]] | None = None,
+                 shared_memory: SharedMemoryRegistry | None = None) -> None:
+        super().__init__(shared_memory)
         self.slot = slot
         self.config = config
         self.batchers = batchers or {}
@@ -88,10 +102,15 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
                    ) -> oip.ModelInferResponse:
         model = self._model(request.model_name, request.model_version)
         wanted = self._wanted_outputs(model, request)
+        ask = decode_ask(model, list(request.outputs))
+        placed = self._placed_outputs(request)
         with ExitStack() as held:  # what the call holds of the budget, until it ends
             held.enter_context(self.budget.hold(request_bytes(request) * TENSOR_WORK_FACTOR,
                                                 "the request's tensors"))
-            feeds = self._decode_images(model, request_inputs(request), held)
+            read = self.shared_memory.read if self.shared_memory is not None else None
+            feeds, prepared = image_feeds(model, request_inputs(request, read),
+                                          _image_encoding(model, request),
+                                          self.config.images.max_pixels, self.budget.hold)
             unknown = sorted(set(feeds) - {spec.name for spec in model.inputs})
             if unknown:
                 raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
@@ -101,9 +120,12 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
             batcher = self.batchers.get(model.name)
             outputs = model.infer(feeds) if batcher is None else \
                 self._batched(batcher, model, feeds, context)
+            if ask is not None:
+                outputs = {**outputs, ask.output: decoded(model, ask, outputs, prepared)}
             if wanted:
                 outputs = {name: outputs[name] for name in wanted}
-            response = infer_response(model.name, outputs, request.id)
+            response = infer_response(model.name, outputs, request.id, placed)
+            self._write_placed(outputs, placed)
         response.model_version = VERSION
         return response
 
@@ -116,6 +138,24 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
                 raise InvalidInput(f"model {model.name} has no output '{clip(name)}' "
                                    f"(outputs: {', '.join(sorted(known))})")
         return wanted
+
+    def _placed_outputs(self, request: oip.ModelInferRequest) -> dict[str, SharedMemoryRef]:
+        """The requested outputs that go to shared memory, by name."""
+        placed = {}
+        for output in request.outputs:
+            ref = tensor_ref(output.parameters, f"output '{clip(output.name)}'")
+            if ref is not None:
+                if self.shared_memory is None:
+                    raise InvalidInput(f"output '{clip(output.name)}': shared memory is off "
+                                       f"on this server")
+                placed[output.name] = ref
+        return placed
+
+    def _write_placed(self, outputs: dict[str, np.ndarray],
+                      placed: dict[str, SharedMemoryRef]) -> None:
+        for name, ref in placed.items():
+            assert self.shared_memory is not None
+            self.shared_memory.write(ref, to_raw(outputs[name])[1])
 
     @staticmethod
     def _batched(batcher: Batcher[Feeds, Feeds], model: DeclaredModel, feeds: Feeds,
@@ -132,24 +172,14 @@ class InferenceServicer(oip_grpc.GRPCInferenceServiceServicer):
                            f"(served: {VERSION})")
         return model
 
-    def _decode_images(self, model: DeclaredModel, feeds: dict[str, np.ndarray],
-                       held: ExitStack) -> dict[str, np.ndarray]:
-        """An encoded image under the image input's name -> the declared input tensor; its
-        decoding's memory held in the budget with `held`."""
-        head = model.head
-        if head is None or head.input_name not in feeds:
-            return feeds
-        value = feeds[head.input_name]
-        if value.dtype != object or model.input(head.input_name).datatype == "BYTES":
-            return feeds
-        if value.size != 1:
-            raise InvalidInput(f"input '{head.input_name}': one encoded image per request, "
-                               f"got {value.size}")
-        data = bytes(value.reshape(-1)[0])
-        kind, _, _ = encoded_size(data)  # whichever of the two it is
-        max_pixels = self.config.images.max_pixels
-        width, height = image_size(data, kind, max_pixels=max_pixels)
-        held.enter_context(self.budget.hold(decoded_bytes(width, height),
-                                            f"a {width}x{height} image"))
-        pixels = decode_image(data, kind, max_pixels=max_pixels)
-        return {**feeds, **head.prepare(pixels).feeds}
+
+def _image_encoding(model: DeclaredModel, request: oip.ModelInferRequest) -> str:
+    """The `encoding` parameter of the image input, "" if none."""
+    head = model.head
+    for tensor in request.inputs:
+        if head is not None and tensor.name == head.input_name and "encoding" in tensor.parameters:
+            value = parameter_value(tensor.parameters["encoding"])
+            if not isinstance(value, str):
+                raise InvalidInput(f"input '{clip(tensor.name)}': encoding must be a string")
+            return value
+    return ""

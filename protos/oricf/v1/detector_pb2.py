@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from oricf.v1 import common_pb2 as oricf_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17oricf/v1/detector.proto\x12\x08oricf.v1\x1a\x15oricf/v1/common.proto\"\x8d\x01\n\rDetectRequest\x12\x1e\n\x05image\x18\x01 \x01(\x0b\x32\x0f.oricf.v1.Image\x12\x0e\n\x06labels\x18\x02 \x03(\t\x12\x11\n\tmin_score\x18\x03 \x01(\x02\x12\x10\n\x08\x66rame_id\x18\x06 \x01(\x04J\x04\x08\x04\x10\x05J\x04\x08\x05\x10\x06R\x08\x61nnotateR\x11\x61nnotate_encoding\"I\n\x0b\x42oundingBox\x12\r\n\x05x_min\x18\x01 \x01(\x02\x12\r\n\x05y_min\x18\x02 \x01(\x02\x12\r\n\x05x_max\x18\x03 \x01(\x02\x12\r\n\x05y_max\x18\x04 \x01(\x02\"_\n\tDetection\x12\r\n\x05label\x18\x01 \x01(\t\x12\x10\n\x08\x63lass_id\x18\x02 \x01(\x05\x12\r\n\x05score\x18\x03 \x01(\x02\x12\"\n\x03\x62ox\x18\x04 \x01(\x0b\x32\x15.oricf.v1.BoundingBox\"\xd9\x01\n\x0e\x44\x65tectResponse\x12\'\n\ndetections\x18\x01 \x03(\x0b\x32\x13.oricf.v1.Detection\x12\"\n\x07timings\x18\x04 \x01(\x0b\x32\x11.oricf.v1.Timings\x12\x10\n\x08\x66rame_id\x18\x05 \x01(\x04\x12\x13\n\x0bimage_width\x18\x06 \x01(\r\x12\x14\n\x0cimage_height\x18\x07 \x01(\r\x12\x1e\n\x05\x65rror\x18\x08 \x01(\x0b\x32\x0f.oricf.v1.ErrorJ\x04\x08\x02\x10\x03J\x04\x08\x03\x10\x04R\x06\x63ountsR\tannotated2\xdd\x01\n\x08\x44\x65tector\x12;\n\x06\x44\x65tect\x12\x17.oricf.v1.DetectRequest\x1a\x18.oricf.v1.DetectResponse\x12\x45\n\x0c\x44\x65tectStream\x12\x17.oricf.v1.DetectRequest\x1a\x18.oricf.v1.DetectResponse(\x01\x30\x01\x12M\n\x0cGetModelInfo\x12\x1d.oricf.v1.GetModelInfoRequest\x1a\x1e.oricf.v1.GetModelInfoResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17oricf/v1/detector.proto\x12\x08oricf.v1\x1a\x15oricf/v1/common.proto\"\xbe\x01\n\rDetectRequest\x12\x1e\n\x05image\x18\x01 \x01(\x0b\x32\x0f.oricf.v1.Image\x12\x0e\n\x06labels\x18\x02 \x03(\t\x12\x11\n\tmin_score\x18\x03 \x01(\x02\x12\x10\n\x08\x66rame_id\x18\x06 \x01(\x04\x12/\n\x0cimage_region\x18\x07 \x01(\x0b\x32\x19.oricf.v1.SharedMemoryRefJ\x04\x08\x04\x10\x05J\x04\x08\x05\x10\x06R\x08\x61nnotateR\x11\x61nnotate_encoding\"D\n\x0fSharedMemoryRef\x12\x0e\n\x06region\x18\x01 \x01(\t\x12\x0e\n\x06offset\x18\x02 \x01(\x04\x12\x11\n\tbyte_size\x18\x03 \x01(\x04\"I\n\x0b\x42oundingBox\x12\r\n\x05x_min\x18\x01 \x01(\x02\x12\r\n\x05y_min\x18\x02 \x01(\x02\x12\r\n\x05x_max\x18\x03 \x01(\x02\x12\r\n\x05y_max\x18\x04 \x01(\x02\"_\n\tDetection\x12\r\n\x05label\x18\x01 \x01(\t\x12\x10\n\x08\x63lass_id\x18\x02 \x01(\x05\x12\r\n\x05score\x18\x03 \x01(\x02\x12\"\n\x03\x62ox\x18\x04 \x01(\x0b\x32\x15.oricf.v1.BoundingBox\"\xd9\x01\n\x0e\x44\x65tectResponse\x12\'\n\ndetections\x18\x01 \x03(\x0b\x32\x13.oricf.v1.Detection\x12\"\n\x07timings\x18\x04 \x01(\x0b\x32\x11.oricf.v1.Timings\x12\x10\n\x08\x66rame_id\x18\x05 \x01(\x04\x12\x13\n\x0bimage_width\x18\x06 \x01(\r\x12\x14\n\x0cimage_height\x18\x07 \x01(\r\x12\x1e\n\x05\x65rror\x18\x08 \x01(\x0b\x32\x0f.oricf.v1.ErrorJ\x04\x08\x02\x10\x03J\x04\x08\x03\x10\x04R\x06\x63ountsR\tannotated2\xdd\x01\n\x08\x44\x65tector\x12;\n\x06\x44\x65tect\x12\x17.oricf.v1.DetectRequest\x1a\x18.oricf.v1.DetectResponse\x12\x45\n\x0c\x44\x65tectStream\x12\x17.oricf.v1.DetectRequest\x1a\x18.oricf.v1.DetectResponse(\x01\x30\x01\x12M\n\x0cGetModelInfo\x12\x1d.oricf.v1.GetModelInfoRequest\x1a\x1e.oricf.v1.GetModelInfoResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,13 +33,15 @@ _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'oricf.v1.detector_pb2', _gl
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_DETECTREQUEST']._serialized_start=61
-  _globals['_DETECTREQUEST']._serialized_end=202
-  _globals['_BOUNDINGBOX']._serialized_start=204
-  _globals['_BOUNDINGBOX']._serialized_end=277
-  _globals['_DETECTION']._serialized_start=279
-  _globals['_DETECTION']._serialized_end=374
-  _globals['_DETECTRESPONSE']._serialized_start=377
-  _globals['_DETECTRESPONSE']._serialized_end=594
-  _globals['_DETECTOR']._serialized_start=597
-  _globals['_DETECTOR']._serialized_end=818
+  _globals['_DETECTREQUEST']._serialized_end=251
+  _globals['_SHAREDMEMORYREF']._serialized_start=253
+  _globals['_SHAREDMEMORYREF']._serialized_end=321
+  _globals['_BOUNDINGBOX']._serialized_start=323
+  _globals['_BOUNDINGBOX']._serialized_end=396
+  _globals['_DETECTION']._serialized_start=398
+  _globals['_DETECTION']._serialized_end=493
+  _globals['_DETECTRESPONSE']._serialized_start=496
+  _globals['_DETECTRESPONSE']._serialized_end=713
+  _globals['_DETECTOR']._serialized_start=716
+  _globals['_DETECTOR']._serialized_end=937
 # @@protoc_insertion_point(module_scope)
