@@ -4,10 +4,11 @@
                 [--listen HOST:PORT] [--metrics-listen HOST:PORT] [--http-listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
+    oricf mcp --config PIPELINE.yaml | --attach ADDRESS [--transport stdio|http]
     oricf up DEPLOYMENT.yaml
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
-    oricf bench detector|asr|llm|gateway|models|link|rtsp|offload|edge [...]
+    oricf bench detector|asr|llm|tts|gateway|models|link|rtsp|offload|edge|tracking [...]
 
 Verbs with options of their own hand the rest of the command line to their module's main().
 """
@@ -31,10 +32,12 @@ log = logging.getLogger("oricf")
 DELEGATED = {
     "certs": "oricf.certs",
     "gateway": "oricf.gateway.main",
+    "mcp": "oricf.gateway.agents.main",
     "up": "oricf.launch.up",
     "demo": "oricf.demo.main",
 }
-BENCHMARKS = ("detector", "asr", "llm", "gateway", "models", "link", "rtsp", "offload", "edge")
+BENCHMARKS = ("detector", "asr", "llm", "tts", "gateway", "models", "link", "rtsp", "offload",
+              "edge", "tracking")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:
