@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from oricf.audio import check_format
+from oricf.audio import check_format, mix_down, resample, to_float32, to_int16
 from oricf.errors import InvalidInput
 from oricf.imaging import ENCODED, RAW_CHANNELS, check_size, decode_image, encode_image
 from oricf.logs import quoted
@@ -112,9 +112,27 @@ class AudioClip:
     def duration_s(self) -> float:
         return len(self.pcm) / (2 * self.channels * self.sample_rate)
 
+    def mono(self, rate: int) -> np.ndarray:
+        """The clip as mono int16 samples at `rate` (mixed down, resampled)."""
+        frames = np.frombuffer(self.pcm, "<i2").reshape(-1, self.channels)
+        if self.channels == 1 and self.sample_rate == rate:
+            return frames[:, 0]
+        floats = resample(mix_down(to_float32(frames)), self.sample_rate, rate)
+        return to_int16(floats)
+
     def to_proto(self) -> speech_pb2.Audio:
         return speech_pb2.Audio(data=self.pcm, encoding="pcm_s16le",
                                 sample_rate=self.sample_rate, channels=self.channels)
+
+
+@dataclass(frozen=True)
+class SpokenAudio(AudioClip):
+    """Synthesized speech (oricf.gateway.methods.synthesize): the audio of `text`, and the
+    clock time (time.monotonic) the synthesis was asked for; speech asked for before a
+    barge-in is never played (oricf.gateway.speaking)."""
+
+    text: str = ""
+    asked_at: float = 0.0
 
 
 def audio_clip(samples: Any, sample_rate: int, channels: int) -> AudioClip:

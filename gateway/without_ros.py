@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import threading
 
+from oricf.gateway.agents.host import serve_gateway_control
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import TopicOutputs
@@ -24,7 +25,7 @@ def run(config: PipelineConfig, replay: Replay | None = None) -> int:
     come from a recording and topic outputs go to its recorder or standard output; the exit
     code is then the replay's."""
     outlets = Outlets(config, None if replay is None else TopicOutputs(replay.recorder))
-    pipeline = Pipeline(config, outlets)
+    pipeline = Pipeline(config, outlets, speaking=outlets.speaking)
     ended: set[str] = set()
     lock = threading.Lock()
     with stop_on_signals() as stop:
@@ -39,6 +40,7 @@ def run(config: PipelineConfig, replay: Replay | None = None) -> int:
             sources += replay.sources(pipeline, on_end)
         outlets.start()
         pipeline.start()
+        stop_control = serve_gateway_control(pipeline, outlets.channels)
         for source in sources:
             source.start()
         log.info("gateway (no ROS): %d routes, sources: %s", len(config.routes),
@@ -49,6 +51,7 @@ def run(config: PipelineConfig, replay: Replay | None = None) -> int:
         for source in sources:
             source.stop()
         pipeline.idle(10)
+        stop_control()
         pipeline.stop()
     outlets.close()
     if replay is not None:

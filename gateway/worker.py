@@ -119,6 +119,16 @@ class RouteWorker(Generic[T]):
         with self._cond:
             return self._cond.wait_for(lambda: not self._pending and not self._busy, timeout)
 
+    def clear(self) -> int:
+        """Drops what is pending (not the item in progress, nor those told of drops: a
+        barge-in drops speech nobody asked for); how many were dropped."""
+        with self._cond:
+            dropped = len(self._pending)
+            self.stats.dropped += dropped
+            self._pending.clear()
+            self._cond.notify_all()
+        return dropped
+
     def stop(self, timeout: float = 5.0) -> None:
         """Drops what is pending, telling each item; lets the item in progress finish
         (bounded by its deadline)."""

@@ -5,6 +5,7 @@ result, and its entry in METHODS (oricf.gateway.methods.base.Method).
     Transcribe  audio            -> Transcript (transcript, duration_s); no words ends the route
     Generate    prompt template  -> Answer (answer); data products as typed facts for context
     Infer       image            -> Detections, or Classes (classes, label, score)
+    Synthesize  text template    -> Speech (speech: each sentence's audio as it is made; spoken)
 
 Adding a method is one module with a METHOD, and its line below.
 """
@@ -15,19 +16,21 @@ from typing import Annotated
 
 from pydantic import Field
 
-from oricf.gateway.methods import detect, generate, infer, transcribe
-from oricf.gateway.methods.base import Method, Skip
+from oricf.gateway.methods import detect, generate, infer, synthesize, transcribe
+from oricf.gateway.methods.base import Method, Partial, Skip
 
 METHODS: dict[str, Method] = {m.name: m for m in (
     detect.METHOD,
     transcribe.METHOD,
     generate.METHOD,
     infer.METHOD,
+    synthesize.METHOD,
 )}
 
 # A route's `call:`: the `method` key picks the schema, so a key of another method is refused.
 CallConfig = Annotated[
-    detect.DetectCall | transcribe.TranscribeCall | generate.GenerateCall | infer.InferCall,
+    detect.DetectCall | transcribe.TranscribeCall | generate.GenerateCall | infer.InferCall
+    | synthesize.SynthesizeCall,
     Field(discriminator="method")]
 
-__all__ = ["METHODS", "CallConfig", "Method", "Skip"]
+__all__ = ["METHODS", "CallConfig", "Method", "Partial", "Skip"]

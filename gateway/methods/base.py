@@ -34,6 +34,16 @@ class Skip(Exception):
     """Nothing to pass on for this message (e.g. silence transcribed to nothing)."""
 
 
+@dataclass(frozen=True)
+class Partial:
+    """A piece of a result handed on before the call ends (a sentence of an answer still
+    being generated, the audio of one sentence): its fields go at once to the outputs that
+    take them. A method whose call streams returns an iterator of Partials ending with its
+    result, in which those fields are None (so they are not sent twice)."""
+
+    fields: dict[str, Any]
+
+
 class CallBase(Schema):
     """The keys every call has: the endpoint it goes to."""
 

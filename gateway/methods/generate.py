@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import numbers
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -22,8 +22,9 @@ from oricf.errors import InvalidInput
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.endpoints.endpoint import Work
 from oricf.gateway.endpoints.openai import OpenAITarget, chat_completion
-from oricf.gateway.methods.base import CallBase, Invoke, Method, Skip, health_check
+from oricf.gateway.methods.base import CallBase, Invoke, Method, Partial, Skip, health_check
 from oricf.gateway.methods.chat import ChatTemplates, ImageContext, image_url, messages
+from oricf.gateway.methods.sentences import SentenceCutter
 from oricf.gateway.products import ProductStore, Reading
 from oricf.gateway.values import Record, template_fields
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
@@ -51,6 +52,10 @@ class GenerateCall(CallBase):
     context: ContextConfig | None = None
     stream: bool = Field(False, description="take the answer as it is produced (GenerateStream, "
                                             "or server-sent events), joined")
+    sentences: bool = Field(
+        False, description="stream the answer and send each sentence on (field `sentence`) "
+                           "as soon as it is complete, e.g. to be spoken while the rest is "
+                           "generated")
     image: ImageContext | None = Field(
         None, description="openai: the newest frame of a data product, for a vision-language "
                           "model")
@@ -65,6 +70,12 @@ class GenerateCall(CallBase):
 @dataclass(frozen=True)
 class Answer:
     answer: str
+
+
+@dataclass(frozen=True)
+class SentencedAnswer:
+    answer: str
+    sentence: str | None  # each sentence is sent on as it is complete (a Partial)
 
 
 def context_readings(call: GenerateCall, products: ProductStore) -> list[Reading]:
@@ -153,16 +164,63 @@ def bind(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invo
             return chat_completion(target, body, timeout, call.stream)
         return work
 
-    def invoke(record: Record) -> Answer:
+    def pieces_over_grpc(request: language_pb2.GenerateRequest) -> Work[Iterator[str]]:
+        def work(target: GrpcTarget, timeout: float) -> Iterator[str]:
+            if call.image is not None:
+                text_only.warn(target.address)
+            replies = target.invoke("GenerateStream", request, timeout)
+            # The first piece is awaited here, so that a server that is down or busy is
+            # retried or failed over like any call; the rest streams.
+            first = next(replies, None)
+            return _pieces(replies, first)
+        return work
+
+    def pieces_over_openai(request: language_pb2.GenerateRequest, readings: list[Reading]
+                           ) -> Work[Iterator[str]]:
+        whole = over_openai(request, readings)
+        return lambda target, timeout: iter([whole(target, timeout)])
+
+    def invoke(record: Record) -> Answer | Iterator[Partial | SentencedAnswer]:
         readings = context_readings(call, products)
         request = generate_request(record, call, products, readings)
         if log.isEnabledFor(logging.DEBUG):
             log.debug("Generate prompt %r facts %s", request.prompt, facts_text(request.facts))
+        if call.sentences:
+            return _sentences(endpoint.run({"grpc": pieces_over_grpc(request),
+                                            "openai": pieces_over_openai(request, readings)}))
         text = endpoint.run({"grpc": over_grpc(request),
                              "openai": over_openai(request, readings)})
         return Answer(text.strip())
 
     return invoke
+
+
+def _pieces(replies: Any, first: Any) -> Iterator[str]:
+    try:
+        reply = first
+        while reply is not None:
+            yield str(reply.text)
+            reply = next(replies, None)
+    finally:
+        replies.cancel()  # stopped early (barge-in): the model stops generating
+
+
+def _sentences(pieces: Iterator[str]) -> Iterator[Partial | SentencedAnswer]:
+    """Each sentence as soon as it is complete, then the whole answer."""
+    cutter = SentenceCutter()
+    text = []
+    try:
+        for piece in pieces:
+            text.append(piece)
+            for sentence in cutter.push(piece):
+                yield Partial({"sentence": sentence})
+    finally:
+        close = getattr(pieces, "close", None)
+        if close is not None:
+            close()
+    for sentence in cutter.flush():
+        yield Partial({"sentence": sentence})
+    yield SentencedAnswer("".join(text).strip(), None)
 
 
 class _TextOnly:
@@ -181,7 +239,7 @@ class _TextOnly:
 
 
 def result(call: Any) -> type:
-    return Answer
+    return SentencedAnswer if call.sentences else Answer
 
 
 def reads(call: GenerateCall) -> dict[str, set[str]]:

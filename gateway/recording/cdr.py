@@ -181,6 +181,17 @@ def write_string(text: str) -> bytes:
     return write.getvalue()
 
 
+def write_int16_array(samples: bytes) -> bytes:
+    """std_msgs/Int16MultiArray with an empty layout, serialized; `samples` little-endian
+    int16."""
+    write = _Writer()
+    write.uint32(0)  # layout.dim: no dimensions
+    write.uint32(0)  # layout.data_offset
+    write.uint32(len(samples) // 2)
+    write._put(samples, 2)
+    return write.getvalue()
+
+
 def write_image(image: ImageFields) -> bytes:
     """sensor_msgs/Image, serialized: the inverse of image()."""
     write = _Writer()

@@ -7,7 +7,8 @@ are serialized for recordings by cdr.py, the same messages convert.to_message bu
 
 Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
 samples interleaved by channel; the sample rate and channel count come from the route's YAML
-(16000 Hz mono by default), `layout` is ignored.
+(16000 Hz mono by default), `layout` is ignored. Audio the gateway publishes (speech) follows
+the default: 16000 Hz mono, one sentence per message.
 """
 
 from __future__ import annotations
@@ -19,7 +20,14 @@ import numpy as np
 from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording import cdr
-from oricf.gateway.values import Frame, Record, audio_clip, compressed_frame, raw_frame
+from oricf.gateway.values import (
+    AudioClip,
+    Frame,
+    Record,
+    audio_clip,
+    compressed_frame,
+    raw_frame,
+)
 from oricf.imaging import RAW_CHANNELS
 
 
@@ -45,6 +53,17 @@ def data_record(config: InputConfig, data: Any) -> Record:
     raise InvalidInput(f"unsupported message type {config.type}")
 
 
+TOPIC_AUDIO_RATE = 16000  # the convention's default: what a subscriber assumes
+
+
+def topic_audio(value: Any) -> bytes:
+    """Audio for an std_msgs/Int16MultiArray topic: mono little-endian int16 at
+    TOPIC_AUDIO_RATE (raises TypeError for a value that is no audio)."""
+    if not isinstance(value, AudioClip):
+        raise TypeError(f"{type(value).__name__} is not audio")
+    return value.mono(TOPIC_AUDIO_RATE).astype("<i2").tobytes()
+
+
 def serialize_output(type_: str, value: Any, header: cdr.Stamp | None = None) -> bytes:
     """A route value -> the serialized output message of the given type (raises ValueError
     or TypeError for a value that does not fit, InvalidInput for a type without a writer)."""
@@ -52,6 +71,8 @@ def serialize_output(type_: str, value: Any, header: cdr.Stamp | None = None) ->
         return cdr.write_int32(int(value))
     if type_ == "std_msgs/String":
         return cdr.write_string(str(value))
+    if type_ == "std_msgs/Int16MultiArray":
+        return cdr.write_int16_array(topic_audio(value))
     if type_ == "sensor_msgs/Image":
         if not isinstance(value, Frame):
             raise TypeError(f"{type(value).__name__} is not an image")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from builtin_interfaces.msg import Time
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header, Int16MultiArray, Int32, String
@@ -18,7 +19,7 @@ from std_msgs.msg import Header, Int16MultiArray, Int32, String
 from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording import cdr
-from oricf.gateway.recording.topic_values import data_record, image_record
+from oricf.gateway.recording.topic_values import data_record, image_record, topic_audio
 from oricf.gateway.route import Loader
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import RAW_CHANNELS
@@ -53,6 +54,10 @@ def to_message(type_: str, value: Any, header: cdr.Stamp | None = None) -> Any:
         return String(data=str(value))
     if type_ == "sensor_msgs/Image":
         return image_message(value, header)
+    if type_ == "std_msgs/Int16MultiArray":
+        message = Int16MultiArray()
+        message.data = np.frombuffer(topic_audio(value), "<i2")
+        return message
     raise InvalidInput(f"unsupported output type {type_}")
 
 

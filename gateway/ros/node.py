@@ -50,7 +50,7 @@ class GatewayNode(Node):
         self._recorder = recorder  # --record: every topic input and output into a file
         self._cameras: list[CameraReceiver] = []
         self._outlets = Outlets(config, TopicPublishers(self, config, recorder))
-        self.pipeline = Pipeline(config, self._outlets)
+        self.pipeline = Pipeline(config, self._outlets, speaking=self._outlets.speaking)
         self._sources = pipeline_sources(self.pipeline, self._outlets.channels,
                                          lambda route: None)
         for name, route in config.routes.items():
@@ -94,6 +94,11 @@ class GatewayNode(Node):
                                  on_message,  # type: ignore[arg-type]
                                  input_qos(config),
                                  callback_group=MutuallyExclusiveCallbackGroup())
+
+    @property
+    def outlets(self) -> Outlets:
+        """Where outputs go, text channels included (the agent's targets use them too)."""
+        return self._outlets
 
     def shutdown(self) -> None:
         for source in self._sources:

@@ -13,6 +13,7 @@ from typing import Any
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sources.base import OnEnd, Source, Submit
+from oricf.gateway.speaking import Speaking
 from oricf.gateway.text_channels import Channels
 
 # source key -> "module:class" (imported only when a route uses it: audio needs its extra)
@@ -21,12 +22,14 @@ SOURCES = {
     "audio": "oricf.gateway.sources.audio:AudioSource",
     "text": "oricf.gateway.sources.text:TextSource",
 }
-# Sources that read the pipeline's text channels are given them.
+# Sources that read the pipeline's text channels are given them; sources that hear the
+# robot speak are given the pipeline's Speaking (oricf.gateway.speaking).
 USES_CHANNELS = {"text"}
+HEARS_SPEECH = {"audio"}
 
 
 def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEnd,
-                 channels: Channels) -> list[Source]:
+                 channels: Channels, speaking: Speaking | None = None) -> list[Source]:
     """One source per route whose input has a source here; `submit[route]` feeds the route."""
     sources = []
     for name, route in config.routes.items():
@@ -36,6 +39,8 @@ def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEn
         module, _, cls = SOURCES[key].partition(":")
         factory = getattr(importlib.import_module(module), cls)
         extra: dict[str, Any] = {"channels": channels} if key in USES_CHANNELS else {}
+        if key in HEARS_SPEECH and speaking is not None:
+            extra["speaking"] = speaking
         sources.append(factory(name, route.input, submit[name], on_end, **extra))
     return sources
 
@@ -44,7 +49,7 @@ def pipeline_sources(pipeline: Pipeline, channels: Channels, on_end: OnEnd) -> l
     """The pipeline's sources that are no ROS topics, each feeding its route."""
     submit: dict[str, Submit] = {name: functools.partial(pipeline.submit, name)
                                  for name in pipeline.config.routes}
-    return make_sources(pipeline.config, submit, on_end, channels)
+    return make_sources(pipeline.config, submit, on_end, channels, pipeline.speaking)
 
 
 __all__ = ["SOURCES", "OnEnd", "Source", "Submit", "make_sources", "pipeline_sources"]

@@ -30,6 +30,7 @@ from oricf.gateway.config import InputConfig, VadConfig
 from oricf.gateway.sources import audio_device
 from oricf.gateway.sources.base import OnEnd, Submit
 from oricf.gateway.sources.wav import WavFile, is_wav_path
+from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip, audio_clip
 
 if TYPE_CHECKING:
@@ -81,6 +82,11 @@ class Utterances:
         self._resampler = Resampler(sample_rate, MODEL_RATE) if sample_rate != MODEL_RATE \
             else None
 
+    @property
+    def voiced_s(self) -> float:
+        """Seconds of speech in the utterance still open (0 when none is)."""
+        return self._endpointer.voiced_s
+
     def push(self, frames: np.ndarray) -> list[AudioClip]:
         mono = mix_down(to_float32(frames))
         if self._resampler is not None:
@@ -101,7 +107,8 @@ class Utterances:
 
 
 class AudioSource:
-    def __init__(self, route: str, config: InputConfig, submit: Submit, on_end: OnEnd) -> None:
+    def __init__(self, route: str, config: InputConfig, submit: Submit, on_end: OnEnd,
+                 speaking: Speaking | None = None) -> None:
         assert config.audio is not None
         self.route = route
         self.config = config
@@ -112,6 +119,10 @@ class AudioSource:
         self._on_end = on_end
         self._stop = threading.Event()
         self._wav: WavFile | None = None
+        self._speaking = speaking
+        self._while_speaking = config.while_speaking or "mute"
+        self._barge_in_s = (config.vad or VadConfig()).min_speech_ms / 1000
+        self._barged_in = False
         key = f"routes.{route}.input.audio"
         try:  # everything that can be checked before the gateway runs, is
             self._cutter = Utterances(shared_vad(), config.vad or VadConfig())
@@ -162,7 +173,7 @@ class AudioSource:
             for block in wav.blocks(WAV_BLOCK_S):
                 if self._stop.is_set():
                     return
-                self._send(self._cutter.push(block))
+                self._hear(block)
                 ahead = started + wav.frames_read / wav.sample_rate - time.monotonic()
                 if ahead > 0:
                     self._stop.wait(ahead)
@@ -224,4 +235,20 @@ class AudioSource:
         while not self._stop.is_set():
             block = capture.read(READ_TIMEOUT_S)
             if block is not None:
-                self._send(self._cutter.push(block))
+                self._hear(block)
+
+    def _hear(self, block: np.ndarray) -> None:
+        """One block of audio into the cutter, muted while the robot speaks, or stopping
+        its speech once a new utterance has begun (oricf.gateway.speaking)."""
+        speaking = self._speaking
+        if speaking is not None and self._while_speaking == "mute" and speaking.muted():
+            block = np.zeros_like(block)
+        clips = self._cutter.push(block)
+        if speaking is not None and self._while_speaking == "barge_in":
+            voiced = self._cutter.voiced_s
+            if voiced >= self._barge_in_s and not self._barged_in:
+                self._barged_in = True
+                speaking.interrupt(f"route {self.route}: a new utterance")
+            elif voiced == 0:
+                self._barged_in = False
+        self._send(clips)

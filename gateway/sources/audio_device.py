@@ -22,6 +22,7 @@ import shutil
 import subprocess
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
@@ -154,6 +155,42 @@ def capture_rate(device: Device, sample_rate: int, channels: int) -> int:
             continue
     raise ConfigError(f"{device.describe()} cannot capture {channels} channel(s) of 16-bit "
                       f"audio at {sample_rate} Hz or at its own {device.default_rate} Hz")
+
+
+@contextlib.contextmanager
+def pulse_target(variable: str, name: str | None) -> Iterator[None]:
+    """Sets PULSE_SOURCE or PULSE_SINK (when `name` is given) around opening a stream: the
+    ALSA plugin reads it when it connects, and the environment is the whole process's, so
+    opens take turns. Counts the stream opened inside as open (refresh_devices)."""
+    global _open_streams
+    with _open_lock:
+        saved = os.environ.get(variable)
+        if name:
+            os.environ[variable] = name
+        try:
+            yield
+            _open_streams += 1
+        finally:
+            _restore(variable, saved)
+
+
+def stream_closed() -> None:
+    global _open_streams
+    with _open_lock:
+        _open_streams -= 1
+
+
+def pulse_sinks() -> list[str] | None:
+    """The PulseAudio (or PipeWire) server's sinks; None if there is no server to ask."""
+    pactl = shutil.which("pactl")
+    if pactl is None:
+        return None
+    try:
+        listing = subprocess.run([pactl, "list", "short", "sinks"], capture_output=True,
+                                 text=True, timeout=5, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return [line.split("\t")[1] for line in listing.splitlines() if "\t" in line]
 
 
 class Capture:

@@ -86,6 +86,12 @@ class Endpointer:
         self._silence = 0        # trailing samples scored as silence
         self._vad_ms = 0.0
 
+    @property
+    def voiced_s(self) -> float:
+        """Seconds scored as speech in the utterance still open (0 when none is open): how
+        sure it is that someone has started to speak."""
+        return self._voiced / SAMPLE_RATE if self._speech is not None else 0.0
+
     def push(self, samples: np.ndarray, check: Callable[[], None] | None = None
              ) -> list[Utterance]:
         """Utterances the samples complete; check() runs every CHECK_EVERY windows (it raises

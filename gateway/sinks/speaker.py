@@ -1,0 +1,259 @@
+"""Speech played on an audio output device (`audio: {device: ...}`), through PortAudio (the
+`sounddevice` package) like the audio inputs: 'default', an index, a PortAudio name, or a
+PulseAudio sink's name (`pactl list short sinks`), opened as PortAudio's 'pulse' device with
+PULSE_SINK naming it.
+
+The route hands audio over (play) and goes on; a thread of the speaker's own plays it in
+order. Pieces that follow each other within IDLE_S play in one stream, so the sentences of
+an answer sound as one; the stream is closed when none follows. interrupt() (a barge-in)
+drops what is queued and aborts the stream, which discards what the device still buffers
+(LATENCY_S); the player looks for it every POLL_S.
+
+While a stream plays, the pipeline's Speaking says so (muted microphones hear silence).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from oricf.errors import ConfigError
+from oricf.gateway.config import SpeakerConfig
+from oricf.gateway.sources import audio_device
+from oricf.gateway.speaking import Speaking
+from oricf.gateway.values import AudioClip, SpokenAudio
+
+log = logging.getLogger(__name__)
+
+LATENCY_S = 0.1       # the device's buffer: a barge-in discards it
+POLL_S = 0.02         # how often the player looks for a barge-in and the buffer's end
+IDLE_S = 0.5          # a piece arriving within this after the last keeps the stream open
+PREFERRED_RATES = (48000, 44100, 22050, 16000)
+
+
+@dataclass(frozen=True)
+class OutputDevice:
+    index: int
+    name: str
+    pulse_sink: str | None
+    default_rate: int
+
+    def describe(self) -> str:
+        if self.pulse_sink:
+            return f"PulseAudio sink '{self.pulse_sink}' (through PortAudio " \
+                   f"'{audio_device.PULSE_DEVICE}')"
+        return f"'{self.name}' (PortAudio device {self.index})"
+
+
+def find_output(spec: str) -> OutputDevice:
+    """The output device `spec` names, or a ConfigError listing those there are."""
+    sd = audio_device.portaudio()
+    wanted: int | str | None = None if spec == "default" else (
+        int(spec) if spec.isdigit() else spec)
+    try:
+        info = sd.query_devices(wanted, "output")
+        return OutputDevice(int(info["index"]), str(info["name"]), None,
+                            int(info["default_samplerate"]))
+    except (ValueError, sd.PortAudioError):
+        pass
+    if wanted is not None and spec in (audio_device.pulse_sinks() or []):
+        for info in sd.query_devices():
+            if info["name"] == audio_device.PULSE_DEVICE and info["max_output_channels"] > 0:
+                return OutputDevice(int(info["index"]), str(info["name"]), spec,
+                                    int(info["default_samplerate"]))
+    outputs = [f"{d['index']} '{d['name']}'" for d in sd.query_devices()
+               if d["max_output_channels"] > 0]
+    text = f"no audio output device '{spec}'; PortAudio output devices: " \
+           f"{', '.join(outputs) or 'none'}"
+    sinks = audio_device.pulse_sinks()
+    if sinks:
+        text += f"; PulseAudio sinks: {', '.join(sinks)}"
+    raise ConfigError(text + " (give 'default', an index or a name)")
+
+
+def playback_rate(device: OutputDevice, rate: int) -> int:
+    """`rate` if the device plays it, else the first it does of its own and common rates."""
+    sd = audio_device.portaudio()
+    for candidate in dict.fromkeys((rate, device.default_rate, *PREFERRED_RATES)):
+        try:
+            sd.check_output_settings(device.index, channels=1, dtype="int16",
+                                     samplerate=candidate)
+            return candidate
+        except sd.PortAudioError:
+            continue
+    raise ConfigError(f"{device.describe()} plays no 16-bit mono audio")
+
+
+class SampleBuffer:
+    """Mono int16 pieces the stream's callback plays in order (silence when it runs dry)."""
+
+    def __init__(self) -> None:
+        self._pieces: deque[np.ndarray] = deque()
+        self._offset = 0
+        self._lock = threading.Lock()
+        self.pieces = 0
+
+    def append(self, samples: np.ndarray) -> None:
+        with self._lock:
+            self._pieces.append(samples)
+            self.pieces += 1
+
+    def clear(self) -> None:
+        with self._lock:
+            self._pieces.clear()
+            self._offset = 0
+
+    @property
+    def empty(self) -> bool:
+        with self._lock:
+            return not self._pieces
+
+    def fill(self, out: np.ndarray, frames: int, _time: Any, _status: Any) -> None:
+        """PortAudio's callback: the next `frames` samples into `out`."""
+        filled = 0
+        with self._lock:
+            while filled < frames and self._pieces:
+                piece = self._pieces[0]
+                count = min(frames - filled, len(piece) - self._offset)
+                out[filled:filled + count, 0] = piece[self._offset:self._offset + count]
+                filled += count
+                self._offset += count
+                if self._offset == len(piece):
+                    self._pieces.popleft()
+                    self._offset = 0
+        out[filled:] = 0
+
+
+@dataclass
+class SpeakerStats:
+    played: int = 0         # pieces played to the end
+    dropped: int = 0        # asked for before a barge-in, or queued when it came
+    cut: int = 0            # streams cut by a barge-in
+    # When streams began to sound (the first sample at the device) and were cut, by the
+    # clock (time.monotonic), the latest 100 of each.
+    starts: deque[float] = field(default_factory=lambda: deque(maxlen=100))
+    cuts: deque[float] = field(default_factory=lambda: deque(maxlen=100))
+
+
+class Speaker:
+    def __init__(self, config: SpeakerConfig, speaking: Speaking) -> None:
+        self.device = find_output(config.device)
+        self.rate = playback_rate(self.device, 22050)
+        self.stats = SpeakerStats()
+        self._speaking = speaking
+        self._queue: deque[AudioClip] = deque()
+        self._cond = threading.Condition()
+        self._cut = False
+        self._busy = False
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name=f"speaker-{config.device}")
+        speaking.on_interrupt(self.interrupt)
+        self._thread.start()
+        log.info("speaker: %s at %d Hz", self.device.describe(), self.rate)
+
+    def play(self, audio: Any) -> None:
+        if not isinstance(audio, AudioClip):
+            raise TypeError(f"audio: {type(audio).__name__} is not audio")
+        with self._speaking.lock:
+            if isinstance(audio, SpokenAudio) and not self._speaking.current(audio.asked_at):
+                self.stats.dropped += 1
+                return
+            with self._cond:
+                self._queue.append(audio)
+                self._cond.notify_all()
+
+    def interrupt(self) -> None:
+        """Barge-in: drops what is queued and cuts what is playing."""
+        with self._cond:
+            self.stats.dropped += len(self._queue)
+            self._queue.clear()
+            self._cut = True
+            self._cond.notify_all()
+
+    def _next(self, timeout: float | None) -> AudioClip | None:
+        """The next queued piece; None at stop, at a barge-in, or after timeout."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._queue or self._stopping or self._cut, timeout)
+            if self._stopping or self._cut or not self._queue:
+                return None
+            self._busy = True
+            return self._queue.popleft()
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._cut = False  # a barge-in with nothing playing is over
+            audio = self._next(None)
+            if audio is None:
+                if self._stopping:
+                    return
+                continue
+            try:
+                self._play_burst(audio)
+            except Exception:  # the speaker goes on with the next answer
+                log.exception("speaker: %s failed", self.device.describe())
+                time.sleep(1.0)
+            finally:
+                self._busy = False
+
+    def _play_burst(self, audio: AudioClip) -> None:
+        """Plays `audio` and every piece that follows within IDLE_S, in one stream. The
+        stream pulls from a buffer (PortAudio's callback), so a piece that comes late
+        leaves silence, never a broken sample."""
+        sd = audio_device.portaudio()
+        buffer = SampleBuffer()
+        buffer.append(audio.mono(self.rate))
+        with audio_device.pulse_target("PULSE_SINK", self.device.pulse_sink):
+            stream = sd.OutputStream(device=self.device.index, samplerate=self.rate,
+                                     channels=1, dtype="int16", latency=LATENCY_S,
+                                     callback=buffer.fill)
+        self._speaking.started()
+        try:
+            stream.start()
+            self.stats.starts.append(time.monotonic() + stream.latency)
+            empty_since: float | None = None
+            while True:
+                piece = self._next(POLL_S)
+                if self._cut or self._stopping:
+                    buffer.clear()
+                    stream.abort()  # what the device holds is discarded too
+                    self.stats.cut += 1
+                    self.stats.cuts.append(time.monotonic())
+                    return
+                if piece is not None:
+                    buffer.append(piece.mono(self.rate))
+                    empty_since = None
+                elif buffer.empty:
+                    empty_since = empty_since or time.monotonic()
+                    if time.monotonic() - empty_since > IDLE_S:
+                        break
+            self.stats.played += buffer.pieces
+            time.sleep(stream.latency)  # the device plays out what it holds
+            stream.stop()
+        finally:
+            stream.close(ignore_errors=True)
+            audio_device.stream_closed()
+            self._speaking.stopped()
+
+    def idle(self, timeout: float) -> bool:
+        """Waits until nothing is queued or playing (for tests and benchmarks)."""
+        deadline = time.monotonic() + timeout
+        while self._queue or self._busy:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.02)
+        return True
+
+    def close(self) -> None:
+        with self._cond:
+            self._stopping = True
+            self._queue.clear()
+            self._cond.notify_all()
+        self._thread.join(timeout=5)
