@@ -27,8 +27,11 @@ Protocol = Literal["grpc", "openai"]
 
 
 class ImageTransport(Schema):
-    transport: Literal["raw", "jpeg"] = Field(
-        "raw", description="raw pixels (onboard: no encode cost) or jpeg (remote: less bandwidth)")
+    transport: Literal["raw", "jpeg", "shm", "auto"] = Field(
+        "raw", description="raw pixels (onboard: no encode cost), jpeg (remote: less "
+                           "bandwidth), shm (raw pixels through system shared memory, for a "
+                           "service on this host; the wire when that is not possible) or "
+                           "auto (shm to a loopback address that offers it, else raw)")
     jpeg_quality: int = Field(80, ge=1, le=100)
 
 

@@ -63,6 +63,7 @@ class Endpoint:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._probe: threading.Thread | None = None
+        self._closers: list[Callable[[list[Any]], None]] = []
 
     @property
     def deadline_s(self) -> float:
@@ -145,7 +146,17 @@ class Endpoint:
                          self.primary.address)
                 return
 
+    @property
+    def targets(self) -> list[Any]:
+        return [self.primary] if self.fallback is None else [self.primary, self.fallback]
+
+    def on_close(self, closer: Callable[[list[Any]], None]) -> None:
+        """closer(targets) runs before the targets close (e.g. unregisters shared memory)."""
+        self._closers.append(closer)
+
     def close(self) -> None:
+        for closer in self._closers:
+            closer(self.targets)
         self._stop.set()
         with self._lock:
             probe = self._probe

@@ -13,11 +13,13 @@ from typing import Any, Literal
 from pydantic import Field
 
 from oricf.gateway.endpoints import Endpoint, EndpointConfig
+from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
 from oricf.gateway.methods.base import CallBase, Invoke, Method, health_check, input_frame
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Record
 from oricf.imaging import Box, Detection
-from oricf.v1 import detector_pb2, detector_pb2_grpc
+from oricf.models.shared_memory import SharedMemoryRef
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 
 class DetectCall(CallBase):
@@ -52,8 +54,34 @@ def detections(response: detector_pb2.DetectResponse) -> Detections:
 
 
 def bind(call: DetectCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    return lambda record: detections(
-        endpoint.call("Detect", detect_request(record, call, endpoint.config)))
+    image = endpoint.config.image
+    if image.transport not in SHARED:
+        return lambda record: detections(
+            endpoint.call("Detect", detect_request(record, call, endpoint.config)))
+    shared = SharedMemoryTransport(f"oricf-{endpoint.name}", image.transport)
+    endpoint.on_close(shared.close)
+
+    def invoke(record: Record) -> Detections:
+        frame = input_frame(record, "Detect")
+        pixels = frame.to_proto("raw")  # the camera's own raw encoding, or its JPEG/PNG
+
+        def build(refs: list[SharedMemoryRef] | None) -> detector_pb2.DetectRequest:
+            if refs is None:
+                return detector_pb2.DetectRequest(image=pixels, labels=call.labels,
+                                                  min_score=call.min_score)
+            (ref,) = refs
+            return detector_pb2.DetectRequest(
+                image=common_pb2.Image(encoding=pixels.encoding, width=pixels.width,
+                                       height=pixels.height),
+                image_region=detector_pb2.SharedMemoryRef(
+                    region=ref.region, offset=ref.offset, byte_size=ref.byte_size),
+                labels=call.labels, min_score=call.min_score)
+
+        return endpoint.run({"grpc": lambda target, timeout: shared.call(
+            target, "Detect", timeout, [pixels.data], build,
+            lambda response, _: detections(response))})
+
+    return invoke
 
 
 def result(call: Any) -> type:

@@ -17,8 +17,9 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from oricf.config import FilePath
-from oricf.errors import ConfigError
+from oricf.errors import ConfigError, InvalidInput
 from oricf.gateway.endpoints import Endpoint, Metadata
+from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
 from oricf.gateway.methods.base import CallBase, Invoke, Method, input_frame
 from oricf.gateway.methods.detect import Detections
 from oricf.gateway.products import ProductStore
@@ -27,6 +28,7 @@ from oricf.imaging import Box, Detection, encoded_size
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.models.heads import ClassificationHead, DetectionHead, Prepared, declared_head
 from oricf.models.image import geometry
+from oricf.models.shared_memory import SharedMemoryRef
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
@@ -45,6 +47,10 @@ class InferCall(CallBase):
     min_score: float | None = Field(None, gt=0, le=1,
                                     description="detection: default the declaration's")
     top_k: int | None = Field(None, ge=1, le=1000, description="classification")
+    decoded: bool = Field(
+        False, description="detection: the server pre-processes the image and returns decoded "
+                           "detections, a few hundred bytes (ORICF's `oricf serve models`; "
+                           "Triton and KServe return only tensors)")
 
     @cached_property
     def declaration(self) -> ModelDeclaration:
@@ -67,6 +73,8 @@ class InferCall(CallBase):
             raise ValueError("labels: only for detection models")
         if self.top_k is not None and task.kind != "classification":
             raise ValueError("top_k: only for classification models")
+        if self.decoded and task.kind != "detection":
+            raise ValueError("decoded: only for detection models")
         return self
 
     @property
@@ -102,29 +110,81 @@ def _encoded_input(frame: Frame, head: DetectionHead | ClassificationHead, quali
                     geometry(size[0], size[1], head.image, head.size), 0.0)
 
 
+def _pixels_input(frame: Frame, head: DetectionHead | ClassificationHead) -> Prepared:
+    """The frame as UINT8 [H, W, 3] BGR pixels for the server to pre-process."""
+    pixels = frame.pixels()
+    height, width = pixels.shape[:2]
+    return Prepared({head.input_name: pixels},
+                    geometry(width, height, head.image, head.size), 0.0)
+
+
+def _decoded_detections(rows: np.ndarray, labels: list[str]) -> Detections:
+    """The server's decoded rows (x_min, y_min, x_max, y_max, score, class id)."""
+    if rows.ndim != 2 or rows.shape[1] != 6:
+        raise InvalidInput(f"decoded detections of shape {list(rows.shape)}; expected [n, 6]")
+    found = []
+    for x1, y1, x2, y2, score, class_id in rows.tolist():
+        index = int(class_id)
+        if not 0 <= index < len(labels):
+            raise InvalidInput(f"decoded detection of class {index}; the model has "
+                               f"{len(labels)} labels")
+        found.append(Detection(labels[index], index, float(score), Box(x1, y1, x2, y2)))
+    return Detections(found)
+
+
 def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
     head = declared_head(call.declaration)
-    wanted = [head.output] if head.output else []
+    output = head.output or ""
     label_ids = {label: i for i, label in enumerate(head.labels)}
     class_ids = (np.array(sorted(label_ids[label] for label in call.labels), np.int64)
                  if call.labels else None)
     transport = endpoint.config.image
+    shared = (SharedMemoryTransport(f"oricf-{endpoint.name}", transport.transport)
+              if transport.transport in SHARED else None)
+    if shared is not None:
+        endpoint.on_close(shared.close)
+    wanted: dict[str, dict[str, object]] = {output: {}} if output else {}
+    if call.decoded and isinstance(head, DetectionHead):
+        if not output:
+            raise ConfigError(f"{call.model}: decoded: name the task's output (task.output)")
+        wanted[output] = {"decoded": True, "min_score": call.min_score or head.task.min_score,
+                          **({"class_ids": ",".join(map(str, class_ids))}
+                             if class_ids is not None else {})}
 
-    def invoke(record: Record) -> Detections | Classes:
-        frame = input_frame(record, "Infer")
-        prepared = (_encoded_input(frame, head, transport.jpeg_quality)
-                    if transport.transport == "jpeg" else head.prepare(frame.pixels()))
-        request = infer_request(call.server_model, prepared.feeds, wanted)
-        outputs = response_outputs(endpoint.call("ModelInfer", request))
+    def prepare(frame: Frame) -> Prepared:
+        if transport.transport == "jpeg":
+            return _encoded_input(frame, head, transport.jpeg_quality)
+        return _pixels_input(frame, head) if call.decoded else head.prepare(frame.pixels())
+
+    def finish(outputs: dict[str, np.ndarray], prepared: Prepared) -> Detections | Classes:
         if isinstance(head, ClassificationHead):
             classes = head.decode(outputs, prepared, call.top_k)
             return Classes(list(zip(classes.labels, classes.scores, strict=True)),
                            classes.labels[0], classes.scores[0])
+        if call.decoded:
+            return _decoded_detections(outputs[output], head.labels)
         found = head.decode(outputs, prepared, call.min_score or head.task.min_score,
                             class_ids)
         return Detections([Detection(head.labels[c], int(c), float(s), Box(*map(float, b)))
                            for b, s, c in zip(found.boxes, found.scores, found.class_ids,
                                               strict=True)])
+
+    def invoke(record: Record) -> Detections | Classes:
+        prepared = prepare(input_frame(record, "Infer"))
+        feeds = prepared.feeds
+        encoding = {head.input_name: {"encoding": "bgr8"}} if call.decoded else {}
+
+        def build(refs: list[SharedMemoryRef] | None) -> oip.ModelInferRequest:
+            placed = {head.input_name: refs[0]} if refs else None
+            return infer_request(call.server_model, feeds, wanted, placed=placed,
+                                 input_parameters=encoding)
+
+        if shared is None:
+            return finish(response_outputs(endpoint.call("ModelInfer", build(None))), prepared)
+        data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
+        return endpoint.run({"grpc": lambda target, timeout: shared.call(
+            target, "ModelInfer", timeout, [data], build,
+            lambda response, _: finish(response_outputs(response), prepared))})
 
     return invoke
 

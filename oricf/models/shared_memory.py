@@ -129,13 +129,19 @@ class OwnedRegion:
             self._map.close()
 
 
+def owner_gone(key: str) -> bool:
+    """Whether a key is one ORICF's client made in a process that no longer runs."""
+    name = key.lstrip("/")
+    pid = name[len(OWN_PREFIX):].split("_", 1)[0] if name.startswith(OWN_PREFIX) else ""
+    return pid.isdigit() and not _alive(int(pid))
+
+
 def sweep_orphans() -> list[str]:
     """Removes the objects ORICF's client created in processes that no longer run; their
     names."""
     removed = []
     for path in SHM_DIR.glob(f"{OWN_PREFIX}*_*"):
-        pid = path.name[len(OWN_PREFIX):].split("_", 1)[0]
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+        if owner_gone(path.name):
             path.unlink(missing_ok=True)
             removed.append(path.name)
     return removed

@@ -173,17 +173,44 @@ def request_bytes(request: oip.ModelInferRequest) -> int:
     return total
 
 
-def infer_request(model: str, inputs: dict[str, np.ndarray], outputs: Sequence[str] = (),
-                  request_id: str = "", parameters: dict[str, Any] | None = None
+Parameters = dict[str, Any]
+
+
+def infer_request(model: str, inputs: dict[str, np.ndarray],
+                  outputs: Sequence[str] | Mapping[str, Parameters] = (),
+                  request_id: str = "", parameters: Parameters | None = None, *,
+                  placed: Mapping[str, SharedMemoryRef] | None = None,
+                  input_parameters: Mapping[str, Parameters] | None = None
                   ) -> oip.ModelInferRequest:
-    """A ModelInferRequest with raw contents (the compact form every server accepts)."""
+    """A ModelInferRequest with raw contents (the compact form every server accepts).
+    outputs: names, or names -> their parameters; placed: the inputs (by name) whose bytes
+    are in shared memory (and, for outputs, where each goes); input_parameters: by name."""
     request = oip.ModelInferRequest(model_name=model, id=request_id)
-    _add_raw(request.inputs, request.raw_input_contents, inputs)
-    for name in outputs:
-        request.outputs.add(name=name)
+    placed = placed or {}
+    for name, array in inputs.items():
+        ref = placed.get(name)
+        if ref is None:
+            _add_raw(request.inputs, request.raw_input_contents, {name: array})
+        else:
+            tensor = request.inputs.add(name=name, datatype=datatype_of(array).name,
+                                        shape=array.shape)
+            _set_ref(tensor.parameters, ref)
+        for key, value in (input_parameters or {}).get(name, {}).items():
+            set_parameter(request.inputs[-1].parameters[key], value)
+    wanted = outputs if isinstance(outputs, Mapping) else {name: {} for name in outputs}
+    for name, settings in wanted.items():
+        output = request.outputs.add(name=name)
+        for key, value in settings.items():
+            set_parameter(output.parameters[key], value)
     for key, value in (parameters or {}).items():
         set_parameter(request.parameters[key], value)
     return request
+
+
+def _set_ref(parameters: Any, ref: SharedMemoryRef) -> None:
+    set_parameter(parameters[REGION], ref.region)
+    set_parameter(parameters[OFFSET], ref.offset)
+    set_parameter(parameters[BYTE_SIZE], ref.byte_size)
 
 
 def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str = "",
@@ -200,9 +227,7 @@ def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str =
             continue
         tensor = response.outputs.add(name=name, datatype=datatype_of(array).name,
                                       shape=array.shape)
-        set_parameter(tensor.parameters[REGION], ref.region)
-        set_parameter(tensor.parameters[OFFSET], ref.offset)
-        set_parameter(tensor.parameters[BYTE_SIZE], ref.byte_size)
+        _set_ref(tensor.parameters, ref)
     return response
 
 

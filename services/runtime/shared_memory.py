@@ -22,7 +22,12 @@ from pydantic import Field
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput, Overloaded
-from oricf.models.shared_memory import SharedMemoryRef, check_region_name, key_path
+from oricf.models.shared_memory import (
+    SharedMemoryRef,
+    check_region_name,
+    key_path,
+    owner_gone,
+)
 from oricf.models.tensors import clip
 
 log = logging.getLogger(__name__)
@@ -65,6 +70,7 @@ class SharedMemoryRegistry:
         try:
             self._check_object(fd, name, key, offset, byte_size)
             with self._lock:
+                self._evict_orphans()
                 self._check_room(name, byte_size)
                 self._regions[name] = Region(name, key, offset, byte_size, fd)
         except BaseException:
@@ -83,6 +89,17 @@ class SharedMemoryRegistry:
         if offset + byte_size > info.st_size:
             raise InvalidInput(f"region '{name}': offset {offset} + byte_size {byte_size} "
                                f"runs past the object's {info.st_size} bytes")
+
+    def _evict_orphans(self) -> None:
+        """Drops the regions of ORICF clients that died (SIGKILL gives them no time to
+        unregister), so that their memory is freed and a restarted client finds room."""
+        for name in [n for n, r in self._regions.items() if owner_gone(r.key)]:
+            region = self._regions.pop(name)
+            with region.lock:
+                region.closed = True
+                os.close(region.fd)
+            log.info("shared memory: region %s dropped: the process that made it is gone",
+                     name)
 
     def _check_room(self, name: str, byte_size: int) -> None:
         if name in self._regions:
