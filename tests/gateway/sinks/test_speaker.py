@@ -128,7 +128,7 @@ def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
         while not speaker.stats.starts and time.monotonic() < deadline:
             time.sleep(0.05)
         time.sleep(1.5)  # the answer is well under way
-        asked = play_later(pulse_env, MIC, question)
+        asked = PlayLater(pulse_env, MIC, question)
         assert gateway.pipeline.idle(60) and speaker.idle(60)
         recording = recorder.samples()
         spoken_at = asked.wait() + onset
@@ -146,7 +146,7 @@ def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
     assert "people" in spoken_words(heard["transcript"])  # the question itself is heard
 
 
-class play_later:  # noqa: N801 (reads as a verb at its call)
+class PlayLater:
     """paplay in a thread; wait() gives the clock time (time.monotonic) playback began."""
 
     def __init__(self, pulse: PulseServer, sink: str, samples: np.ndarray) -> None:
