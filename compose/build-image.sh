@@ -14,7 +14,10 @@
 #    so with a base image of the same Python the build uses no package index (--no-index),
 #    unless ORICF_PIP_OPTIONS says otherwise.
 # 4. `ENGINE build`, on podman with --format docker (an OCI image has no HEALTHCHECK) and
-#    --ignorefile compose/Dockerfile.dockerignore (Docker's BuildKit reads that file itself).
+#    --ignorefile compose/Dockerfile.dockerignore; on Docker with BuildKit, which reads that
+#    file itself: a docker client with buildx, else the first one on PATH older than 23
+#    (BuildKit built in; Debian's docker.io), else the build stops saying so. The classic
+#    builder would send the whole repository (.venv too) as the build context.
 # The build log goes to ${TMPDIR:-/tmp}/oricf-build-TAG.log; its end is shown on failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +33,17 @@ die() { printf 'compose/build-image.sh: %s\n' "$*" >&2; exit 1; }
 ENGINE=$ORICF_ENGINE
 
 image_exists() { "$ENGINE" image inspect "$1" >/dev/null 2>&1; }
+
+buildkit_docker() {  # a docker client that builds with BuildKit
+    local client major
+    if docker buildx version >/dev/null 2>&1; then echo docker; return; fi
+    while read -r client; do     # docker 23 and later need buildx for BuildKit; older have it
+        major=$("$client" version -f '{{.Client.Version}}' 2>/dev/null) || continue
+        ((10#${major%%.*} < 23)) && { echo "$client"; return; }
+    done < <(type -ap docker)
+    die "no docker client here builds with BuildKit ($(command -v docker) has no buildx):" \
+        "install the buildx plugin, or Debian's docker.io (its client has BuildKit built in)"
+}
 
 base_image() {
     if [[ -n "${ORICF_BASE_IMAGE:-}" ]]; then echo "$ORICF_BASE_IMAGE"
@@ -56,10 +70,15 @@ if [[ "${ORICF_PREPARE:-1}" != 0 && -x "$VENV_PY" ]]; then
         [[ "$venv_py" == "$image_py" ]] && OPTIONS=--no-index
     fi
 fi
-EXTRA=()
-[[ $ENGINE == podman ]] && EXTRA=(--format docker --ignorefile compose/Dockerfile.dockerignore)
+BUILD=("$ENGINE" build)
+if [[ $ENGINE == podman ]]; then
+    BUILD+=(--format docker --ignorefile compose/Dockerfile.dockerignore)
+else
+    client=$(buildkit_docker) || exit 1
+    BUILD=("$client" build)
+fi
 echo "==> image $TAG: base $BASE, EXTRAS=$EXTRAS, MODELS='${MODELS[*]}', PIP_OPTIONS='$OPTIONS'"
-DOCKER_BUILDKIT=1 "$ENGINE" build "${EXTRA[@]}" -f compose/Dockerfile -t "$TAG" \
+DOCKER_BUILDKIT=1 "${BUILD[@]}" -f compose/Dockerfile -t "$TAG" \
     --build-arg "BASE_IMAGE=$BASE" --build-arg "PIP_OPTIONS=$OPTIONS" \
     --build-arg "EXTRAS=$EXTRAS" --build-arg "MODELS=${MODELS[*]}" . >>"$LOG" 2>&1 \
     || { tail -40 "$LOG"; die "the build of $TAG failed (log: $LOG)"; }

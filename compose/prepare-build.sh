@@ -2,7 +2,7 @@
 # Fills the optional, git-ignored build context of compose/Dockerfile from this machine, so an
 # image builds in minutes and without a package index:
 #   compose/.wheels/  the llama-cpp-python wheel that scripts/setup.sh built once for this CPU
-#                     (~/.cache/oricf/wheels/<cpu-key>/), plus every other wheel the image
+#                     (~/.cache/oricf/wheels/<key>/, scripts/llama-wheel.sh), plus every other wheel the image
 #                     installs (pip download), for building with PIP_OPTIONS=--no-index
 #   compose/.models/  the models named in MODELS, copied from the local model store
 #                     (the image build still checks each file's sha256)
@@ -24,11 +24,13 @@ else
 fi
 PY="${ORICF_VENV:-.venv}/bin/python"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
-CPU_KEY=$(grep -m1 '^flags' /proc/cpuinfo | sha256sum | cut -c1-12)
+# shellcheck source=scripts/llama-wheel.sh
+source scripts/llama-wheel.sh     # LLAMA_WHEELS: the folder scripts/setup.sh builds into
 
 mkdir -p compose/.wheels compose/.models
-if ls "$CACHE/wheels/$CPU_KEY"/llama_cpp_python-*.whl >/dev/null 2>&1; then
-    cp -p "$CACHE/wheels/$CPU_KEY"/llama_cpp_python-*.whl compose/.wheels/
+rm -f compose/.wheels/llama_cpp_python-*.whl   # never one built with other options
+if ls "$LLAMA_WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
+    cp -p "$LLAMA_WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl compose/.wheels/
 fi
 echo "==> wheels for .[$EXTRAS] into compose/.wheels"
 "$PY" -m pip download -q -d compose/.wheels --find-links compose/.wheels \

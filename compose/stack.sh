@@ -19,10 +19,10 @@
 # --robot: compose/edge.yaml with compose/robot.yaml (the gateway; podman-compose >= 1.0.6).
 # --project: the compose project (default $ORICF_PROJECT, else oricf).
 #
-# Engine: $ORICF_ENGINE (docker or podman), else `docker compose` (v2) when a Docker engine
-# answers, else podman with podman-compose: $ORICF_PODMAN_COMPOSE, else the one
-# install-podman-compose made, else the one on PATH; CONTAINERS_CONF defaults to
-# compose/containers.conf. Images: compose/build-image.sh (base image, build context, the
+# Engine: $ORICF_ENGINE (docker or podman), else Docker when its engine answers and a compose
+# tool is there (`docker compose`, v2, else `docker-compose`, v1), else podman with
+# podman-compose: $ORICF_PODMAN_COMPOSE, else the one install-podman-compose made, else the
+# one on PATH; CONTAINERS_CONF defaults to compose/containers.conf. Images: compose/build-image.sh (base image, build context, the
 # build command). Also read: ORICF_IMAGE, ORICF_GATEWAY_IMAGE, ORICF_CERTS,
 # ORICF_WAIT_TIMEOUT (s, default 600). docs/containers.md.
 set -euo pipefail
@@ -55,20 +55,35 @@ podman_compose_version() {  # what `podman-compose version` says, e.g. 1.0.3
     [[ $out =~ $re ]] && echo "${BASH_REMATCH[1]}"
 }
 
-docker_answers() { timeout 20 docker info >/dev/null 2>&1 && docker compose version >/dev/null 2>&1; }
+docker_answers() { command -v docker >/dev/null && timeout 20 docker info >/dev/null 2>&1; }
+
+docker_compose() {  # sets COMPOSE, COMPOSE_VERSION: compose v2 (the docker plugin), else v1
+    if docker compose version >/dev/null 2>&1; then
+        COMPOSE=(docker compose)
+        COMPOSE_VERSION=$(docker compose version --short)
+    elif command -v docker-compose >/dev/null; then
+        COMPOSE=(docker-compose)
+        COMPOSE_VERSION=$(docker-compose version --short)
+    else
+        return 1
+    fi
+    COMPOSE_VERSION=${COMPOSE_VERSION#v}
+}
 
 pick_engine() {  # sets ENGINE, COMPOSE, COMPOSE_VERSION (and CONTAINERS_CONF for podman)
     ENGINE="${ORICF_ENGINE:-}"
     if [[ -z "$ENGINE" ]]; then
-        if command -v docker >/dev/null && docker_answers; then ENGINE=docker
+        if docker_answers && docker_compose; then ENGINE=docker
         elif command -v podman >/dev/null; then ENGINE=podman
-        else die "no engine: Docker with compose v2, or apt-get install -y podman podman-compose runc"
+        else die "no engine: a Docker engine with docker compose or docker-compose" \
+            "(apt-get install -y docker.io docker-compose), or podman" \
+            "(apt-get install -y podman podman-compose runc)"
         fi
     fi
     case "$ENGINE" in
-        docker) docker_answers || die "ORICF_ENGINE=docker: no Docker engine with compose v2 answers"
-                COMPOSE=(docker compose)
-                COMPOSE_VERSION=$(docker compose version --short) ;;
+        docker) docker_answers || die "ORICF_ENGINE=docker: no Docker engine answers (docker info)"
+                docker_compose || die "ORICF_ENGINE=docker: neither \`docker compose\` (v2) nor" \
+                    "docker-compose (v1) is installed: apt-get install -y docker-compose" ;;
         podman) command -v podman >/dev/null || die "ORICF_ENGINE=podman: podman is not installed"
                 export CONTAINERS_CONF="${CONTAINERS_CONF:-$ROOT/compose/containers.conf}"
                 pick_podman_compose ;;
@@ -279,10 +294,15 @@ cmd_down() {
 }
 
 cmd_check() {
-    local image="" id
-    echo "engine:          $ENGINE ($($ENGINE --version))"
-    echo "compose:         $COMPOSE_TOOL $COMPOSE_VERSION (robot side: $(version_at_least \
-"$COMPOSE_VERSION" "$PC_MIN_ROBOT" && echo yes || echo "no, needs $PC_MIN_ROBOT: compose/stack.sh install-podman-compose"))"
+    local image="" id robot=yes
+    # the robot side's network_mode: host: every docker compose (v1 and v2), podman-compose 1.0.6+
+    [[ $ENGINE == docker ]] || version_at_least "$COMPOSE_VERSION" "$PC_MIN_ROBOT" \
+        || robot="no, needs $PC_MIN_ROBOT: compose/stack.sh install-podman-compose"
+    local version
+    version=$($ENGINE --version)
+    [[ $ENGINE == podman ]] || version+=", engine $(docker version -f '{{.Server.Version}}')"
+    echo "engine:          $ENGINE ($version)"
+    echo "compose:         $COMPOSE_TOOL $COMPOSE_VERSION (robot side: $robot)"
     [[ $ENGINE == docker ]] || echo "CONTAINERS_CONF: $CONTAINERS_CONF"
     echo "project:         $PROJECT (${FILES[*]})"
     for name in "${SERVICES[@]}"; do

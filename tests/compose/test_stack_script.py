@@ -1,7 +1,9 @@
-"""compose/stack.sh, the container route's one entry point, run for real: its help, its
-`check` and `env` on this machine's engine, and the podman-compose version check that
-refuses the robot side to Debian's 1.0.3 (the check a `grep -q` under pipefail never fired).
-Building and starting the stack is compose/smoke-test.sh's job (docs/containers.md)."""
+"""compose/stack.sh, the container route's one entry point, run for real: its help and
+commands in the default run; in the engines suite (`-m engines`, docs/testing.md) its
+`check` and `env` on Docker (compose v1 or v2) and on podman, and the podman-compose version
+check that refuses the robot side to Debian's 1.0.3 (the check a `grep -q` under pipefail
+never fired). Building and starting the stack is compose/smoke-test.sh's job
+(tests/compose/test_smoke_test.py)."""
 
 from __future__ import annotations
 
@@ -17,24 +19,13 @@ from oricf.config import REPO_ROOT
 
 COMPOSE = REPO_ROOT / "compose"
 STACK = COMPOSE / "stack.sh"
-SCRIPTS = sorted(COMPOSE.glob("*.sh"))
+SCRIPTS = sorted([*COMPOSE.glob("*.sh"), *COMPOSE.glob("kubernetes/*.sh")])
 DEBIAN_PODMAN_COMPOSE = Path("/usr/bin/podman-compose")
 
 
 def run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([str(STACK), *args], capture_output=True, text=True, timeout=120,
                           env={**os.environ, **(env or {})}, check=False)
-
-
-def engine_here() -> bool:
-    """Docker with compose v2 answering, or podman with a podman-compose."""
-    if shutil.which("docker"):
-        docker = subprocess.run(["docker", "compose", "version"], capture_output=True,
-                                check=False, timeout=20)
-        if docker.returncode == 0:
-            return True
-    tool = Path.home() / ".local/oricf-compose/bin/podman-compose"
-    return bool(shutil.which("podman")) and (tool.exists() or bool(shutil.which("podman-compose")))
 
 
 @pytest.mark.parametrize("script", SCRIPTS, ids=lambda p: p.name)
@@ -44,8 +35,9 @@ def test_scripts_parse(script: Path) -> None:
 
 def test_scripts_pass_shellcheck() -> None:
     assert shutil.which("shellcheck"), "shellcheck is missing: scripts/setup.sh --dev installs it"
-    result = subprocess.run(["shellcheck", *map(str, SCRIPTS)], capture_output=True, text=True,
-                            check=False)
+    # -x: follow what a script sources (scripts/llama-wheel.sh), named from the root
+    result = subprocess.run(["shellcheck", "-x", *map(str, SCRIPTS)], capture_output=True,
+                            text=True, check=False, cwd=REPO_ROOT)
     assert result.returncode == 0, result.stdout
 
 
@@ -73,22 +65,27 @@ def test_the_smoke_test_builds_and_starts_through_the_entry_point_only() -> None
         assert not [line for line in code if own_copy in line], own_copy
 
 
-@pytest.mark.skipif(not engine_here(), reason="neither Docker with compose v2 nor podman here")
-def test_check_names_the_engine_and_starts_a_container_or_says_why_not() -> None:
-    result = run("check")
+@pytest.mark.engines
+@pytest.mark.parametrize("engine", ["docker", "podman"])
+def test_check_names_the_engine_and_starts_a_container(engine: str) -> None:
+    """Fails, saying what is missing, where the engine or its compose tool is not installed
+    (compose/install-engines.sh installs both)."""
+    result = run("check", env={"ORICF_ENGINE": engine})
     assert result.returncode == 0, result.stderr
     lines = dict(line.split(":", 1) for line in result.stdout.splitlines())
-    engine = lines["engine"].split()[0]
-    assert engine in ("docker", "podman")
+    assert lines["engine"].split()[0] == engine
     assert re.search(r"\d+\.\d+\.\d+", lines["compose"])
     if engine == "podman":
         assert lines["CONTAINERS_CONF"].strip().endswith("compose/containers.conf")
-    exported = run("env").stdout
+    else:  # the robot side's network_mode: host runs on every docker compose
+        assert "(robot side: yes)" in lines["compose"]
+    exported = run("env", env={"ORICF_ENGINE": engine}).stdout
     assert f"export ORICF_ENGINE={engine}\n" in exported
 
 
-@pytest.mark.skipif(not DEBIAN_PODMAN_COMPOSE.exists(), reason="no Debian podman-compose")
+@pytest.mark.engines
 def test_the_robot_side_is_refused_to_a_podman_compose_older_than_1_0_6() -> None:
+    assert DEBIAN_PODMAN_COMPOSE.exists(), "no Debian podman-compose: compose/install-engines.sh"
     env = {"ORICF_ENGINE": "podman", "ORICF_PODMAN_COMPOSE": str(DEBIAN_PODMAN_COMPOSE)}
     version = run("check", env=env)
     match = re.search(r"^compose: +\S+ (\d+)\.(\d+)\.(\d+)", version.stdout, re.MULTILINE)
