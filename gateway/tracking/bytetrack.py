@@ -1,0 +1,165 @@
+"""ByteTrack (Zhang et al., 2022) over one stream of detections.
+
+Each frame: every track's box is moved on by its Kalman filter; detections at or above
+`high_score` are matched to all tracks by IoU (an optimal assignment); then the tracks that
+were seen in the previous frame and are still unmatched get a second chance with the
+low-score detections (`low_score` up to `high_score`), which are often the same object
+half hidden. A high-score detection left over starts a tentative track (at `new_score`);
+a tentative track is confirmed after `min_hits` matches and dropped at its first miss; a
+confirmed track that goes unseen for more than `max_age_s` is dropped. Only detections of
+the same label are matched to a track.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydantic import Field, model_validator
+from scipy.optimize import linear_sum_assignment
+
+from oricf.config import Schema
+from oricf.gateway.tracking.kalman import BoxFilter
+from oricf.imaging import Box, Detection
+
+
+class TrackerConfig(Schema):
+    labels: list[str] = Field(default_factory=list, description="labels to track; empty: all")
+    high_score: float = Field(0.5, gt=0, le=1, description="first-stage detections")
+    low_score: float = Field(0.1, gt=0, le=1, description="second-stage detections from here")
+    new_score: float = Field(0.7, gt=0, le=1, description="a detection that starts a track")
+    match_iou: float = Field(0.2, gt=0, le=1, description="least IoU of a first-stage match")
+    low_match_iou: float = Field(0.3, gt=0, le=1, description="least IoU of a second-stage "
+                                                              "match")
+    min_hits: int = Field(3, ge=1, le=100, description="matches before a track is confirmed")
+    max_age_s: float = Field(1.0, gt=0, le=3600, description="unseen this long: dropped")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> TrackerConfig:
+        if self.low_score > self.high_score:
+            raise ValueError(f"low_score {self.low_score} is above high_score "
+                             f"{self.high_score}")
+        return self
+
+
+@dataclass(frozen=True)
+class TrackView:
+    """A confirmed track as it stands after a frame."""
+
+    track_id: int
+    label: str
+    box: Box                       # the last matched box, or the predicted one while unseen
+    velocity: tuple[float, float]  # centre, pixels per second
+    first_seen: float
+    last_seen: float
+    hits: int
+
+
+class _Track:
+    def __init__(self, track_id: int, detection: Detection, now: float) -> None:
+        self.track_id = track_id
+        self.label = detection.label
+        self.motion = BoxFilter(detection.box)
+        self.first_seen = self.last_seen = self.predicted_at = now
+        self.hits = 1
+        self.seen_last_frame = True
+        self.box = detection.box
+
+    def predict(self, now: float) -> None:
+        self.motion.predict(now - self.predicted_at)
+        self.predicted_at = max(now, self.predicted_at)
+
+    def hit(self, detection: Detection, now: float) -> Detection:
+        self.motion.update(detection.box)
+        self.box = detection.box
+        self.hits += 1
+        self.last_seen = now
+        return replace(detection, track_id=self.track_id, velocity=self.motion.velocity)
+
+    def view(self) -> TrackView:
+        box = self.box if self.last_seen == self.predicted_at else self.motion.box
+        return TrackView(self.track_id, self.label, box, self.motion.velocity,
+                         self.first_seen, self.last_seen, self.hits)
+
+
+def iou_matrix(a: list[Box], b: list[Box]) -> np.ndarray:
+    if not a or not b:
+        return np.zeros((len(a), len(b)))
+    p = np.array([[x.x_min, x.y_min, x.x_max, x.y_max] for x in a])[:, None, :]
+    q = np.array([[x.x_min, x.y_min, x.x_max, x.y_max] for x in b])[None, :, :]
+    w = np.clip(np.minimum(p[..., 2], q[..., 2]) - np.maximum(p[..., 0], q[..., 0]), 0, None)
+    h = np.clip(np.minimum(p[..., 3], q[..., 3]) - np.maximum(p[..., 1], q[..., 1]), 0, None)
+    inter = w * h
+    area = lambda r: (r[..., 2] - r[..., 0]) * (r[..., 3] - r[..., 1])  # noqa: E731
+    union = area(p) + area(q) - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
+
+
+def match(tracks: list[_Track], detections: list[Detection], least_iou: float
+          ) -> list[tuple[int, int]]:
+    """(track index, detection index) pairs of the optimal assignment by IoU, each pair of
+    one label and at least `least_iou`."""
+    iou = iou_matrix([t.motion.box for t in tracks], [d.box for d in detections])
+    if iou.size == 0:
+        return []
+    same = np.array([[t.label == d.label for d in detections] for t in tracks])
+    iou = np.where(same, iou, 0.0)
+    rows, cols = linear_sum_assignment(-iou)
+    return [(r, c) for r, c in zip(rows, cols, strict=True) if iou[r, c] >= least_iou]
+
+
+class ByteTracker:
+    """Tracks over one stream; `update` once per frame, in time order."""
+
+    def __init__(self, config: TrackerConfig) -> None:
+        self.config = config
+        self._labels = set(config.labels)
+        self._tracks: list[_Track] = []
+        self._next_id = 1
+
+    def update(self, detections: list[Detection], now: float) -> list[Detection]:
+        """This frame's detections that belong to confirmed tracks, each with its track id
+        and velocity."""
+        c = self.config
+        wanted = [d for d in detections if not self._labels or d.label in self._labels]
+        high = [d for d in wanted if d.score >= c.high_score]
+        low = [d for d in wanted if c.low_score <= d.score < c.high_score]
+        for track in self._tracks:
+            track.predict(now)
+        matched: dict[int, Detection] = {}  # track index -> its detection, marked
+        pairs = match(self._tracks, high, c.match_iou)
+        for t, d in pairs:
+            matched[t] = self._tracks[t].hit(high[d], now)
+        used_high = {d for _, d in pairs}
+        second = [t for t in range(len(self._tracks))
+                  if t not in matched and self._tracks[t].seen_last_frame]
+        for t, d in match([self._tracks[t] for t in second], low, c.low_match_iou):
+            matched[second[t]] = self._tracks[second[t]].hit(low[d], now)
+        out = [det for t, det in matched.items() if self._tracks[t].hits >= c.min_hits]
+        self._forget(matched, now)
+        # As in ByteTrack, the first frame's tracks are confirmed at once: with no earlier
+        # frame, there is nothing to wait for.
+        first_frame = self._next_id == 1 and not self._tracks
+        for i, new in enumerate(high):
+            if i not in used_high and new.score >= c.new_score:
+                track = _Track(self._next_id, new, now)
+                self._tracks.append(track)
+                self._next_id += 1
+                if first_frame:
+                    track.hits = c.min_hits
+                    out.append(replace(new, track_id=track.track_id, velocity=(0.0, 0.0)))
+        return out
+
+    def _forget(self, matched: dict[int, Detection], now: float) -> None:
+        keep = []
+        for i, track in enumerate(self._tracks):
+            track.seen_last_frame = i in matched
+            confirmed = track.hits >= self.config.min_hits
+            if track.seen_last_frame or (confirmed and
+                                         now - track.last_seen <= self.config.max_age_s):
+                keep.append(track)
+        self._tracks = keep
+
+    def confirmed(self) -> list[TrackView]:
+        """Every confirmed track still kept, seen this frame or not."""
+        return [t.view() for t in self._tracks if t.hits >= self.config.min_hits]
