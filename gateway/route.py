@@ -114,6 +114,8 @@ class Route:
                 close()
         if result is None:
             raise RuntimeError(f"{self.config.call.method} stream ended without a result")
+        if not self._speaking.current(asked_at):  # its last piece was cut off
+            raise Skip("interrupted by a new utterance (barge-in)")
         return result
 
     def send(self, record: Record, only: Collection[str] | None = None) -> None:

@@ -1,0 +1,52 @@
+"""Speech into a WAV file and onto a ROS topic, from the real speech synthesizer."""
+
+from __future__ import annotations
+
+import wave
+from pathlib import Path
+
+import numpy as np
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import Int16MultiArray
+
+from oricf.gateway.recording.topic_values import TOPIC_AUDIO_RATE, serialize_output
+from oricf.gateway.ros.messages import to_message
+from oricf.gateway.values import SpokenAudio
+from tests.gateway.sinks.voice import local_gateway
+from tests.support.services import RunningService
+from tests.support.tts import tts_service  # noqa: F401 (a fixture)
+
+ANSWER = "I can see 4 people. Two of them are walking to the left."
+
+
+def test_every_sentence_is_appended_to_one_wav_file(
+        tts_service: RunningService, tmp_path: Path) -> None:  # noqa: F811
+    path = tmp_path / "answers" / "spoken.wav"
+    pipeline = {"endpoints": {"tts": {"address": tts_service.address, "deadline_ms": 30000}},
+                "routes": {"say": {"input": {"text": "-"},
+                                   "call": {"service": "tts", "method": "Synthesize",
+                                            "text": "{text}", "voice": "espeak"},
+                                   "outputs": [{"wav": str(path), "from": "speech"}]}}}
+    with local_gateway(tmp_path, pipeline) as gateway:
+        gateway.say("say", ANSWER)
+        gateway.say("say", "Goodbye.")
+        assert gateway.pipeline.idle(60)
+        with wave.open(str(path)) as partial:  # whole at any moment, before the close
+            frames_before_close = partial.getnframes()
+    with wave.open(str(path)) as spoken:
+        rate, frames, channels = spoken.getframerate(), spoken.getnframes(), spoken.getnchannels()
+        samples = np.frombuffer(spoken.readframes(frames), "<i2")
+    assert channels == 1 and rate == 22050
+    assert frames == frames_before_close and frames / rate > 3  # both answers, all sentences
+    assert np.abs(samples.astype(np.int32)).max() > 3000
+
+
+def test_speech_on_a_topic_is_16_khz_mono_int16() -> None:
+    tone = (np.sin(np.arange(22050) / 22050 * 2 * np.pi * 440) * 8000).astype("<i2")
+    audio = SpokenAudio(np.repeat(tone, 2).tobytes(), 22050, 2, text="a tone", asked_at=0)
+    message = to_message("std_msgs/Int16MultiArray", audio)
+    assert len(message.data) == TOPIC_AUDIO_RATE  # one second
+    recorded = deserialize_message(serialize_output("std_msgs/Int16MultiArray", audio),
+                                   Int16MultiArray)
+    assert list(recorded.data) == list(message.data)
+    assert 7000 < np.abs(np.asarray(message.data)).max() < 8500
