@@ -17,7 +17,7 @@ MIRROR="${ORICF_BASE_MIRROR:-http://deb.debian.org/debian}"
 # What python:3.11-slim offers that the Dockerfile relies on: a Python with venv (its ensurepip
 # brings pip into the build stage; the system needs no python3-pip), CA certificates for pip,
 # and libgomp1 (llama.cpp and CTranslate2 use OpenMP).
-PACKAGES="python3,python3-venv,ca-certificates,libgomp1"
+PACKAGES="python3,python3-venv,ca-certificates,libgomp1,espeak-ng"
 
 # The engine compose/stack.sh picked (ORICF_ENGINE), else podman when installed, else docker.
 ENGINE="${ORICF_ENGINE:-}"

@@ -50,10 +50,10 @@ export ORICF_PROJECT=oricf-smoke
 export ORICF_IMAGE="${ORICF_IMAGE:-oricf:local}"
 export ORICF_GATEWAY_IMAGE="${ORICF_GATEWAY_IMAGE:-oricf-gateway:local}"
 TIMEOUT="${ORICF_SMOKE_TIMEOUT:-600}"
-SERVICES=(detector asr llm)
-declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053)
+SERVICES=(detector asr llm tts)
+declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053 [tts]=50054)
 declare -A RPCS=([detector]=oricf.v1.Detector/Detect [asr]=oricf.v1.SpeechRecognizer/Transcribe
-                 [llm]=oricf.v1.LanguageModel/Generate)
+                 [llm]=oricf.v1.LanguageModel/Generate [tts]=oricf.v1.SpeechSynthesizer/Synthesize)
 HEALTH=grpc.health.v1.Health/Check
 
 step() { printf '\n==> %s\n' "$*"; }

@@ -1,14 +1,14 @@
 """Request bodies and answer checks for compose/smoke-test.sh (which calls grpcurl).
 
-    python compose/smoke_check.py request detector|asr|llm   > request.json
-    grpcurl ... -d @ < request.json | python compose/smoke_check.py check detector|asr|llm
+    python compose/smoke_check.py request detector|asr|llm|tts   > request.json
+    grpcurl ... -d @ < request.json | python compose/smoke_check.py check detector|asr|llm|tts
     python compose/smoke_check.py ros     (the robot side: a gateway on this DDS domain)
     python compose/smoke_check.py protoset > oricf.protoset
 
 `check` prints what it found and exits 1 when the answer is wrong. `ros` publishes vtest.avi
 frames on camera/image_raw until /human_counter answers, then a question on /question,
 and checks that /answer states the count. `protoset` writes the schemas grpcurl needs (the
-three services' and grpc.health.v1), since the services serve no reflection.
+four services' and grpc.health.v1), since the services serve no reflection.
 """
 
 from __future__ import annotations
@@ -46,6 +46,10 @@ def llm_request() -> dict[str, Any]:
     return {"prompt": QUESTION, "facts": [{"name": "people_count", "integer": PEOPLE}]}
 
 
+def tts_request() -> dict[str, Any]:
+    return {"text": f"I can see {PEOPLE} people.", "voice": "joe"}
+
+
 def detector_check(reply: dict[str, Any]) -> str | None:
     people = sum(d.get("label") == "person" for d in reply.get("detections", []))
     return None if people >= 1 else f"no person found in person.jpg: {reply}"
@@ -61,10 +65,19 @@ def llm_check(reply: dict[str, Any]) -> str | None:
     return None if re.search(r"\b(3|three)\b", text) else f"answer lacks the count 3: {reply}"
 
 
+def tts_check(reply: dict[str, Any]) -> str | None:
+    audio = base64.b64decode(reply.get("audio", {}).get("data", ""))
+    seconds = reply.get("duration_s", reply.get("durationS", 0.0))  # proto or JSON name
+    said = reply.get("text")
+    if len(audio) > 20_000 and 0.8 < seconds < 5 and said == "I can see three people.":
+        return None
+    return f"no plausible speech: {len(audio)} bytes, {seconds} s, text {reply.get('text')!r}"
+
+
 REQUESTS: dict[str, Callable[[], dict[str, Any]]] = {
-    "detector": detector_request, "asr": asr_request, "llm": llm_request}
+    "detector": detector_request, "asr": asr_request, "llm": llm_request, "tts": tts_request}
 CHECKS: dict[str, Callable[[dict[str, Any]], str | None]] = {
-    "detector": detector_check, "asr": asr_check, "llm": llm_check}
+    "detector": detector_check, "asr": asr_check, "llm": llm_check, "tts": tts_check}
 
 
 def ros_check(timeout_s: float = 120.0) -> int:
@@ -131,11 +144,11 @@ def typed_answer(node: Any, deadline: float) -> str | None:
 
 
 def protoset() -> bytes:
-    """A FileDescriptorSet of the three services and grpc.health.v1, dependencies first."""
+    """A FileDescriptorSet of the four services and grpc.health.v1, dependencies first."""
     from google.protobuf import descriptor_pb2
     from grpc_health.v1 import health_pb2
 
-    from oricf.v1 import detector_pb2, language_pb2, speech_pb2
+    from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
 
     files = descriptor_pb2.FileDescriptorSet()
     added: set[str] = set()
@@ -147,7 +160,7 @@ def protoset() -> bytes:
             added.add(file.name)
             file.CopyToProto(files.file.add())
 
-    for module in (detector_pb2, speech_pb2, language_pb2, health_pb2):
+    for module in (detector_pb2, speech_pb2, language_pb2, synthesis_pb2, health_pb2):
         add(module.DESCRIPTOR)
     return files.SerializeToString()
 

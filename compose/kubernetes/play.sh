@@ -17,7 +17,9 @@
 # 3. Work around podman 4.3 (Debian bookworm): before 4.4 a Secret volume panics without
 #    `optional` and gets its files still base64-encoded, so a Secret is played as a ConfigMap
 #    of its decoded files; no podman creates the folders of a ConfigMap item's path
-#    (labels/coco80.txt), so their volumes are made first with those folders in them.
+#    (labels/coco80.txt), so their volumes are made first with those folders in them; podman
+#    publishes each containerPort on the host's every address, so the containers' `ports`
+#    (declarations only, in Kubernetes) are left out and each pod is reached at its address.
 # 4. `podman kube play`, then each pod's own health port (50050, grpc.health.v1, plaintext)
 #    is asked from inside the pod as the kubelet's gRPC probe would, until SERVING
 #    ($ORICF_WAIT_TIMEOUT s, default 600). podman runs no gRPC probes itself.
@@ -63,7 +65,7 @@ render() {  # the manifests podman plays, into $PLAYED; the kinds left out on st
     local files=(ca.pem server.pem server.key tokens) file copy secrets_as=secret
     for file in "${files[@]}"; do
         [[ -e "$CERTS/$file" ]] || die "missing $CERTS/$file. Make the certificates once:
-  oricf certs $CERTS --host detector.oricf.svc.cluster.local --host asr.oricf.svc.cluster.local --host llm.oricf.svc.cluster.local"
+  oricf certs $CERTS --host detector.oricf.svc.cluster.local --host asr.oricf.svc.cluster.local --host llm.oricf.svc.cluster.local --host tts.oricf.svc.cluster.local"
     done
     mkdir -p "$WORK"
     # kustomize reads ../certs: a copy of the tree when the certificates live elsewhere
@@ -94,6 +96,9 @@ for doc in yaml.safe_load_all(open(rendered)):
         pod = doc["spec"]["template"]["spec"]
         for container in pod["containers"]:
             container["image"] = image
+            # podman publishes a containerPort on every host address (a cluster does not):
+            # the services listen on their ports anyway, reached at the pod's address
+            container.pop("ports", None)
         for volume in pod.get("volumes", []):
             if "secret" in volume and secrets_as == "configmap":
                 secret = volume.pop("secret")

@@ -22,7 +22,7 @@ from oricf.errors import ConfigError
 from oricf.tls import ClientTls
 
 # the keys of oricf.services.REGISTRY (a test keeps the two in step)
-ServiceName = Literal["detector", "asr", "llm", "models"]
+ServiceName = Literal["detector", "asr", "llm", "tts", "models"]
 
 
 class Restart(Schema):

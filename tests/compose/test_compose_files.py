@@ -112,7 +112,7 @@ def resolve_in_mounts(table: dict[str, Path], container_path: str) -> Path | Non
 
 def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
     services = model_services(load(COMPOSE / "edge.yaml"))
-    assert set(services) == {"detector", "asr", "llm"}
+    assert set(services) == {"detector", "asr", "llm", "tts"}
     for name, service in services.items():
         assert service["command"][:2] == ["serve", name]
         config_path = service["command"][service["command"].index("--config") + 1]
@@ -141,7 +141,12 @@ def test_images_bake_the_models_the_services_load() -> None:
         for model in baked:
             store.entry(model)  # raises for a name the catalog lacks
         path = config_dir() / "services" / f"{name}.yaml"
-        model = read_yaml(path)["model"]
+        config = read_yaml(path)
+        if "voices" in config:  # speech synthesis: the catalog entries of its voices
+            models = [v["model"] for v in config["voices"].values() if "model" in v]
+            assert models and set(models) <= set(baked), f"{name}: a voice the image lacks"
+            continue
+        model = config["model"]
         if isinstance(model, str):  # a declared model: the catalog entry of its weights
             container = str(Path("/etc/oricf/services") / model)
             mounted = resolve_in_mounts(mounts(service), os.path.normpath(container))

@@ -35,19 +35,23 @@ from oricf.v1 import (
     language_pb2_grpc,
     speech_pb2,
     speech_pb2_grpc,
+    synthesis_pb2,
+    synthesis_pb2_grpc,
 )
 from tests.support.data import video_path
 
 pytestmark = pytest.mark.engines
 
 PLAY = REPO_ROOT / "compose" / "kubernetes" / "play.sh"
-HOSTS = [f"{name}.oricf.svc.cluster.local" for name in ("detector", "asr", "llm")]
-PORTS = {"detector": 50051, "asr": 50052, "llm": 50053}
+HOSTS = [f"{name}.oricf.svc.cluster.local" for name in ("detector", "asr", "llm", "tts")]
+PORTS = {"detector": 50051, "asr": 50052, "llm": 50053, "tts": 50054}
 HEALTH_PORT = 50050
 CALLS: dict[str, tuple[Any, str, Any]] = {
     "detector": (detector_pb2_grpc.DetectorStub, "Detect", detector_pb2.DetectRequest),
     "asr": (speech_pb2_grpc.SpeechRecognizerStub, "Transcribe", speech_pb2.TranscribeRequest),
     "llm": (language_pb2_grpc.LanguageModelStub, "Generate", language_pb2.GenerateRequest),
+    "tts": (synthesis_pb2_grpc.SpeechSynthesizerStub, "Synthesize",
+            synthesis_pb2.SynthesizeRequest),
 }
 
 

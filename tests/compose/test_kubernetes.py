@@ -109,7 +109,7 @@ def test_what_the_objects_name_exists(rendered: dict[str, list[Document]]) -> No
     documents = rendered["kserve"]
     deployments = by_kind(documents, "Deployment")
     runtimes = by_kind(documents, "ServingRuntime")
-    assert set(deployments) == {"detector", "asr", "llm"}
+    assert set(deployments) == {"detector", "asr", "llm", "tts"}
     pods = [d["spec"]["template"]["spec"] for d in deployments.values()]
     pods += [r["spec"] for r in runtimes.values()]
     for kind, source in {s for pod in pods for s in volume_sources(pod)}:

@@ -22,7 +22,7 @@ from tests.support.data import image
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 
-PODS = ["detector", "asr", "llm", "oricf-models/yolox-nano"]
+PODS = ["detector", "asr", "llm", "tts", "oricf-models/yolox-nano"]
 
 
 @pytest.fixture(scope="module")

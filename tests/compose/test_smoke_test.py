@@ -25,7 +25,7 @@ def test_the_edge_stack_passes_the_smoke_test(engine: str) -> None:
     output = result.stdout + result.stderr
     assert result.returncode == 0, output[-6000:]
     assert f"engine:          {engine} (" in result.stdout
-    for service in ("detector", "asr", "llm"):
+    for service in ("detector", "asr", "llm", "tts"):
         assert f"{service} SERVING after" in result.stdout  # its container's health check
         assert f"ok   {service}: " in result.stdout
         assert f"ok   {service} refuses: no token" in result.stdout
