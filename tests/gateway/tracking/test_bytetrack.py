@@ -80,5 +80,5 @@ def test_bad_settings_are_refused(key: str, value: object) -> None:
 
 
 def test_low_score_above_high_score_is_refused() -> None:
-    with pytest.raises(ValueError, match="low_score 0.6 is above high_score 0.5"):
+    with pytest.raises(ValueError, match=r"low_score 0\.6 is above high_score 0\.5"):
         TrackerConfig(low_score=0.6, high_score=0.5)
