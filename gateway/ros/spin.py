@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from oricf.gateway.agents.host import serve_gateway_control
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros.dds import use_dds_profile
@@ -52,6 +53,7 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
     executor: Executor = (SingleThreadedExecutor() if config.executor_threads == 1
                           else MultiThreadedExecutor(num_threads=config.executor_threads))
     executor.add_node(node)
+    stop_control = serve_gateway_control(node.pipeline, node.outlets.channels)
     try:
         # Not executor.spin(): on SIGTERM or SIGINT rclpy's signal thread shuts the context
         # down, but now and then (rclpy 7.1) the executor's wait is
@@ -68,6 +70,7 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
             raise
     finally:
         log.info("gateway stopping")
+        stop_control()
         node.shutdown()
         executor.shutdown()
         node.destroy_node()

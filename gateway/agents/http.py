@@ -1,0 +1,78 @@
+"""MCP over streamable HTTP (the SDK's Starlette app on uvicorn): loopback by default;
+bearer tokens and TLS, both required for any other address; a cap on request bodies; the
+SDK's DNS-rebinding protection on loopback."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+from mcp.server.mcpserver import MCPServer
+
+from oricf.errors import ConfigError
+from oricf.gateway.control.server import BearerTokens
+from oricf.metrics import split_listen
+from oricf.tls import ServerTls, TokenSource
+
+log = logging.getLogger(__name__)
+
+PATH = "/mcp"
+
+
+@dataclass(frozen=True)
+class HttpSettings:
+    host: str
+    port: int
+    tokens: tuple[bytes, ...]
+    tls: ServerTls | None
+    max_request_bytes: int
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> HttpSettings:
+        try:
+            host, port = split_listen(args.listen)
+        except ValueError as exc:
+            raise ConfigError(f"--listen: {exc}") from None
+        tokens = (tuple(t.encode() for t in TokenSource(file=args.auth_token_file).tokens())
+                  if args.auth_token_file else ())
+        if (args.tls_cert is None) != (args.tls_key is None):
+            raise ConfigError("--tls-cert and --tls-key go together")
+        tls = ServerTls(cert=args.tls_cert, key=args.tls_key) if args.tls_cert else None
+        if not loopback(host) and not (tokens and tls):
+            raise ConfigError(f"--listen {args.listen}: beyond this machine, MCP needs "
+                              f"--auth-token-file and --tls-cert/--tls-key")
+        if not 1024 <= args.max_request_bytes <= 256 * 1024 * 1024:
+            raise ConfigError("--max-request-bytes: from 1024 to 268435456")
+        return cls(host, port, tokens, tls, args.max_request_bytes)
+
+
+def loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def http_app(app: MCPServer, settings: HttpSettings) -> Any:
+    asgi: Any = app.streamable_http_app(streamable_http_path=PATH, host=settings.host,
+                                        max_request_body_size=settings.max_request_bytes)
+    return BearerTokens(asgi, settings.tokens) if settings.tokens else asgi
+
+
+def serve_http(app: MCPServer, settings: HttpSettings) -> None:
+    import uvicorn
+
+    tls = settings.tls
+    config = uvicorn.Config(
+        http_app(app, settings), host=settings.host, port=settings.port, log_level="warning",
+        ssl_certfile=str(tls.cert) if tls else None, ssl_keyfile=str(tls.key) if tls else None,
+        lifespan="on", timeout_keep_alive=30, limit_concurrency=64)
+    scheme = "https" if tls else "http"
+    log.info("MCP on %s://%s:%d%s (%s)", scheme, settings.host, settings.port, PATH,
+             "bearer tokens" if settings.tokens else "no tokens: this machine only")
+    uvicorn.Server(config).run()

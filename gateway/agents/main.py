@@ -1,0 +1,110 @@
+"""`oricf mcp`: the gateway as a Model Context Protocol server, for LLM agents.
+
+    oricf mcp --config PIPELINE.yaml [--overlay FILE ...] [--set KEY=VALUE ...]
+        runs the pipeline in this process and serves MCP on standard input and output,
+        which is how a desktop agent launches a server (docs/agents.md has its JSON);
+    oricf mcp --attach unix:/run/oricf/control.sock | https://HOST:PORT [--token-file F]
+        serves a gateway that already runs (its `control:` API) instead;
+    --transport http [--listen 127.0.0.1:8765] [--auth-token-file F] [--tls-cert C --tls-key K]
+        serves MCP over streamable HTTP at http(s)://LISTEN/mcp instead of stdio: loopback
+        by default; any other address needs tokens and TLS.
+
+Tools: list_products, read_product, look, detect, infer, ask, transcribe, say, status, and
+publish, which writes only to the targets of the pipeline's `agent:` policy (bounds, rate,
+approval, deadman). Every call goes to the audit log (`agent.audit`, or --audit).
+With stdio, standard output carries the protocol alone: logs go to standard error, and a
+pipeline that writes its outputs to standard output is refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from oricf.errors import ConfigError
+from oricf.gateway.agents.audit import AuditLog
+from oricf.gateway.agents.http import HttpSettings, serve_http
+from oricf.gateway.agents.mcp_server import build_server
+from oricf.gateway.config import PipelineConfig, load_pipeline
+from oricf.gateway.control.api import Gateway
+
+log = logging.getLogger(__name__)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="oricf mcp", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--config", type=Path, help="pipeline YAML to run in this process")
+    where.add_argument("--attach", metavar="ADDRESS",
+                       help="a running gateway's control API: unix:PATH or http(s)://HOST:PORT")
+    parser.add_argument("--overlay", type=Path, action="append", default=[],
+                        help="--config: YAML merged on top (repeatable)")
+    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                        help="--config: override a pipeline key (repeatable)")
+    parser.add_argument("--token-file", type=Path,
+                        help="--attach: the control API's bearer token (first line)")
+    parser.add_argument("--ca", type=Path, help="--attach https: the CA of its certificate")
+    parser.add_argument("--audit", type=Path,
+                        help="JSON lines of every tool call (default: the policy's "
+                             "agent.audit with --config)")
+    parser.add_argument("--transport", choices=["stdio", "http"], default="stdio")
+    parser.add_argument("--listen", default="127.0.0.1:8765",
+                        help="--transport http: HOST:PORT (default 127.0.0.1:8765)")
+    parser.add_argument("--auth-token-file", type=Path,
+                        help="--transport http: require `Authorization: Bearer TOKEN`, one "
+                             "token per line")
+    parser.add_argument("--tls-cert", type=Path, help="--transport http: serve HTTPS")
+    parser.add_argument("--tls-key", type=Path, help="--transport http: the key of --tls-cert")
+    parser.add_argument("--max-request-bytes", type=int, default=16 * 1024 * 1024,
+                        help="--transport http: the largest request body (default 16 MiB)")
+    return parser
+
+
+def check_stdio(config: PipelineConfig) -> None:
+    """Standard output is the protocol: no output of the pipeline may write there."""
+    for name, route in config.routes.items():
+        for i, output in enumerate(route.outputs):
+            if "-" in (output.jsonl, output.text):
+                raise ConfigError(f"routes.{name}.outputs[{i}]: writes to standard output, "
+                                  f"which carries the MCP protocol; send it to a file")
+        if route.input.text == "-":
+            raise ConfigError(f"routes.{name}.input.text: reads standard input, which "
+                              f"carries the MCP protocol")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    http = HttpSettings.from_args(args) if args.transport == "http" else None
+    if args.attach:
+        from oricf.gateway.control.client import ControlClient
+
+        gateway: Gateway = ControlClient(args.attach, args.token_file, args.ca)
+        return serve(gateway, AuditLog(args.audit), http)
+    config = load_pipeline(args.config, args.overlay, sets=args.sets)
+    if http is None:
+        check_stdio(config)
+    from oricf.gateway.agents.host import HostedPipeline
+
+    hosted = HostedPipeline(config, audit_path=args.audit)
+    view = hosted.start()
+    try:
+        return serve(view, view.audit, http)
+    finally:
+        hosted.stop()
+
+
+def serve(gateway: Gateway, audit: AuditLog, http: HttpSettings | None) -> int:
+    app = build_server(gateway, audit)
+    if http is None:
+        log.info("MCP on standard input and output")
+        app.run("stdio")
+    else:
+        serve_http(app, http)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

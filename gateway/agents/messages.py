@@ -1,0 +1,111 @@
+"""The message types an agent may send, as flat fields: `linear.x` of a geometry_msgs/Twist.
+
+An agent gives a message as JSON (`{"linear": {"x": 0.2}}`); it is flattened, every field
+checked against the type's table (unknown fields refused, numbers finite, text bounded), and
+only then made into a ROS message or a text line. Nothing in a message is ever evaluated.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from oricf.errors import InvalidInput
+
+# type -> its fields and their kind: "float", "int", "bool" or "text"
+FIELDS: dict[str, dict[str, str]] = {
+    "geometry_msgs/Twist": {f"{part}.{axis}": "float" for part in ("linear", "angular")
+                            for axis in "xyz"},
+    "std_msgs/Float64": {"data": "float"},
+    "std_msgs/Int32": {"data": "int"},
+    "std_msgs/Bool": {"data": "bool"},
+    "std_msgs/String": {"data": "text"},
+}
+MAX_TEXT = 2000
+MAX_DEPTH = 4
+
+
+def flatten(message: Any, prefix: str = "", depth: int = 0) -> dict[str, Any]:
+    """{"linear": {"x": 0.2}} -> {"linear.x": 0.2}; anything but an object is refused."""
+    if not isinstance(message, Mapping):
+        raise InvalidInput(f"message{' field ' + prefix if prefix else ''} must be a JSON "
+                           f"object, got {type(message).__name__}")
+    if depth >= MAX_DEPTH:
+        raise InvalidInput("message nests too deep")
+    flat: dict[str, Any] = {}
+    for key, value in message.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, f"{name}.", depth + 1))
+        else:
+            flat[name] = value
+    return flat
+
+
+def check_fields(type_: str, flat: dict[str, Any]) -> dict[str, Any]:
+    """The message's fields, each of the kind its type says; every field of the type
+    present (missing ones zero, false or empty)."""
+    fields = FIELDS[type_]
+    unknown = sorted(set(flat) - set(fields))
+    if unknown:
+        raise InvalidInput(f"{type_} has no field {', '.join(map(repr, unknown))[:200]} "
+                           f"(fields: {', '.join(fields)})")
+    return {name: _value(name, kind, flat[name]) if name in flat else DEFAULTS[kind]
+            for name, kind in fields.items()}
+
+
+DEFAULTS: dict[str, Any] = {"float": 0.0, "int": 0, "bool": False, "text": ""}
+
+
+def _value(name: str, kind: str, value: Any) -> Any:
+    if kind == "text":
+        if not isinstance(value, str):
+            raise InvalidInput(f"{name} must be text")
+        if len(value) > MAX_TEXT:
+            raise InvalidInput(f"{name} is longer than {MAX_TEXT} characters")
+        return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise InvalidInput(f"{name} must be true or false")
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InvalidInput(f"{name} must be a number, got {type(value).__name__}")
+    if not math.isfinite(value):
+        raise InvalidInput(f"{name} must be a finite number")
+    if kind == "int":
+        if value != int(value) or abs(value) > 2**31 - 1:
+            raise InvalidInput(f"{name} must be a 32-bit integer")
+        return int(value)
+    return float(value)
+
+
+def zero(type_: str) -> dict[str, Any]:
+    """The type's stop command: every field zero (a deadman sends it)."""
+    return check_fields(type_, {})
+
+
+def nested(flat: dict[str, Any]) -> dict[str, Any]:
+    """{"linear.x": 0.2} -> {"linear": {"x": 0.2}}: for the audit log and the agent."""
+    out: dict[str, Any] = {}
+    for name, value in flat.items():
+        *parents, leaf = name.split(".")
+        node = out
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return out
+
+
+def ros_message(type_: str, flat: dict[str, Any]) -> Any:
+    """The rclpy message of a checked message (ROS imported here, on first use)."""
+    package, name = type_.split("/")
+    module = __import__(f"{package}.msg", fromlist=[name])
+    message = getattr(module, name)()
+    for path, value in flat.items():
+        *parents, leaf = path.split(".")
+        node = message
+        for part in parents:
+            node = getattr(node, part)
+        setattr(node, leaf, value)
+    return message

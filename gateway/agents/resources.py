@@ -1,0 +1,128 @@
+"""MCP resources of a gateway, with update notifications: each data product
+(`oricf://products/NAME`, JSON) and the latest annotated frame of each camera route
+(`oricf://frames/ROUTE`, JPEG).
+
+A poller reads the gateway twice a second and announces a resource whose value changed, at
+most once a second each: to clients listening on `subscriptions/listen` (the SDK's bus) and
+to clients of older protocol versions that sent `resources/subscribe`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+import anyio
+import mcp_types as types
+from mcp.server.mcpserver import MCPServer
+from mcp.server.mcpserver.resources import FunctionResource
+from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated
+
+from oricf.gateway.control.api import Gateway
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.5
+MIN_NOTIFY_INTERVAL_S = 1.0
+IMAGE_METHODS = ("Detect", "Infer")
+
+
+class ResourceFeed:
+    def __init__(self, gateway: Gateway) -> None:
+        self.gateway = gateway
+        self.bus = InMemorySubscriptionBus()
+        self._legacy: dict[str, set[Any]] = {}  # uri -> sessions that subscribed
+        self._seen: dict[str, Any] = {}
+        self._notified: dict[str, float] = {}
+
+    def register(self, app: MCPServer) -> None:
+        gateway = self.gateway
+        for product in gateway.products():
+            name = product["name"]
+            app.add_resource(FunctionResource.from_function(
+                lambda name=name: gateway.read_product(name), f"oricf://products/{name}",
+                name=f"product {name}", mime_type="application/json",
+                description=f"data product {name}: value, age_s, stale, route"))
+        for route in self._camera_routes():
+            app.add_resource(FunctionResource.from_function(
+                lambda route=route: gateway.look(route)[1], f"oricf://frames/{route}",
+                name=f"frame {route}", mime_type="image/jpeg",
+                description=f"the newest frame of route {route}, detections drawn"))
+        # Clients of protocol versions before 2026-07-28 subscribe per resource. MCPServer
+        # serves only subscriptions/listen, so the older request is added on its server.
+        lowlevel = app._lowlevel_server
+        lowlevel.add_request_handler("resources/subscribe", types.SubscribeRequestParams,
+                                     self._subscribe)
+        lowlevel.add_request_handler("resources/unsubscribe", types.UnsubscribeRequestParams,
+                                     self._unsubscribe)
+
+    def _camera_routes(self) -> list[str]:
+        routes = self.gateway.status()["routes"]
+        return [name for name, r in routes.items() if r["method"] in IMAGE_METHODS]
+
+    async def _subscribe(self, ctx: Any, params: types.SubscribeRequestParams
+                         ) -> types.EmptyResult:
+        self._legacy.setdefault(str(params.uri), set()).add(ctx.session)
+        return types.EmptyResult()
+
+    async def _unsubscribe(self, ctx: Any, params: types.UnsubscribeRequestParams
+                           ) -> types.EmptyResult:
+        self._legacy.get(str(params.uri), set()).discard(ctx.session)
+        return types.EmptyResult()
+
+    @asynccontextmanager
+    async def lifespan(self, app: MCPServer) -> AsyncIterator[None]:
+        async with anyio.create_task_group() as tasks:
+            tasks.start_soon(self._poll)
+            try:
+                yield
+            finally:
+                tasks.cancel_scope.cancel()
+
+    async def _poll(self) -> None:
+        while True:
+            await anyio.sleep(POLL_S)
+            try:
+                changed = await anyio.to_thread.run_sync(self._changes)
+            except Exception as exc:  # a gateway that went away: try again later
+                log.debug("resource poll failed: %s", exc)
+                continue
+            for uri in changed:
+                await self._announce(uri)
+
+    def _changes(self) -> list[str]:
+        """URIs whose value changed since the last poll."""
+        now: dict[str, Any] = {}
+        for product in self.gateway.products():
+            if product["written"]:
+                reading = self.gateway.read_product(product["name"])
+                now[f"oricf://products/{product['name']}"] = (reading["value"],
+                                                              reading["age_s"])
+        for name, route in self.gateway.status()["routes"].items():
+            if route["method"] in IMAGE_METHODS:
+                now[f"oricf://frames/{name}"] = route["ok"]
+        changed = []
+        for uri, value in now.items():
+            before = self._seen.get(uri)
+            if isinstance(value, tuple):  # a product: a new value, or the same value again
+                fresh = before is None or value[0] != before[0] or value[1] < before[1]
+            else:
+                fresh = value != before
+            if fresh:
+                changed.append(uri)
+        self._seen = now
+        return changed
+
+    async def _announce(self, uri: str) -> None:
+        now = anyio.current_time()
+        if now - self._notified.get(uri, -MIN_NOTIFY_INTERVAL_S) < MIN_NOTIFY_INTERVAL_S:
+            return
+        self._notified[uri] = now
+        await self.bus.publish(ResourceUpdated(uri=uri))
+        for session in list(self._legacy.get(uri, ())):
+            try:
+                await session.send_resource_updated(uri)
+            except Exception:  # the client has gone
+                self._legacy[uri].discard(session)

@@ -1,0 +1,93 @@
+"""Where an allowed command goes: a ROS topic (a node of its own, `oricf_agent`, in a
+private rclpy context, so it works beside the gateway's node or without one) or a text
+channel of the pipeline (a line to every client)."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Any, Protocol
+
+from oricf.gateway.agents.messages import ros_message
+from oricf.gateway.agents.policy import AgentPolicy
+from oricf.gateway.text_channels import Channels
+
+log = logging.getLogger(__name__)
+
+
+class Sender(Protocol):
+    def send(self, target: str, fields: dict[str, Any]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class RosSender:
+    """One publisher per topic target, made when the sender starts."""
+
+    def __init__(self, policy: AgentPolicy, node_name: str = "oricf_agent") -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.node import Node
+        from rclpy.qos import QoSProfile
+
+        from oricf.gateway.ros.dds import use_dds_profile
+
+        use_dds_profile()
+        self._context = Context()
+        rclpy.init(context=self._context)
+        self._node = Node(node_name, context=self._context)
+        self._types = {name: t.type for name, t in policy.targets.items() if t.topic}
+        self._publishers = {
+            name: self._node.create_publisher(type(ros_message(t.type, {})), t.topic,
+                                              QoSProfile(depth=10))
+            for name, t in policy.targets.items() if t.topic}
+        self._lock = threading.Lock()
+        log.info("agent targets on ROS topics: %s", ", ".join(
+            f"{name} -> {t.topic} ({t.type})" for name, t in policy.targets.items()
+            if t.topic) or "none")
+
+    def send(self, target: str, fields: dict[str, Any]) -> None:
+        with self._lock:
+            self._publishers[target].publish(ros_message(self._types[target], fields))
+
+    def subscribers(self, target: str) -> int:
+        return int(self._publishers[target].get_subscription_count())
+
+    def close(self) -> None:
+        import rclpy
+
+        self._node.destroy_node()
+        rclpy.try_shutdown(context=self._context)
+
+
+class ChannelSender:
+    def __init__(self, policy: AgentPolicy, channels: Channels) -> None:
+        self._channels = {name: channels.get(t.channel) for name, t in policy.targets.items()
+                          if t.channel}
+
+    def send(self, target: str, fields: dict[str, Any]) -> None:
+        self._channels[target].send(str(fields["data"]))
+
+    def close(self) -> None:
+        pass
+
+
+class Senders:
+    """Every target's sender: ROS only where a target is a topic (rclpy imported then)."""
+
+    def __init__(self, policy: AgentPolicy, channels: Channels) -> None:
+        self.ros = (RosSender(policy) if any(t.topic for t in policy.targets.values())
+                    else None)
+        self.text = ChannelSender(policy, channels)
+        self._topics = {name for name, t in policy.targets.items() if t.topic}
+
+    def send(self, target: str, fields: dict[str, Any]) -> None:
+        if target in self._topics:
+            assert self.ros is not None
+            self.ros.send(target, fields)
+        else:
+            self.text.send(target, fields)
+
+    def close(self) -> None:
+        if self.ros is not None:
+            self.ros.close()

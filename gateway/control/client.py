@@ -1,0 +1,100 @@
+"""The control API from another process (`oricf mcp --attach`): api.Gateway over HTTP, on a
+Unix socket or http(s)://HOST:PORT, with a bearer token; the server's errors come back as
+the same exception types (InvalidInput, NotReady, Refused)."""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
+from oricf.gateway.agents.policy import Refused
+from oricf.gateway.control.api import Json
+from oricf.tls import TokenSource
+
+ERRORS: dict[str, type[OricfError]] = {"InvalidInput": InvalidInput, "NotReady": NotReady,
+                                       "Refused": Refused}
+TIMEOUT_S = 60.0  # a language model's answer may take this long on a small CPU
+
+
+class ControlClient:
+    def __init__(self, address: str, token_file: Path | None = None,
+                 ca: Path | None = None) -> None:
+        headers = {}
+        if token_file is not None:
+            headers["Authorization"] = f"Bearer {TokenSource(file=token_file).tokens()[0]}"
+        if address.startswith("unix:"):
+            transport = httpx.HTTPTransport(uds=address[len("unix:"):])
+            self._http = httpx.Client(transport=transport, base_url="http://gateway",
+                                      headers=headers, timeout=TIMEOUT_S)
+        elif address.startswith(("http://", "https://")):
+            verify: Any = str(ca) if ca is not None else True
+            self._http = httpx.Client(base_url=address.rstrip("/"), headers=headers,
+                                      timeout=TIMEOUT_S, verify=verify)
+        else:
+            raise ConfigError(f"--attach {address}: give unix:PATH or http(s)://HOST:PORT")
+        self.address = address
+
+    def _call(self, method: str, path: str, **kwargs: Any) -> Any:
+        try:
+            response = self._http.request(method, path, **kwargs)
+        except httpx.HTTPError as exc:
+            raise NotReady(f"gateway control API at {self.address}: {exc}") from None
+        try:
+            data = response.json()
+        except ValueError:
+            raise NotReady(f"gateway control API: HTTP {response.status_code}") from None
+        if response.status_code == 401:
+            raise NotReady("gateway control API: missing or wrong bearer token")
+        if response.status_code >= 400:
+            error = ERRORS.get(str(data.get("kind")), NotReady)
+            raise error(str(data.get("error", "failed")))
+        return data
+
+    def products(self) -> list[Json]:
+        return list(self._call("GET", "/v1/products")["products"])
+
+    def read_product(self, name: str) -> Json:
+        return dict(self._call("GET", f"/v1/products/{name}"))
+
+    def look(self, route: str | None = None) -> tuple[Json, bytes]:
+        data = self._call("GET", "/v1/look", params={"route": route} if route else None)
+        return data, base64.b64decode(data.pop("image"))
+
+    def detect(self, image: bytes, route: str | None = None) -> Json:
+        return dict(self._call("POST", "/v1/detect", json={
+            "image": base64.b64encode(image).decode(), "route": route}))
+
+    def infer(self, route: str, image: bytes) -> Json:
+        return dict(self._call("POST", "/v1/infer", json={
+            "route": route, "image": base64.b64encode(image).decode()}))
+
+    def ask(self, question: str) -> Json:
+        return dict(self._call("POST", "/v1/ask", json={"question": question}))
+
+    def transcribe(self, audio: bytes) -> Json:
+        return dict(self._call("POST", "/v1/transcribe",
+                               json={"audio": base64.b64encode(audio).decode()}))
+
+    def say(self, text: str) -> Json:
+        return dict(self._call("POST", "/v1/say", json={"text": text}))
+
+    def status(self) -> Json:
+        return dict(self._call("GET", "/v1/status"))
+
+    def policy(self) -> Json:
+        return dict(self._call("GET", "/v1/policy"))
+
+    def check(self, target: str, message: Json) -> Json:
+        return dict(self._call("POST", "/v1/check", json={"target": target,
+                                                          "message": message}))
+
+    def publish(self, target: str, message: Json, approved: bool = False) -> Json:
+        return dict(self._call("POST", "/v1/publish", json={
+            "target": target, "message": message, "approved": approved}))
+
+    def close(self) -> None:
+        self._http.close()

@@ -1,0 +1,245 @@
+"""The control operations (api.Gateway) on a pipeline running in this process.
+
+Reads come from the pipeline itself: data products from its ProductStore, the newest frame
+of a camera route from the route (`Route.latest`), counters from routes and endpoints. Calls
+on what the caller passes (detect, infer, ask, transcribe) go through the same endpoints as
+the routes (deadlines, retries, failover), with the route's call settings, but no post step
+and no output: an agent's image never reaches a topic or a tracker.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import grpc
+
+from oricf.audio.wav import parse_wav
+from oricf.errors import InvalidInput, NotReady
+from oricf.gateway.agents.actuation import Actuation
+from oricf.gateway.agents.audit import AuditLog
+from oricf.gateway.agents.messages import nested
+from oricf.gateway.agents.policy import Refused
+from oricf.gateway.control.api import MAX_AUDIO_BYTES, MAX_IMAGE_BYTES, MAX_TEXT_CHARS, Json
+from oricf.gateway.methods import METHODS
+from oricf.gateway.methods.base import Skip
+from oricf.gateway.methods.generate import context_readings
+from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.route import Route
+from oricf.gateway.values import AudioClip, Frame, Record
+from oricf.imaging import Detection, draw_detections, encode_image, encoded_size, label_counts
+from oricf.logs import quoted
+
+IMAGE_METHODS = ("Detect", "Infer")
+
+
+class PipelineView:
+    def __init__(self, pipeline: Pipeline, actuation: Actuation | None = None,
+                 audit: AuditLog | None = None) -> None:
+        self.pipeline = pipeline
+        self.actuation = actuation
+        self.audit = audit or (actuation.audit if actuation else AuditLog())
+        self._writers = {o.product: name for name, r in pipeline.config.routes.items()
+                         for o in r.outputs if o.product}
+        self._invokes = {name: METHODS[r.config.call.method].bind(
+            r.config.call, r.endpoint, pipeline.products) for name, r in pipeline.routes.items()}
+
+    # reads
+
+    def products(self) -> list[Json]:
+        out = []
+        for name, route in sorted(self._writers.items()):
+            reading = self.pipeline.products.read(name)
+            out.append({"name": name, "route": route, "written": reading is not None,
+                        "max_age_s": self._max_age(name)})
+        return out
+
+    def read_product(self, name: str) -> Json:
+        if name not in self._writers:
+            raise InvalidInput(f"no data product {quoted(name, 100)} (products: "
+                               f"{', '.join(sorted(self._writers)) or 'none'})")
+        reading = self.pipeline.products.read(name)
+        if reading is None:
+            raise NotReady(f"data product {name} has no value yet")
+        return {"name": name, "value": plain(reading.value), "age_s": round(reading.age_s, 3),
+                "stale": reading.stale, "max_age_s": reading.max_age_s,
+                "route": self._writers[name]}
+
+    def look(self, route: str | None = None) -> tuple[Json, bytes]:
+        chosen = self._route(route, IMAGE_METHODS, "a camera")
+        latest = chosen.latest
+        if latest is None:
+            raise NotReady(f"route {chosen.name} has taken no frame yet")
+        done, record = latest
+        frame: Frame = record["image"]
+        found: list[Detection] = list(record.get("detections", []))
+        pixels = draw_detections(frame.pixels(), found) if found else frame.pixels()
+        info = {"route": chosen.name, "age_s": round(time.monotonic() - done, 3),
+                "width": pixels.shape[1], "height": pixels.shape[0],
+                **findings(record)}
+        return info, encode_image(pixels, "jpeg", 80)
+
+    def status(self) -> Json:
+        endpoints = {}
+        for name, endpoint in self.pipeline.endpoints.items():
+            endpoints[name] = {
+                "active": endpoint.active.address, "primary": endpoint.primary.address,
+                "fallback": endpoint.fallback.address if endpoint.fallback else None,
+                "on_fallback": endpoint.active is not endpoint.primary,
+                "failovers": endpoint.failovers, "recoveries": endpoint.recoveries,
+                "retries": endpoint.retries, "deadline_ms": endpoint.config.deadline_ms}
+        routes = {}
+        for name, route in self.pipeline.routes.items():
+            stats = route.stats
+            routes[name] = {"method": route.config.call.method, "endpoint": route.endpoint.name,
+                            "ok": stats.ok, "skipped": stats.skipped,
+                            "errors": dict(stats.errors), "last_ms": round(stats.last_ms, 1),
+                            "received": self.pipeline.workers[name].stats.received,
+                            "dropped": self.pipeline.workers[name].stats.dropped}
+        return {"endpoints": endpoints, "routes": routes, "agent_calls": self.audit.counts()}
+
+    def policy(self) -> Json:
+        if self.actuation is None:
+            return {"targets": {}}
+        return {"targets": {name: t.summary()
+                            for name, t in self.actuation.policy.targets.items()}}
+
+    # calls on what the caller passes
+
+    def detect(self, image: bytes, route: str | None = None) -> Json:
+        chosen = self._route(route, IMAGE_METHODS, "a detection", kind="detections")
+        return self._run(chosen, {"image": image_frame(image)})
+
+    def infer(self, route: str, image: bytes) -> Json:
+        return self._run(self._route(route, IMAGE_METHODS, "an image"),
+                         {"image": image_frame(image)})
+
+    def ask(self, question: str) -> Json:
+        question = text_arg(question, "question")
+        chosen = self._route(None, ("Generate",), "a language model")
+        facts = context_readings(chosen.config.call, self.pipeline.products)  # type: ignore[arg-type]
+        result = self._run(chosen, {"text": question, "value": question, "route": chosen.name})
+        result["facts"] = {r.name: {"value": plain(r.value), "age_s": round(r.age_s, 3),
+                                    "stale": r.stale} for r in facts}
+        return result
+
+    def transcribe(self, audio: bytes) -> Json:
+        if len(audio) > MAX_AUDIO_BYTES:
+            raise InvalidInput(f"audio of {len(audio):,} bytes; at most {MAX_AUDIO_BYTES:,}")
+        pcm = parse_wav(audio)
+        clip = AudioClip(pcm.samples.astype("<i2").tobytes(), pcm.sample_rate, pcm.channels)
+        chosen = self._route(None, ("Transcribe",), "a speech recognition")
+        return self._run(chosen, {"audio": clip})
+
+    def say(self, text: str) -> Json:
+        text_arg(text, "text")
+        raise NotReady("this pipeline has no speech synthesis route")
+
+    # actuation
+
+    def check(self, target: str, message: Json) -> Json:
+        checked = self._actuation().check(target, message)
+        return {"target": target, "sent": nested(checked.fields), "clamped": checked.clamped}
+
+    def publish(self, target: str, message: Json, approved: bool = False) -> Json:
+        return self._actuation().send(target, message, approved)
+
+    def close(self) -> None:
+        if self.actuation is not None:
+            self.actuation.close()
+        self.audit.close()
+
+    # helpers
+
+    def _actuation(self) -> Actuation:
+        if self.actuation is None:
+            raise Refused("this pipeline has no agent policy: no target may be written")
+        return self.actuation
+
+    def _max_age(self, product: str) -> float:
+        route = self.pipeline.config.routes[self._writers[product]]
+        return next(o.max_age_s for o in route.outputs if o.product == product)
+
+    def _route(self, name: str | None, methods: tuple[str, ...], what: str,
+               kind: str | None = None) -> Route:
+        fits = [r for r in self.pipeline.routes.values() if r.config.call.method in methods
+                and (kind is None or kind in METHODS[r.config.call.method].fields(r.config.call))]
+        if name is None:
+            if not fits:
+                raise NotReady(f"this pipeline has no {what} route")
+            return fits[0]
+        for route in fits:
+            if route.name == name:
+                return route
+        raise InvalidInput(f"no {what} route {quoted(name, 100)} (routes: "
+                           f"{', '.join(r.name for r in fits) or 'none'})")
+
+    def _run(self, route: Route, record: Record) -> Json:
+        try:
+            result = self._invokes[route.name](record)
+        except Skip as exc:
+            return {"route": route.name, "nothing": str(exc)}
+        except KeyError as exc:
+            raise InvalidInput(f"route {route.name} needs the field {exc} in its prompt, "
+                               f"which a caller cannot give") from None
+        except grpc.RpcError as exc:
+            if exc.code() == grpc.StatusCode.INVALID_ARGUMENT:
+                raise InvalidInput(quoted(exc.details() or "", 300)) from None
+            raise NotReady(f"{route.endpoint.name} failed: {exc.code().name}") from None
+        fields = {f: getattr(result, f) for f in result.__dataclass_fields__}
+        return {"route": route.name, **findings(fields)}
+
+
+def findings(record: Record) -> Json:
+    """A record's results as JSON: detections (with track ids), counts per label, classes,
+    answers and transcripts; images and audio left out."""
+    out: Json = {}
+    for key, value in record.items():
+        if key == "detections":
+            out[key] = [detection_json(d) for d in value]
+            out["counts"] = label_counts(value)
+        elif isinstance(value, str | int | float | bool) and key not in ("route",):
+            out[key] = value
+        elif key == "classes":
+            out[key] = [[label, float(score)] for label, score in value]
+    return out
+
+
+def detection_json(d: Detection) -> Json:
+    item: Json = {"label": d.label, "score": round(float(d.score), 3),
+                  "box": [round(float(v), 1) for v in (d.box.x_min, d.box.y_min, d.box.x_max,
+                                                       d.box.y_max)]}
+    if d.track_id is not None:
+        item["track_id"] = d.track_id
+    return item
+
+
+def image_frame(data: bytes) -> Frame:
+    """JPEG or PNG bytes from a caller, its size read from the header before any decoding."""
+    if not isinstance(data, bytes | bytearray) or not data:
+        raise InvalidInput("image: no bytes")
+    if len(data) > MAX_IMAGE_BYTES:
+        raise InvalidInput(f"image of {len(data):,} bytes; at most {MAX_IMAGE_BYTES:,}")
+    encoding, width, height = encoded_size(bytes(data))
+    return Frame(bytes(data), encoding, width, height)
+
+
+def text_arg(text: Any, name: str) -> str:
+    if not isinstance(text, str) or not text.strip():
+        raise InvalidInput(f"{name}: give some text")
+    if len(text) > MAX_TEXT_CHARS:
+        raise InvalidInput(f"{name}: at most {MAX_TEXT_CHARS} characters")
+    return text
+
+
+def plain(value: Any) -> Any:
+    """A product's value as JSON: numbers and text as they are, detections as objects."""
+    if isinstance(value, str | int | float | bool) or value is None:
+        return value
+    if isinstance(value, Detection):
+        return detection_json(value)
+    if isinstance(value, list | tuple):
+        return [plain(v) for v in value[:100]]
+    if isinstance(value, Frame):
+        return {"image": f"{value.width}x{value.height} {value.encoding}"}
+    return str(value)[:1000]
