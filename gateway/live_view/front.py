@@ -40,6 +40,9 @@ SUBPROTOCOLS = [SDK_SUBPROTOCOL, Subprotocol("foxglove.websocket.v1")]
 HANDSHAKE_TIMEOUT_S = 10.0
 PING_INTERVAL_S = 20.0
 START_TIMEOUT_S = 10.0
+# The wait for the other side's close frame once one side has gone: a viewer that left must
+# not hold its place among max_clients for long.
+CLOSE_TIMEOUT_S = 1.0
 # From the SDK (trusted, on loopback): a frame of the largest image the gateway takes.
 UPSTREAM_MAX_BYTES = 256 << 20
 # Bytes written to a viewer before the relay waits for it: a slow viewer stalls only its own
@@ -84,7 +87,8 @@ class Front:
             self._relay, self.host, self.port, ssl=self._ssl, subprotocols=SUBPROTOCOLS,
             process_request=self._admit, max_size=self.config.max_message_bytes,
             max_queue=4, write_limit=WRITE_LIMIT_BYTES, open_timeout=HANDSHAKE_TIMEOUT_S,
-            ping_interval=PING_INTERVAL_S, ping_timeout=PING_INTERVAL_S, server_header=None)
+            ping_interval=PING_INTERVAL_S, ping_timeout=PING_INTERVAL_S,
+            close_timeout=CLOSE_TIMEOUT_S, server_header=None)
         self.port = self._server.sockets[0].getsockname()[1]
 
     def _admit(self, connection: ServerConnection, request: Request) -> Response | None:
@@ -107,7 +111,7 @@ class Front:
         try:
             async with connect(self._sdk_url, subprotocols=[SDK_SUBPROTOCOL],
                                max_size=UPSTREAM_MAX_BYTES, max_queue=4,
-                               ping_interval=None) as sdk:
+                               ping_interval=None, close_timeout=CLOSE_TIMEOUT_S) as sdk:
                 await _first_to_end(_pipe(viewer, sdk), _pipe(sdk, viewer))
         except (OSError, ConnectionClosed) as exc:
             log.warning("live view: relay for %s ended: %s", _peer(viewer), exc)

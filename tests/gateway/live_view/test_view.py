@@ -96,10 +96,9 @@ def rss_mb() -> float:
 def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -> None:
     """One viewer subscribes to the frames and never reads again; the route goes on, a
     second viewer still gets frames, and nothing piles up in the gateway."""
-    stalled = connect(gateway.url, subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
-                      max_queue=1)
     decoder = Decoder()
-    with stalled:
+    with connect(gateway.url, subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
+                 max_queue=1) as stalled:
         stalled.recv(timeout=5)  # serverInfo
         while not any(c["topic"] == "/people/image" for c in decoder.channels.values()):
             decoder.advertise(json.loads(stalled.recv(timeout=10))["channels"])
