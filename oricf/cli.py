@@ -36,8 +36,8 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.demo.main",
 }
-BENCHMARKS = ("detector", "asr", "llm", "tts", "gateway", "models", "link", "rtsp", "offload",
-              "edge", "tracking")
+BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
+              "offload", "edge", "tracking")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:
