@@ -106,12 +106,15 @@ def placement_detector(name: str) -> EndpointConfig:
     return load_pipeline(pipeline_path(), [placement(name)]).endpoints["detector"]
 
 
-def overlay(detector: str, compressed: bool) -> dict[str, Any]:
-    """Applied after the placement: the detector's address here, and the people route
-    counting only (no annotated image)."""
+def overlay(detector: str, compressed: bool, transport: str | None = None) -> dict[str, Any]:
+    """Applied after the placement: the detector's address here (and another image
+    transport if given), and the people route counting only (no annotated image)."""
     source = ({"topic": COMPRESSED_TOPIC, "type": "sensor_msgs/CompressedImage"} if compressed
               else {"topic": "camera/image_raw", "type": "sensor_msgs/Image"})
-    return {"endpoints": {"detector": {"address": detector}},
+    endpoint: dict[str, Any] = {"address": detector}
+    if transport is not None:
+        endpoint["image"] = {"transport": transport}
+    return {"endpoints": {"detector": endpoint},
             "routes": {"people": {
                 "input": source,
                 "post": [{"count": {"label": "person", "into": "count"}}],
@@ -121,11 +124,12 @@ def overlay(detector: str, compressed: bool) -> dict[str, Any]:
 
 
 @contextmanager
-def gateway(detector: str, where: str, folder: Path, compressed: bool
-            ) -> Iterator[subprocess.Popen[bytes]]:
-    """`oricf gateway` at placement `where` (onboard or edge), sending to detector."""
-    path = folder / f"{where}-here.yaml"
-    path.write_text(yaml.safe_dump(overlay(detector, compressed)))
+def gateway(detector: str, where: str, folder: Path, compressed: bool,
+            transport: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
+    """`oricf gateway` at placement `where` (onboard or edge), sending to detector (with
+    another image transport if given)."""
+    path = folder / f"{where}-{transport or 'placed'}-here.yaml"
+    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
                str(pipeline_path()), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
@@ -300,6 +304,10 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                 latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
                 cpu["gw raw 1"], cpu["det shipped"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
+            with gateway(address, "onboard", folder, compressed, "shm") as shm:
+                camera.warm_up(messages[0], shm)
+                cpu["gw shm"], cpu["det shm"] = cpu_per_frame(camera, messages, args.fps,
+                                                              [shm.pid, detector.pid])
             with gateway(address, "edge", folder, compressed) as jpeg:
                 camera.warm_up(messages[0], jpeg)
                 woken = wakeups(jpeg.pid)

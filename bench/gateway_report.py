@@ -63,6 +63,11 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple
         rows.append([f"onboard, detector {name}", "gateway + detector",
                      f"{value * 1e3:.2f}", "-", "-", f"{power.joules(value) * 1e3:.1f}", "0",
                      "-", "-"])
+    shared = cpu["gw shm"] + cpu["det shm"]
+    rows.append([f"onboard, detector {shipped} thr, shared memory", "gateway + detector",
+                 f"{shared * 1e3:.2f}",
+                 *(f"{(1 - shared / on) * 100:.1f}%" for on in onboard.values()),
+                 f"{power.joules(shared) * 1e3:.1f}", "0", "-", "-"])
     offloaded = {"raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2, "jpeg": cpu["gw jpeg"]}
     for transport, value in offloaded.items():
         radio = result.request_bytes[transport] + result.response_bytes
