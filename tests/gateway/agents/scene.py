@@ -4,7 +4,6 @@ YAML with an agent policy, and a ROS subscriber on the policy's topics."""
 
 from __future__ import annotations
 
-import os
 import queue
 import threading
 import time
@@ -18,7 +17,6 @@ import numpy as np
 import yaml
 
 from oricf.audio.wav import encode_wav
-
 from tests.support.data import video_frames
 
 FRAME = 300
@@ -146,9 +144,3 @@ def ros_listener() -> Iterator[RosListener]:
         yield listener
     finally:
         listener.close()
-
-
-def server_env() -> dict[str, str]:
-    """The whole environment (the SDK passes only a safe subset by default): the test's
-    private ROS domain must reach the server."""
-    return {**os.environ, "ORICF_LOG_LEVEL": "INFO"}

@@ -6,86 +6,18 @@ from __future__ import annotations
 
 import base64
 import json
-import sys
 import time
-from collections.abc import AsyncIterator, Iterator
-from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
 import anyio
 import mcp_types as types
-import pytest
-from mcp import ClientSession, StdioServerParameters
-from mcp.client.stdio import stdio_client
+from mcp import ClientSession
 
 from oricf.audio.wav import encode_wav
-from tests.gateway.agents.scene import (
-    PEOPLE,
-    RosListener,
-    pipeline_yaml,
-    ros_listener,
-    server_env,
-)
-from tests.support.services import RunningService, running_service
+from tests.gateway.agents.scene import PEOPLE, RosListener
+from tests.gateway.agents.session import TOOLS, stdio_session, text_of, wait_product, warm_up
 from tests.support.speech import speech
-
-TOOLS = {"list_products", "read_product", "look", "detect", "infer", "ask", "transcribe",
-         "say", "status", "publish"}
-
-
-@pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, RunningService]]:
-    with running_service("detector") as detector, running_service("llm") as llm, \
-            running_service("asr") as asr:
-        yield {"detector": detector, "llm": llm, "asr": asr}
-
-
-@pytest.fixture(scope="module")
-def pipeline(services: dict[str, RunningService], tmp_path_factory: pytest.TempPathFactory
-             ) -> Path:
-    folder = tmp_path_factory.mktemp("agent")
-    return pipeline_yaml(folder, services["detector"].address, services["llm"].address,
-                         services["asr"].address)
-
-
-@pytest.fixture()
-def driver(ros_env: dict[str, str]) -> Iterator[RosListener]:
-    with ros_listener() as listener:
-        yield listener
-
-
-Elicit = Any
-
-
-@asynccontextmanager
-async def mcp_session(pipeline: Path, elicit: Elicit = None,
-                      on_message: Any = None) -> AsyncIterator[ClientSession]:
-    params = StdioServerParameters(command=sys.executable,
-                                   args=["-m", "oricf", "mcp", "--config", str(pipeline)],
-                                   env=server_env())
-    async with stdio_client(params) as (read, write), \
-            ClientSession(read, write, elicitation_callback=elicit,
-                          message_handler=on_message) as session:
-        await session.initialize()
-        yield session
-
-
-async def wait_product(session: ClientSession, name: str, timeout: float = 60.0
-                       ) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout
-    while True:
-        result = await session.call_tool("read_product", {"name": name})
-        if not result.is_error:
-            assert result.structured_content is not None
-            return result.structured_content
-        if time.monotonic() > deadline:
-            raise TimeoutError(result.content)
-        await anyio.sleep(0.5)
-
-
-def text_of(result: types.CallToolResult) -> str:
-    return " ".join(c.text for c in result.content if isinstance(c, types.TextContent))
 
 
 def test_tools_resources_look_and_ask(pipeline: Path) -> None:
@@ -96,7 +28,7 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
             updated.append(str(message.params.uri))
 
     async def scenario() -> None:
-        async with mcp_session(pipeline, on_message=on_message) as session:
+        async with stdio_session("--config", str(pipeline), on_message=on_message) as session:
             tools = {t.name: t for t in (await session.list_tools()).tools}
             assert set(tools) == TOOLS
             assert all(t.description and t.input_schema["type"] == "object"
@@ -141,15 +73,6 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
     anyio.run(scenario)
 
 
-async def warm_up(session: ClientSession, target: str, received: Any) -> None:
-    """Zero commands until one arrives: DDS discovery is complete both ways."""
-    deadline = time.monotonic() + 20
-    while received.empty():
-        assert time.monotonic() < deadline, f"nothing sent to {target} arrived"
-        await session.call_tool("publish", {"target": target, "message": {}})
-        await anyio.sleep(0.6)
-
-
 def test_publish_within_the_policy(pipeline: Path, driver: RosListener) -> None:
     answers: list[bool] = []
 
@@ -162,7 +85,7 @@ def test_publish_within_the_policy(pipeline: Path, driver: RosListener) -> None:
         return await session.call_tool("publish", {"target": target, "message": message})
 
     async def scenario() -> None:
-        async with mcp_session(pipeline, elicit) as session:
+        async with stdio_session("--config", str(pipeline), elicit=elicit) as session:
             answers.extend([True] * 20)
             await warm_up(session, "cmd_vel", driver.twists)
             await warm_up(session, "arm", driver.arm)
@@ -218,7 +141,7 @@ def test_publish_within_the_policy(pipeline: Path, driver: RosListener) -> None:
 
 def test_bad_arguments_and_injected_text(pipeline: Path, driver: RosListener) -> None:
     async def scenario() -> None:
-        async with mcp_session(pipeline) as session:
+        async with stdio_session("--config", str(pipeline)) as session:
             await anyio.to_thread.run_sync(driver.wait_publisher, "/agent_test/cmd_vel")
             bad = [("look", {"route": 5}), ("read_product", {}),
                    ("read_product", {"name": "nothing_here"}),

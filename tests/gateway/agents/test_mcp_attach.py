@@ -1,0 +1,139 @@
+"""`oricf mcp --attach`: a running `oricf gateway` serves its control API on a Unix socket
+(and on loopback TCP with tokens); the MCP server attaches to it. The policy is enforced in
+the gateway, so what the control API refuses no client can send."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import anyio
+import mcp_types as types
+import pytest
+import yaml
+
+from oricf.errors import NotReady
+from oricf.gateway.agents.policy import Refused
+from oricf.gateway.control.client import ControlClient
+from tests.gateway.agents.scene import PEOPLE, RosListener
+from tests.gateway.agents.session import server_env, stdio_session, text_of, warm_up
+from tests.support.processes import free_port
+
+
+@contextmanager
+def gateway(config: Path, log: Path) -> Iterator[subprocess.Popen[bytes]]:
+    with log.open("wb") as out:
+        process = subprocess.Popen([sys.executable, "-m", "oricf", "gateway", "--config",
+                                    str(config)], stdout=out, stderr=subprocess.STDOUT,
+                                   env=server_env(), start_new_session=True)
+    try:
+        yield process
+    finally:
+        process.terminate()
+        try:
+            process.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(timeout=10)
+
+
+def with_control(pipeline: Path, control: dict[str, Any], name: str) -> Path:
+    data = yaml.safe_load(pipeline.read_text())
+    data["control"] = control
+    path = pipeline.parent / name
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def wait_for(check: Any, process: subprocess.Popen[bytes], log: Path) -> None:
+    deadline = time.monotonic() + 120
+    while not check():
+        assert process.poll() is None, log.read_text()
+        assert time.monotonic() < deadline, log.read_text()
+        time.sleep(0.2)
+
+
+@pytest.fixture()
+def socket_gateway(pipeline: Path, tmp_path: Path) -> Iterator[Path]:
+    sock = tmp_path / "control.sock"
+    config = with_control(pipeline, {"listen": f"unix:{sock}"}, "attach_unix.yaml")
+    log = tmp_path / "gateway.log"
+    with gateway(config, log) as process:
+        wait_for(sock.exists, process, log)
+        yield sock
+
+
+def test_attach_over_a_unix_socket(socket_gateway: Path, driver: RosListener) -> None:
+    assert socket_gateway.stat().st_mode & 0o777 == 0o600
+
+    async def approve(context: Any, params: types.ElicitRequestParams) -> types.ElicitResult:
+        return types.ElicitResult(action="accept", content={"approve": True})
+
+    async def scenario() -> None:
+        async with stdio_session("--attach", f"unix:{socket_gateway}",
+                                 elicit=approve) as session:
+            deadline = time.monotonic() + 60
+            while (look := await session.call_tool("look", {})).is_error:
+                assert time.monotonic() < deadline, text_of(look)
+                await anyio.sleep(0.5)
+            assert look.structured_content is not None
+            assert look.structured_content["counts"] == {"person": PEOPLE}
+            count = await session.call_tool("read_product", {"name": "people_count"})
+            assert count.structured_content is not None
+            assert count.structured_content["value"] == PEOPLE
+
+            await warm_up(session, "arm", driver.arm)
+            driver.drain()
+            await anyio.sleep(0.2)
+            arm = await session.call_tool("publish", {"target": "arm",
+                                                      "message": {"data": 0.75}})
+            assert not arm.is_error, text_of(arm)
+            assert driver.arm.get(timeout=10).data == 0.75
+            fast = await session.call_tool("publish", {"target": "cmd_vel",
+                                                       "message": {"linear": {"x": 9}}})
+            assert not fast.is_error  # clamped, in the gateway
+            outside = await session.call_tool("publish", {"target": "lights",
+                                                          "message": {"data": "on"}})
+            assert outside.is_error and "not a target" in text_of(outside)
+
+    anyio.run(scenario)
+    # the control API's own client: the gateway refuses what the policy refuses
+    client = ControlClient(f"unix:{socket_gateway}")
+    with pytest.raises(Refused, match="approval"):
+        client.publish("arm", {"data": 0.5}, approved=False)
+    with pytest.raises(Refused, match="outside"):
+        client.publish("arm", {"data": 5.0}, approved=True)
+    client.close()
+
+
+def test_control_on_tcp_needs_the_token(pipeline: Path, tmp_path: Path) -> None:
+    tokens = tmp_path / "control.tokens"
+    tokens.write_text("control-secret-9\n")
+    port = free_port()
+    config = with_control(pipeline, {"listen": f"127.0.0.1:{port}",
+                                     "auth": {"file": str(tokens)}}, "attach_tcp.yaml")
+    log = tmp_path / "gateway.log"
+    with gateway(config, log) as process:
+        address = f"http://127.0.0.1:{port}"
+        anonymous = ControlClient(address)
+
+        def up() -> bool:
+            try:
+                anonymous.status()
+            except NotReady as exc:
+                return "bearer token" in str(exc)
+            return False
+
+        wait_for(up, process, log)
+        wrong = tmp_path / "wrong"
+        wrong.write_text("guess\n")
+        with pytest.raises(NotReady, match="bearer token"):
+            ControlClient(address, wrong).status()
+        status = ControlClient(address, tokens).status()
+        assert "people" in status["routes"]
+    assert "control-secret-9" not in log.read_text()
