@@ -1,0 +1,248 @@
+"""Hostile agents and callers of `oricf mcp` and the gateway's control API, over real sockets
+against a real gateway (the real detector; the policy's topics heard by a real rclpy node):
+
+- raw HTTP to the MCP endpoint: random bytes, random JSON-RPC, lying and oversized bodies;
+- tool calls through the `mcp` SDK's client with arguments drawn from hostile JSON values;
+- requests to every path of the control API on its Unix socket.
+
+Whatever arrives: an HTTP status that names a client mistake (never 5xx), a tool result or
+an MCP error (never a dead server), no command outside the policy's bounds on the robot's
+topics, bounded memory, and a well-formed call still served afterwards."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import anyio
+import httpx
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tests.gateway.agents.scene import PEOPLE, RosListener, pipeline_yaml, ros_listener
+from tests.gateway.agents.session import TOOLS, http_session, server_env
+from tests.gateway.ros.gateway_node import private_domain
+from tests.support.processes import free_port
+from tests.support.services import running_service
+
+EXAMPLES = 120
+TOKEN = "fuzz-token-71"
+MAX_GROWTH_MB = 400
+CONTROL_PATHS = ["/v1/products", "/v1/products/people_count", "/v1/look", "/v1/status",
+                 "/v1/policy", "/v1/detect", "/v1/infer", "/v1/ask", "/v1/transcribe",
+                 "/v1/say", "/v1/check", "/v1/publish", "/v1/../etc", "/nothing"]
+
+SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-(2**63), 2**63),
+                    st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=30),
+                    st.sampled_from(["cmd_vel", "arm", "people", "people_count", "/cmd_vel",
+                                     "linear.x", "__import__('os').system('id')",
+                                     "/9j/4AAQSkZJRg==", "UklGRiQAAABXQVZF", "x" * 5000]))
+JSON = st.recursive(SCALARS, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=12), inner, max_size=4)),
+    max_leaves=12)
+TWIST = st.fixed_dictionaries({}, optional={
+    "linear": st.dictionaries(st.sampled_from(["x", "y", "z", "w"]), JSON, max_size=3),
+    "angular": st.dictionaries(st.sampled_from(["x", "y", "z"]), JSON, max_size=3)})
+ARGUMENTS = st.one_of(
+    st.dictionaries(st.sampled_from(["name", "route", "image", "audio", "question", "text",
+                                     "target", "message"]), JSON, max_size=3),
+    st.fixed_dictionaries({"target": st.sampled_from(["cmd_vel", "arm"]),
+                           "message": st.one_of(TWIST, JSON)}))
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS")
+
+
+@pytest.fixture(scope="module")
+def domain() -> Iterator[None]:
+    saved = dict(os.environ)
+    os.environ.update(private_domain())
+    yield
+    os.environ.clear()
+    os.environ.update(saved)
+
+
+@pytest.fixture(scope="module")
+def served(domain: None, tmp_path_factory: pytest.TempPathFactory
+           ) -> Iterator[tuple[str, Path, subprocess.Popen[bytes]]]:
+    """`oricf mcp --transport http` with tokens, its gateway's control API on a socket."""
+    folder = tmp_path_factory.mktemp("fuzz_mcp")
+    nowhere = f"127.0.0.1:{free_port()}"  # the language and speech models: absent
+    with running_service("detector") as detector:
+        config = pipeline_yaml(folder, detector.address, nowhere, nowhere)
+        data = yaml.safe_load(config.read_text())
+        data["control"] = {"listen": f"unix:{folder / 'control.sock'}"}
+        for name in ("llm", "asr"):
+            data["endpoints"][name]["deadline_ms"] = 500
+        config.write_text(yaml.safe_dump(data))
+        (folder / "tokens").write_text(TOKEN + "\n")
+        port = free_port()
+        with (folder / "mcp.log").open("wb") as log:
+            process = subprocess.Popen(
+                [sys.executable, "-m", "oricf", "mcp", "--config", str(config), "--transport",
+                 "http", "--listen", f"127.0.0.1:{port}", "--auth-token-file",
+                 str(folder / "tokens"), "--max-request-bytes", "65536"],
+                stdout=log, stderr=subprocess.STDOUT, env=server_env(), start_new_session=True)
+        try:
+            deadline = time.monotonic() + 120
+            while True:
+                assert process.poll() is None, (folder / "mcp.log").read_text()
+                try:
+                    socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                    break
+                except OSError:
+                    assert time.monotonic() < deadline
+                    time.sleep(0.2)
+            yield f"http://127.0.0.1:{port}/mcp", folder / "control.sock", process
+        finally:
+            process.terminate()
+            process.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def driver(domain: None) -> Iterator[RosListener]:
+    with ros_listener() as listener:
+        yield listener
+
+
+def within_policy(driver: RosListener) -> None:
+    """Every command that reached the robot is inside the policy's bounds."""
+    while not driver.twists.empty():
+        twist = driver.twists.get_nowait()
+        assert -0.3 <= twist.linear.x <= 0.3 and -0.5 <= twist.angular.z <= 0.5
+        assert twist.linear.y == twist.linear.z == twist.angular.x == twist.angular.y == 0
+    while not driver.arm.empty():
+        assert 0.0 <= driver.arm.get_nowait().data <= 1.0
+
+
+def lying_request(port: int, body: bytes, headers: dict[str, str]) -> int | None:
+    """A POST whose Content-Length says 10 bytes whatever the body holds; the status the
+    server answers, or None if it closed the connection (within 10 s either way)."""
+    head = "".join(f"{k}: {v}\r\n" for k, v in headers.items())
+    request = (f"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n{head}"
+               f"Content-Length: 10\r\nConnection: close\r\n\r\n").encode() + body
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+        try:
+            sock.sendall(request)
+            sock.shutdown(socket.SHUT_WR)
+            reply = sock.recv(64)
+        except OSError:
+            return None
+    parts = reply.split(b" ", 2)
+    return int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else None
+
+
+def still_serving(url: str) -> None:
+    async def check() -> None:
+        async with http_session(url, TOKEN) as session:
+            look = await session.call_tool("look", {})
+            assert look.structured_content is not None, look.content
+            assert look.structured_content["counts"] == {"person": PEOPLE}
+
+    deadline = time.monotonic() + 60
+    while True:
+        try:
+            anyio.run(check)
+            return
+        except AssertionError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.5)
+
+
+def test_hostile_http_requests(served: tuple[str, Path, subprocess.Popen[bytes]]) -> None:
+    url, _, process = served
+    port = int(url.split(":")[2].split("/")[0])
+    still_serving(url)
+    before = rss_mb(process.pid)
+    headers = {"Authorization": f"Bearer {TOKEN}", "Accept": "application/json, "
+               "text/event-stream", "Content-Type": "application/json"}
+    client = httpx.Client(timeout=30)
+    message = st.fixed_dictionaries({"jsonrpc": st.sampled_from(["2.0", "1.0", 2]),
+                                     "method": st.sampled_from(
+                                         ["initialize", "tools/list", "tools/call",
+                                          "resources/read", "resources/subscribe",
+                                          "subscriptions/listen", "nothing", ""]),
+                                     "params": JSON}, optional={"id": JSON})
+    body = st.one_of(st.binary(max_size=300), message.map(lambda m: json.dumps(m).encode()),
+                     st.just(b"[" * 100_000), st.just(b'{"a": "' + b"x" * 70_000 + b'"}'))
+
+    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
+              suppress_health_check=list(HealthCheck))
+    @given(body, st.booleans())
+    def hostile(data: bytes, lie: bool) -> None:
+        if lie:
+            status = lying_request(port, data, headers)
+            assert status is None or status < 500, status
+            return
+        response = client.post(url, content=data, headers=headers)
+        assert response.status_code < 500, (response.status_code, response.text[:300])
+
+    hostile()
+    client.close()
+    assert process.poll() is None
+    still_serving(url)
+    assert rss_mb(process.pid) - before < MAX_GROWTH_MB
+
+
+def test_hostile_tool_arguments(served: tuple[str, Path, subprocess.Popen[bytes]],
+                                driver: RosListener) -> None:
+    url, _, process = served
+
+    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
+              suppress_health_check=list(HealthCheck))
+    @given(st.lists(st.tuples(st.sampled_from(sorted(TOOLS)), ARGUMENTS), min_size=1,
+                    max_size=4))
+    def hostile(calls: list[tuple[str, dict[str, Any]]]) -> None:
+        async def scenario() -> None:
+            async with http_session(url, TOKEN) as session:
+                for tool, arguments in calls:
+                    result = await session.call_tool(tool, arguments)
+                    assert result.content  # a result, error or not: the server answered
+
+        anyio.run(scenario)
+        within_policy(driver)
+
+    hostile()
+    time.sleep(1.0)  # the deadman's zero commands
+    within_policy(driver)
+    assert process.poll() is None
+    still_serving(url)
+
+
+def test_hostile_control_requests(served: tuple[str, Path, subprocess.Popen[bytes]],
+                                  driver: RosListener) -> None:
+    url, sock, process = served
+    client = httpx.Client(transport=httpx.HTTPTransport(uds=str(sock)),
+                          base_url="http://gateway", timeout=30)
+
+    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
+              suppress_health_check=list(HealthCheck))
+    @given(st.sampled_from(CONTROL_PATHS), st.sampled_from(["GET", "POST", "PUT"]),
+           st.one_of(st.binary(max_size=200), JSON.map(lambda v: json.dumps(v).encode()),
+                     ARGUMENTS.map(lambda v: json.dumps(v).encode())))
+    def hostile(path: str, method: str, data: bytes) -> None:
+        response = client.request(method, path, content=data)
+        assert response.status_code < 500, (path, response.status_code, response.text[:300])
+
+    hostile()
+    oversized = client.post("/v1/detect", content=b'{"image": "' + b"A" * (13 << 20) + b'"}')
+    assert oversized.status_code == 400 and "over" in oversized.json()["error"]
+    client.close()
+    time.sleep(1.0)
+    within_policy(driver)
+    assert process.poll() is None
+    still_serving(url)
