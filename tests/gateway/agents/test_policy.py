@@ -1,0 +1,155 @@
+"""The agent policy without an agent: its YAML refused with the key named, commands clamped
+or refused by content, rate and approval, and approval by a person on a real text channel
+(a TCP client answering yes or no) before a line goes out on another channel."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from oricf.errors import ConfigError
+from oricf.gateway.agents.actuation import Actuation
+from oricf.gateway.agents.audit import AuditLog
+from oricf.gateway.agents.policy import AgentPolicy, Refused
+from oricf.gateway.agents.senders import ChannelSender
+from oricf.gateway.config import load_pipeline
+from oricf.gateway.text_channels import ChannelConfig, Channels
+from tests.support.processes import free_port
+
+TWIST = {"topic": "/cmd_vel", "type": "geometry_msgs/Twist",
+         "bounds": {"linear.x": [-0.3, 0.3], "angular.z": [-0.5, 0.5]}}
+
+
+def policy(**target: Any) -> AgentPolicy:
+    return AgentPolicy.model_validate({"targets": {"t": {**TWIST, **target}}})
+
+
+@pytest.mark.parametrize(("target", "error"), [
+    ({"bounds": {"data": [0, 1]}}, "no numeric field 'data'"),
+    ({"bounds": {"linear.x": [1, -1]}}, "min 1.0 is above max -1.0"),
+    ({"channel": "say"}, "exactly one of topic or channel"),
+    ({"approval": "channel"}, "approval_channel"),
+    ({"type": "std_msgs/String", "bounds": {}, "deadman_ms": 100}, "no zero command"),
+    ({"max_rate_hz": 0}, "greater than 0"),
+    ({"speed": 1}, "Extra inputs"),
+])
+def test_policy_yaml_refused(target: dict[str, Any], error: str) -> None:
+    with pytest.raises(ValueError, match=error):
+        policy(**target)
+
+
+def test_pipeline_names_the_bad_key(tmp_path: Path) -> None:
+    data = {"endpoints": {"d": {"address": "127.0.0.1:1"}},
+            "routes": {"r": {"input": {"url": "x.avi"}, "call": {"service": "d",
+                                                              "method": "Detect"},
+                             "outputs": [{"product": "n", "from": "detections"}]}},
+            "agent": {"targets": {"speak": {"channel": "loud"}}}}
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"agent.targets.speak.channel: no channel 'loud'"):
+        load_pipeline(path)
+    data["control"] = {"listen": "127.0.0.1:7100"}
+    data["agent"] = {}
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"control.*needs auth"):
+        load_pipeline(path)
+
+
+def test_content_clamped_or_refused() -> None:
+    clamp = policy(beyond_bounds="clamp")
+    checked = clamp.target("t").check("t", {"linear": {"x": -2}, "angular": {"z": 0.2}})
+    assert checked.fields["linear.x"] == -0.3 and checked.fields["angular.z"] == 0.2
+    assert checked.clamped == ["linear.x -2.0 -> -0.3"]
+    refuse = policy()
+    for message, why in [({"linear": {"x": 0.31}}, "outside"),
+                         ({"angular": {"x": 0.1}}, "angular.x must be 0"),
+                         ({"linear": {"x": True}}, "must be a number"),
+                         ({"linear": {"x": "0.1"}}, "must be a number"),
+                         ({"linear": "fast"}, "no field 'linear'"),
+                         ("publish cmd_vel 5", "JSON object"),
+                         ({"a": {"b": {"c": {"d": {"e": 1}}}}}, "nests too deep")]:
+        with pytest.raises(Refused, match=why):
+            refuse.target("t").check("t", message)
+    with pytest.raises(Refused, match="not a target"):
+        refuse.target("cmd_vel")
+
+
+class LineClient:
+    """A person at a text channel: reads lines, answers approvals as told."""
+
+    def __init__(self, address: str) -> None:
+        host, _, port = address.rpartition(":")
+        self.sock = socket.create_connection((host, int(port)), timeout=10)
+        self.file = self.sock.makefile("r")
+
+    def line(self) -> str:
+        return self.file.readline().strip()
+
+    def say(self, text: str) -> None:
+        self.sock.sendall(text.encode() + b"\n")
+
+    def close(self) -> None:
+        self.file.close()
+        self.sock.close()
+
+
+@pytest.fixture()
+def channels() -> Iterator[Channels]:
+    opened = Channels({"approvals": ChannelConfig(listen=f"127.0.0.1:{free_port()}"),
+                       "speech": ChannelConfig(listen=f"127.0.0.1:{free_port()}")})
+    opened.open_all()
+    yield opened
+    opened.close()
+
+
+def test_approval_on_a_text_channel(channels: Channels, tmp_path: Path) -> None:
+    rules = AgentPolicy.model_validate({"targets": {"speak": {
+        "channel": "speech", "approval": "channel", "approval_channel": "approvals",
+        "approval_timeout_s": 2, "max_rate_hz": 1000}}})
+    audit = AuditLog(tmp_path / "audit.jsonl")
+    actuation = Actuation(rules, ChannelSender(rules, channels), audit, channels)
+    person = LineClient(channels.get("approvals").address)
+    listener = LineClient(channels.get("speech").address)
+    try:
+        _wait_clients(channels)
+        answers = iter(["yes", "no", None])
+
+        def answer() -> None:
+            for reply in answers:
+                asked = person.line()
+                assert asked.startswith("approve ") and '"hello"' in asked, asked
+                number = asked.split()[1].rstrip("?")
+                if reply is not None:
+                    person.say(f"{reply} {number}")
+
+        helper = threading.Thread(target=answer)
+        helper.start()
+        assert actuation.send("speak", {"data": "hello"})["sent"] == {"data": "hello"}
+        assert listener.line() == "hello"
+        time.sleep(0.01)  # the rate: 1000 a second
+        with pytest.raises(Refused, match="not approved on channel approvals"):
+            actuation.send("speak", {"data": "hello"})
+        with pytest.raises(Refused, match="not approved"):  # nobody answered in time
+            actuation.send("speak", {"data": "hello"})
+        helper.join(10)
+    finally:
+        person.close()
+        listener.close()
+        actuation.close()
+        audit.close()
+    outcomes = [line for line in (tmp_path / "audit.jsonl").read_text().splitlines()]
+    assert len(outcomes) == 3 and '"outcome": "sent"' in outcomes[0]
+
+
+def _wait_clients(channels: Channels) -> None:
+    deadline = time.monotonic() + 10
+    while not (channels.get("approvals").clients and channels.get("speech").clients):
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
