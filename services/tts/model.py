@@ -74,7 +74,7 @@ class SynthesisModel:
     def voice(self, name: str) -> Voice:
         voice = self.voices.get(name or self.default_voice)
         if voice is None:
-            raise InvalidInput(f"voice: '{name[:64]}' is not declared here (voices: "
+            raise InvalidInput(f"voice: {name[:64]!r} is not declared here (voices: "
                                f"{', '.join(self.voices)})")
         return voice
 

@@ -56,7 +56,7 @@ def _speed(body: dict[str, Any]) -> float:
     if value is None:
         return 1.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value):
+            or not math.isfinite(value) or value == 0:  # 0 is "unset" only over gRPC
         raise InvalidParam("speed: must be a number from 0.25 to 4.0", param="speed")
     return float(value)
 

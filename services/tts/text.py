@@ -145,8 +145,9 @@ def _cut(sentence: str, limit: int) -> list[str]:
     """A sentence in pieces of at most `limit` characters, cut after a comma or at a space."""
     pieces = []
     while len(sentence) > limit:
-        window = sentence[:limit]
-        at = window.rfind(", ") + 1 or window.rfind(" ") or limit
+        window = sentence[:limit + 1]  # a space just after the limit is a fine cut too
+        comma, space = window.rfind(", "), window.rfind(" ")
+        at = comma + 1 if comma > 0 else space if space > 0 else limit  # else mid-word
         pieces.append(sentence[:at].strip())
         sentence = sentence[at:].strip()
     return [*pieces, sentence] if sentence else pieces

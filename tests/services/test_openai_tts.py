@@ -75,6 +75,7 @@ BAD = {
     "SSML": ({"input": "<speak>Hello</speak>"}, "input"),
     "mp3": ({"response_format": "mp3"}, "response_format"),
     "speed": ({"speed": 10}, "speed"),
+    "speed 0": ({"speed": 0}, "speed"),
     "instructions": ({"instructions": "Speak like a pirate."}, "instructions"),
 }
 

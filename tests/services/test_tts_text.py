@@ -75,6 +75,11 @@ def test_a_long_sentence_is_cut_at_a_comma_or_a_space() -> None:
     assert pieces[0].endswith(",")
 
 
+def test_a_sentence_without_spaces_is_cut_at_the_limit() -> None:
+    assert [len(p) for p in sentences("x" * 700, 300)] == [300, 300, 100]
+    assert [len(p) for p in sentences("x" * 250 + " " + "y" * 400, 300)] == [250, 300, 100]
+
+
 def test_stray_punctuation_says_nothing() -> None:
     assert sentences(normalise("... !? -"), 300) == []
 
