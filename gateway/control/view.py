@@ -132,8 +132,12 @@ class PipelineView:
         return self._run(chosen, {"audio": clip})
 
     def say(self, text: str) -> Json:
-        text_arg(text, "text")
-        raise NotReady("this pipeline has no speech synthesis route")
+        """Handed to the pipeline's speech route, so it plays where the pipeline says (a
+        speaker, a topic, a file), after what it is saying already."""
+        text = text_arg(text, "text")
+        chosen = self._route(None, ("Synthesize",), "a speech synthesis")
+        self.pipeline.submit(chosen.name, lambda: {"value": text, "text": text})
+        return {"route": chosen.name, "queued": text}
 
     # actuation
 
