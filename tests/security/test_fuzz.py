@@ -21,7 +21,7 @@ from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
 from tests.support.services import RunningService, running_service
 
-EXAMPLES = 70  # per RPC: 18 RPCs, at least 1,260 requests of 1-3 messages
+EXAMPLES = 70  # per RPC: 21 RPCs, at least 1,470 requests of 1-3 messages
 # Refusals a client may get for a hostile request. INTERNAL and UNKNOWN are bugs;
 # DEADLINE_EXCEEDED would mean the service did not answer in time.
 ACCEPTABLE = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
