@@ -20,6 +20,8 @@ on without decoding. For each input:
    onboard gateway's figure). The detector runs on this machine in every case; it is simply
    not counted as robot CPU when offloaded. Onboard is measured with the shipped detector
    config and with the other thread count (1 or 2).
+   The same onboard gateway tracking people (`track` and `count_tracks`) is measured
+   beside it, with the post steps timed alone (oricf.bench.gateway_track).
 3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
    watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
 4. The offloaded gateway's thread wake-ups per frame, what one wake-up costs a process on
@@ -67,6 +69,7 @@ from oricf.bench.gateway_report import (
     latency_table,
     wakeup_note,
 )
+from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import load_pipeline
@@ -106,30 +109,35 @@ def placement_detector(name: str) -> EndpointConfig:
     return load_pipeline(pipeline_path(), [placement(name)]).endpoints["detector"]
 
 
-def overlay(detector: str, compressed: bool, transport: str | None = None) -> dict[str, Any]:
+def overlay(detector: str, compressed: bool, transport: str | None = None,
+            track: bool = False) -> dict[str, Any]:
     """Applied after the placement: the detector's address here (and another image
-    transport if given), and the people route counting only (no annotated image)."""
+    transport if given), and the people route counting only (no annotated image), or
+    tracking (track=True)."""
     source = ({"topic": COMPRESSED_TOPIC, "type": "sensor_msgs/CompressedImage"} if compressed
               else {"topic": "camera/image_raw", "type": "sensor_msgs/Image"})
     endpoint: dict[str, Any] = {"address": detector}
     if transport is not None:
         endpoint["image"] = {"transport": transport}
-    return {"endpoints": {"detector": endpoint},
-            "routes": {"people": {
-                "input": source,
-                "post": [{"count": {"label": "person", "into": "count"}}],
-                "outputs": [{"topic": "/human_counter", "type": "std_msgs/Int32",
-                             "from": "count"},
-                            {"product": "people_count", "from": "count", "max_age_s": 5}]}}}
+    counting = {"endpoints": {"detector": endpoint},
+                "routes": {"people": {
+                    "input": source,
+                    "post": [{"count": {"label": "person", "into": "count"}}],
+                    "outputs": [{"topic": "/human_counter", "type": "std_msgs/Int32",
+                                 "from": "count"},
+                                {"product": "people_count", "from": "count",
+                                 "max_age_s": 5}]}}}
+    return tracking_overlay(counting) if track else counting
 
 
 @contextmanager
 def gateway(detector: str, where: str, folder: Path, compressed: bool,
-            transport: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
+            transport: str | None = None, track: bool = False
+            ) -> Iterator[subprocess.Popen[bytes]]:
     """`oricf gateway` at placement `where` (onboard or edge), sending to detector (with
-    another image transport if given)."""
-    path = folder / f"{where}-{transport or 'placed'}-here.yaml"
-    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport)))
+    another image transport if given; tracking if track)."""
+    path = folder / f"{where}-{transport or 'placed'}{'-track' if track else ''}-here.yaml"
+    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport, track)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
                str(pipeline_path()), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
@@ -304,6 +312,12 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                 latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
                 cpu["gw raw 1"], cpu["det shipped"] = cpu_per_frame(camera, messages, args.fps,
                                                               [raw.pid, detector.pid])
+            with gateway(address, "onboard", folder, compressed, track=True) as tracked:
+                camera.warm_up(messages[0], tracked)
+                cpu["gw track"], cpu["det track"] = cpu_per_frame(
+                    camera, messages, args.fps, [tracked.pid, detector.pid])
+            post_cost(detector_pb2_grpc.DetectorStub(channel), [r for _, r in prepared],
+                      result)
             with gateway(address, "onboard", folder, compressed, "shm") as shm:
                 camera.warm_up(messages[0], shm)
                 cpu["gw shm"], cpu["det shm"] = cpu_per_frame(camera, messages, args.fps,
@@ -360,6 +374,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
         cost_table(result, power, args.fps, (args.frames, CHUNKS),
                    (shipped_threads(), other_threads()))
         wakeup_note(result, wakeup_s)
+        track_table(result)
     idle_note(burst, period_s)
 
 

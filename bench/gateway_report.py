@@ -40,6 +40,7 @@ class InputResult:
     request_bytes: dict[str, float] = field(default_factory=dict)  # transport -> median
     response_bytes: float = 0.0
     edge_wakeups: float = 0.0  # the offloaded (edge) gateway's thread wake-ups per frame
+    post_us: dict[str, float] = field(default_factory=dict)  # post steps -> median us/frame
 
 
 def latency_table(result: InputResult, frames: int) -> None:
