@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 import yaml
 
+from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.agents.actuation import Actuation
 from oricf.gateway.agents.audit import AuditLog
@@ -153,3 +154,17 @@ def _wait_clients(channels: Channels) -> None:
     while not (channels.get("approvals").clients and channels.get("speech").clients):
         assert time.monotonic() < deadline
         time.sleep(0.02)
+
+
+def test_shipped_mobile_base_policy() -> None:
+    shipped = config_dir() / "pipelines"
+    config = load_pipeline(shipped / "people_qa.yaml",
+                           [shipped / "agents" / "mobile_base.yaml"])
+    assert config.agent is not None
+    base = config.agent.target("cmd_vel")
+    assert base.deadman_ms == 500
+    checked = base.check("cmd_vel", {"linear": {"x": 1.0}, "angular": {"z": -1.0}})
+    assert (checked.fields["linear.x"], checked.fields["angular.z"]) == (0.3, -0.5)
+    with pytest.raises(Refused, match=r"linear\.y must be 0"):
+        base.check("cmd_vel", {"linear": {"y": 0.1}})
+    assert config.agent.targets["arm_lift"].approval == "elicit"
