@@ -120,8 +120,8 @@ class RouteWorker(Generic[T]):
             return self._cond.wait_for(lambda: not self._pending and not self._busy, timeout)
 
     def clear(self) -> int:
-        """Drops what is pending (not the item in progress, nor those told of drops: a
-        barge-in drops speech nobody asked for); how many were dropped."""
+        """Drops what is pending, not the item in progress, without telling anyone (a
+        barge-in drops speech nobody waits for); how many were dropped."""
         with self._cond:
             dropped = len(self._pending)
             self.stats.dropped += dropped

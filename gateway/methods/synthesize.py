@@ -18,11 +18,13 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
+from oricf.audio import check_format
 from oricf.errors import InvalidInput
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.methods.base import CallBase, Invoke, Method, Partial, Skip, health_check
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Record, SpokenAudio, template_fields
+from oricf.logs import quoted
 from oricf.v1 import synthesis_pb2, synthesis_pb2_grpc
 
 log = logging.getLogger(__name__)
@@ -65,7 +67,9 @@ def synthesize_request(record: Record, call: SynthesizeCall
 def spoken_audio(reply: synthesis_pb2.SynthesizedAudio, asked_at: float) -> SpokenAudio:
     audio = reply.audio
     if audio.encoding not in ("", "pcm_s16le"):
-        raise InvalidInput(f"the synthesizer sent {audio.encoding!r} audio, not pcm_s16le")
+        raise InvalidInput(f"the synthesizer sent {quoted(audio.encoding)} audio, not "
+                           f"pcm_s16le")
+    check_format(audio.sample_rate, audio.channels or 1)
     if len(audio.data) % (2 * max(audio.channels, 1)):
         raise InvalidInput("the synthesizer sent a partial sample")
     return SpokenAudio(bytes(audio.data), audio.sample_rate, audio.channels or 1,

@@ -13,7 +13,19 @@ person count, the answer, and the latency of each stage:
   LLM       transcript received -> /answer received
   total     audio published -> /answer received
 
+The gateway speaks each answer (the speech synthesis service, sentence by sentence as the
+answer is generated, on /answer/audio): the demo plays it on the default audio device when
+there is one (--speak-to FILE.wav also writes it; --no-speak: no speech) and prints the
+time from the question to the first audio sample:
+
+  spoken    audio published -> first sample at the speaker (without one: first audio
+            received)
+
 The services' and gateway's own output goes to a log file (--verbose: to the terminal).
+
+With --view the gateway also serves the live view (docs/live-view.md): the camera with the
+detector's boxes, the counts, transcripts and answers, for Foxglove or Lichtblick to open at
+the address printed; after the questions the camera and the view go on until Ctrl-C.
 """
 
 from __future__ import annotations
@@ -41,6 +53,7 @@ log = logging.getLogger(__name__)
 DEFAULT_QUESTIONS = ["How many people do you see?", "Can you see any people?",
                      "How many people are there?"]
 PLACEMENTS = {"onboard": "local.yaml", "edge": "robot.yaml"}
+DEFAULT_VIEW = "127.0.0.1:8765"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,7 +75,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "configs/pipelines/placement/edge.yaml)")
     parser.add_argument("--frames", type=int, help="stop the video after this many frames "
                         "(default: play, looping, until every question is answered)")
+    parser.add_argument("--view", nargs="?", const=DEFAULT_VIEW, metavar="HOST:PORT",
+                        help=f"serve the live view (Foxglove WebSocket protocol) at "
+                        f"ws://HOST:PORT (default {DEFAULT_VIEW}) and keep the demo running "
+                        f"after the questions until Ctrl-C")
     parser.add_argument("--voice", default="en-us", help="espeak-ng voice")
+    parser.add_argument("--speak-to", type=Path, metavar="FILE.wav",
+                        help="write the spoken answers into this WAV file (as well as "
+                        "playing them on the default audio device, if there is one)")
+    parser.add_argument("--no-speak", action="store_true",
+                        help="the answers are text only: no speech synthesis, no playback")
     parser.add_argument("--timeout", type=float, default=120.0,
                         help="seconds to wait for each stage of a question")
     parser.add_argument("--log", type=Path, help="file for the processes' output")
@@ -79,13 +101,27 @@ def pick_deployment(args: argparse.Namespace, scratch: Path) -> tuple[Path, Depl
     gateway = deployment.gateway
     if gateway is None:
         raise LaunchFailed(f"{path}: the demo needs a deployment with a gateway")
+    overlays = []
     if args.edge_host:
-        overlay = scratch / "edge-host.yaml"
-        endpoints = edge_host_endpoints(deployment, args.edge_host)
-        overlay.write_text(yaml.safe_dump({"endpoints": endpoints}))
-        gateway = gateway.model_copy(update={"overlays": [*gateway.overlays, overlay]})
-        deployment = deployment.model_copy(update={"gateway": gateway})
+        overlays.append({"endpoints": edge_host_endpoints(deployment, args.edge_host)})
+    if args.view:
+        overlays.append({"foxglove": {"listen": args.view}})
+    for index, overlay in enumerate(overlays):
+        file = scratch / f"demo-overlay-{index}.yaml"
+        file.write_text(yaml.safe_dump(overlay))
+        gateway = gateway.model_copy(update={"overlays": [*gateway.overlays, file]})
+    deployment = deployment.model_copy(update={"gateway": gateway})
+    if not args.no_speak:
+        from oricf.demo.speech import speaking_deployment
+
+        deployment = speaking_deployment(deployment, scratch / "demo-voice.yaml")
     return path, deployment
+
+
+def view_url(listen: str) -> str:
+    """The address a viewer opens for the demo's `foxglove.listen` (plain ws://: the demo's
+    view stays on loopback, where neither TLS nor a token is needed)."""
+    return f"ws://{listen}"
 
 
 def raise_interrupt(_signum: int, _frame: Any) -> None:
@@ -96,6 +132,9 @@ def main(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     if args.frames is not None and args.frames < 1:
         print("--frames must be at least 1", file=sys.stderr)
+        return 2
+    if args.no_speak and args.speak_to:
+        print("--speak-to and --no-speak exclude each other", file=sys.stderr)
         return 2
     if args.source is None:
         from oricf.store import ModelStore
@@ -110,9 +149,14 @@ def main(argv: list[str]) -> int:
         options = DemoOptions(
             source=args.source, questions=args.questions or DEFAULT_QUESTIONS,
             max_frames=args.frames, voice=args.voice, stage_timeout_s=args.timeout,
-            log_path=log_path, verbose=args.verbose)
+            log_path=log_path, verbose=args.verbose,
+            view=view_url(args.view) if args.view else None,
+            speak=not args.no_speak, play=not args.no_speak, speak_to=args.speak_to)
         print(f"ORICF demo: deployment {path}, camera {args.source}, "
               f"log {log_path}", flush=True)
+        if options.view:
+            print(f"live view: {options.view} (open it in Foxglove or Lichtblick: Open "
+                  f"connection -> Foxglove WebSocket; docs/live-view.md)", flush=True)
         return run_demo(deployment, options, ProgressLine(sys.stdout))
     except (LaunchFailed, TimeoutError) as exc:
         print(f"demo failed: {exc}\n(process output: {log_path})", file=sys.stderr)

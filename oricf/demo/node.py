@@ -33,6 +33,7 @@ log = logging.getLogger(__name__)
 
 CAMERA, AUDIO, QUESTION = "camera/image_raw", "/audio/utterance", "/question"
 COUNT, TRANSCRIPT, ANSWER = "/human_counter", "/speech/transcript", "/answer"
+SPOKEN = "/answer/audio"  # the answers' speech (oricf.demo.speech), when the demo speaks
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,9 @@ class DemoNode:
         self.node = Node("oricf_demo", context=context)
         self.outputs: dict[str, queue.Queue[Received]] = {}
         self.counts: list[Received] = []
-        for topic, kind in ((COUNT, Int32), (TRANSCRIPT, String), (ANSWER, String)):
+        self.on_spoken: Any = None  # called with each piece of speech as it arrives
+        for topic, kind in ((COUNT, Int32), (TRANSCRIPT, String), (ANSWER, String),
+                            (SPOKEN, Int16MultiArray)):
             self.outputs[topic] = queue.Queue()
             self.node.create_subscription(kind, topic, self._collector(topic), 10)
         self.camera = self.node.create_publisher(Image, CAMERA, qos_profile_sensor_data)
@@ -121,6 +124,8 @@ class DemoNode:
             item = Received(msg.data, time.monotonic())
             if topic == COUNT:
                 self.counts.append(item)
+            if topic == SPOKEN and self.on_spoken is not None:
+                self.on_spoken(msg.data)
             self.outputs[topic].put(item)
         return on_message
 

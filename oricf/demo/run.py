@@ -21,6 +21,7 @@ from oricf.launch.progress import ProgressLine
 log = logging.getLogger(__name__)
 
 CONNECT_TIMEOUT_S = 60.0
+SPEECH_GAP_S = 3.0  # an answer's speech has ended when no piece came for this long
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,10 @@ class DemoOptions:
     stage_timeout_s: float
     log_path: Path
     verbose: bool
+    view: str | None = None  # the live view's address: the demo goes on until Ctrl-C
+    speak: bool = False  # the gateway speaks the answers on /answer/audio (oricf.demo.speech)
+    play: bool = False  # ... and the demo plays them on the default audio device
+    speak_to: Path | None = None  # ... and writes them into this WAV file
 
 
 @dataclass
@@ -44,6 +49,8 @@ class Result:
     detector_ms: float | None = None
     llm_ms: float | None = None
     total_ms: float | None = None
+    first_audio_ms: float | None = None  # the question published -> its first audio sample
+    spoken_s: float | None = None
 
     @property
     def complete(self) -> bool:
@@ -83,6 +90,14 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
     context = ros_context()
     node = DemoNode(context)
     replay = CameraFeed(node.camera.publish, options.source, options.max_frames)
+    player = None
+    if options.speak:
+        from oricf.demo.speech import AnswerPlayer
+
+        player = AnswerPlayer(options.play, options.speak_to)
+        node.on_spoken = player.play
+        if player.note:
+            print(f"speech: {player.note}", flush=True)
     try:
         _wait_connected(node, launcher, progress)
         replay.start()
@@ -95,13 +110,29 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
         results = []
         for index, (question, samples) in enumerate(zip(options.questions, speech,
                                                         strict=True), 1):
-            results.append(ask(node, replay, question, samples, options.stage_timeout_s))
+            results.append(ask(node, replay, question, samples, options.stage_timeout_s,
+                               player))
             print(format_result(index, results[-1]), flush=True)
+        if options.view:
+            keep_viewing(options.view)
         return results
     finally:
         replay.stop()
         node.close()
+        if player is not None:
+            player.close()
         rclpy.try_shutdown(context=context)
+
+
+def keep_viewing(url: str) -> None:
+    """The camera and the live view go on until Ctrl-C (or SIGTERM), which ends the demo
+    normally."""
+    print(f"\nthe live view stays open at {url}; Ctrl-C to stop", flush=True)
+    try:
+        while True:
+            time.sleep(1)
+    except KeyboardInterrupt:
+        pass
 
 
 def _wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> None:
@@ -119,12 +150,14 @@ def _wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> No
     progress(f"gateway connected ({time.monotonic() - start:.1f} s)", True)
 
 
-def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float) -> Result:
-    from oricf.demo.node import ANSWER, TRANSCRIPT
+def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float,
+        player: Any = None) -> Result:
+    from oricf.demo.node import ANSWER, SPOKEN, TRANSCRIPT
 
     result = Result(question)
     node.drain(TRANSCRIPT)
     node.drain(ANSWER)
+    node.drain(SPOKEN)
     sent = node.say(samples)
     heard = node.next(TRANSCRIPT, timeout)
     if heard is None:
@@ -141,7 +174,28 @@ def ask(node: Any, replay: Any, question: str, samples: Any, timeout: float) -> 
     if counts:
         result.count = int(counts[-1].value)
         result.detector_ms = detector_latency_ms(counts, replay, since=sent)
+    if player is not None and answer is not None:
+        hear(node, player, sent, result, timeout)
     return result
+
+
+def hear(node: Any, player: Any, sent: float, result: Result, timeout: float) -> None:
+    """The answer's speech: how long after the question its first sample came out (at the
+    speaker when one plays it, else on arrival), and how long it is."""
+    from oricf.demo.node import SPOKEN
+    from oricf.demo.speech import TOPIC_RATE
+
+    piece = node.next(SPOKEN, timeout)
+    if piece is None:
+        return
+    first_at, samples = piece.at, 0
+    while piece is not None:
+        samples += len(piece.value)
+        piece = node.next(SPOKEN, SPEECH_GAP_S)
+    sounded = player.first_sample_after(sent, 1.0)
+    result.first_audio_ms = ((sounded or first_at) - sent) * 1000
+    result.spoken_s = samples / TOPIC_RATE
+    player.wait_played(60)
 
 
 def detector_latency_ms(counts: list[Any], replay: Any, since: float) -> float | None:
@@ -170,6 +224,8 @@ def format_result(index: int, r: Result) -> str:
         f"  answer     : {missing if r.answer is None else r.answer}",
         f"  latency    : ASR {_ms(r.asr_ms)} | detector {_ms(r.detector_ms)} | "
         f"LLM {_ms(r.llm_ms)} | total {_ms(r.total_ms)}",
+        *([f"  spoken     : first audio {_ms(r.first_audio_ms)} after the question, "
+           f"{r.spoken_s:.1f} s of speech"] if r.spoken_s is not None else []),
     ])
 
 
@@ -177,4 +233,7 @@ def format_summary(results: list[Result]) -> str:
     done = sum(r.complete for r in results)
     totals = [r.total_ms for r in results if r.total_ms is not None]
     median = f"; median total {statistics.median(totals):.0f} ms" if totals else ""
+    firsts = [r.first_audio_ms for r in results if r.first_audio_ms is not None]
+    if firsts:
+        median += f"; median first audio {statistics.median(firsts):.0f} ms"
     return f"\n{done}/{len(results)} questions answered{median}"

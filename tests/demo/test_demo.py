@@ -77,7 +77,7 @@ def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
                      r"total \d+ ms", output), output
     assert "1/1 questions answered" in output
     started = command.started()
-    assert set(started) == {"detector", "asr", "llm", "gateway"}
+    assert set(started) == {"detector", "asr", "llm", "tts", "gateway"}  # the demo speaks
     for pids in started.values():
         assert not any(alive(pid) or group_members(pid) for pid in pids), started
     log = (tmp_path / "demo.log").read_text()
@@ -124,9 +124,10 @@ def test_demo_with_the_services_on_an_edge(tmp_path: Path) -> None:
             "remote": ["detector", "asr", "llm"],
             "gateway": {"config": shipped_pipeline(), "overlays": [str(placement)]}})
         code, command = run_demo("--deployment", str(path), "--question",
-                                 "How many people are there?", *STILL_SCENE)
+                                 "How many people are there?", *STILL_SCENE, "--no-speak")
     assert code == 0, command.output
-    assert set(command.started()) == {"gateway"}
+    assert set(command.started()) == {"gateway"}  # --no-speak: no speech synthesis either
+    assert "spoken     :" not in command.output
     assert f"llm SERVING at {llm.address}" in command.output
     people, answer = reported(command.output)
     assert people == PEOPLE_IN_STILL_SCENE
