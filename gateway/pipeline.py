@@ -98,9 +98,12 @@ class Pipeline:
 
     def _start_live_view(self, config: LiveViewConfig) -> None:
         from oricf.gateway.live_view.states import states
+        from oricf.gateway.live_view.topics import declared_topics
         from oricf.gateway.live_view.view import LiveView  # foxglove-sdk, only when used
 
         view = LiveView(config, self.config.node_name)
+        for topic, kind in declared_topics(self.config):
+            view.declare(topic, kind)
         view.start(lambda: states(self))
         self.live_view = view
         for route in self.routes.values():

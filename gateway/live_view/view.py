@@ -37,6 +37,8 @@ HIDDEN_FIELDS = frozenset({"route", "reply_to", "header"})
 STATE_INTERVAL_S = 1.0
 ERROR_LOG_INTERVAL_S = 30.0
 States = Callable[[], Iterable[tuple[str, dict[str, Any]]]]
+CHANNEL_KINDS: dict[str, Callable[..., Any]] = {
+    "image": CompressedImageChannel, "detections": ImageAnnotationsChannel, "log": LogChannel}
 
 
 @dataclass
@@ -94,6 +96,10 @@ class LiveView:
         thread = threading.Thread(target=target, name=name, daemon=True)
         thread.start()
         self._threads.append(thread)
+
+    def declare(self, topic: str, kind: str) -> None:
+        """Advertises a topic before its first value (kind: image, detections or log)."""
+        self._channel(topic, CHANNEL_KINDS[kind])
 
     def show(self, route: str, record: Record) -> None:
         """A route's record, in the route's thread: never blocks on a viewer, never raises."""

@@ -1,6 +1,6 @@
 // A viewer built on the Foxglove WebSocket protocol's own client library
 // (@foxglove/ws-protocol, from npm): connects, subscribes to every channel it is told of,
-// and prints what it receives as JSON lines until SECONDS have passed.
+// and prints what it receives as JSON lines until SECONDS have passed (or SIGTERM).
 //   node foxglove_client.js URL SECONDS [TOKEN]
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
 const WebSocket = require("ws");
@@ -29,6 +29,7 @@ client.on("close", (event) => {
   print({ close: event.code });
   process.exit(0);
 });
+process.on("SIGTERM", () => process.exit(0));
 setTimeout(() => {
   client.close();
   process.exit(0);

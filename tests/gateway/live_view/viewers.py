@@ -8,6 +8,9 @@ import json
 import os
 import shutil
 import subprocess
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,14 +56,42 @@ class Received:
         return {c["topic"]: c["schemaName"] for c in self.decoder.channels.values()}
 
 
+def client_command(url: str, seconds: float, token: str | None = None,
+                   ca: Path | None = None) -> tuple[list[str], dict[str, str]]:
+    env = {**os.environ, "NODE_PATH": str(node_modules())}
+    if ca is not None:  # a TLS server's CA
+        env["NODE_EXTRA_CA_CERTS"] = str(ca)
+    return ["node", str(CLIENT), url, str(seconds), *([token] if token else [])], env
+
+
 def official_client(url: str, seconds: float, token: str | None = None,
                     ca: Path | None = None) -> Received:
-    """Runs foxglove_client.js for `seconds`; a TLS server's CA is handed to Node."""
-    env = {**os.environ, "NODE_PATH": str(node_modules())}
-    if ca is not None:
-        env["NODE_EXTRA_CA_CERTS"] = str(ca)
-    result = subprocess.run(["node", str(CLIENT), url, str(seconds), *([token] if token else [])],
-                            capture_output=True, text=True, timeout=seconds + 60, env=env,
-                            check=False)
+    """Runs foxglove_client.js for `seconds`."""
+    command, env = client_command(url, seconds, token, ca)
+    result = subprocess.run(command, capture_output=True, text=True, timeout=seconds + 60,
+                            env=env, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     return Received([json.loads(line) for line in result.stdout.splitlines()])
+
+
+@contextmanager
+def watching(url: str) -> Iterator[list[Received]]:
+    """foxglove_client.js watching until the block ends; then what it received is in the
+    list yielded. Its output goes to a file: a pipe nobody reads until the end would fill
+    and make it a slow viewer, which the server rightly drops messages for."""
+    command, env = client_command(url, 3600)
+    got: list[Received] = []
+    with tempfile.TemporaryFile("w+") as out:
+        client = subprocess.Popen(command, stdout=out, stderr=subprocess.PIPE, text=True,
+                                  env=env)
+        try:
+            yield got
+        finally:
+            client.terminate()
+            _, err = client.communicate(timeout=30)
+        assert client.returncode == 0, err[-2000:]
+        out.seek(0)
+        lines = out.read().splitlines()
+    if lines and not lines[-1].endswith("}"):  # cut by the exit
+        lines.pop()
+    got.append(Received([json.loads(line) for line in lines]))
