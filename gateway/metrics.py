@@ -114,6 +114,10 @@ class PipelineCollector(Collector):
         retries = CounterMetricFamily(
             "oricf_gateway_endpoint_retries", "Calls retried because the service refused them "
             "as busy (RESOURCE_EXHAUSTED).", labels=ENDPOINT)
+        placements = CounterMetricFamily(
+            "oricf_gateway_endpoint_placements", "Moves between the primary and the fallback "
+            "by the latency budget (placement:), by reason: over_budget, back_within_budget.",
+            labels=("endpoint", "reason"))
         active = GaugeMetricFamily(
             "oricf_gateway_endpoint_active", "1 for the address the endpoint calls now, 0 for "
             "the other.", labels=("endpoint", "role", "address"))
@@ -121,13 +125,17 @@ class PipelineCollector(Collector):
             failovers.add_metric((name,), endpoint.failovers)
             recoveries.add_metric((name,), endpoint.recoveries)
             retries.add_metric((name,), endpoint.retries)
+            if endpoint.placement is not None:
+                for reason in ("over_budget", "back_within_budget"):
+                    placements.add_metric((name, reason),
+                                          endpoint.placement.decisions[reason])
             in_use = endpoint.active
             targets = [("primary", endpoint.primary)]
             if endpoint.fallback is not None:
                 targets.append(("fallback", endpoint.fallback))
             for role, target in targets:
                 active.add_metric((name, role, target.address), 1 if target is in_use else 0)
-        yield from (failovers, recoveries, retries, active)
+        yield from (failovers, recoveries, retries, placements, active)
 
 
 def pipeline_registry(pipeline: Pipeline) -> CollectorRegistry:

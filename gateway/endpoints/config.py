@@ -20,6 +20,7 @@ from urllib.parse import urlsplit
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from oricf.config import Schema
+from oricf.gateway.endpoints.placement import PlacementConfig
 from oricf.gateway.endpoints.replicas import check_target, several_addresses
 from oricf.tls import ClientTls, TokenSource
 
@@ -120,6 +121,9 @@ class EndpointConfig(TargetConfig):
         1.0, gt=0, le=60, description="readiness probe of the primary while on the fallback")
     image: ImageTransport = ImageTransport()
     retry: RetryConfig = RetryConfig()
+    placement: PlacementConfig | None = Field(
+        None, description="move calls to the fallback while the primary's latency is over a "
+                          "budget, not only when it fails (gateway/endpoints/placement.py)")
 
     @field_validator("fallback", mode="before")
     @classmethod
@@ -127,6 +131,12 @@ class EndpointConfig(TargetConfig):
         if isinstance(value, str):
             return check_address_for(info.data.get("protocol", "grpc"), value)
         return value
+
+    @model_validator(mode="after")
+    def _placement_needs_fallback(self) -> EndpointConfig:
+        if self.placement is not None and self.fallback is None:
+            raise ValueError("placement: needs a fallback to move calls to")
+        return self
 
     @model_validator(mode="after")
     def _fallback_tls_name(self) -> EndpointConfig:

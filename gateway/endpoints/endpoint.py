@@ -15,6 +15,7 @@ import grpc
 
 from oricf.gateway.endpoints.config import EndpointConfig, TargetConfig
 from oricf.gateway.endpoints.grpc import GrpcTarget, Service
+from oricf.gateway.endpoints.placement import Placement
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +65,11 @@ class Endpoint:
         self._stop = threading.Event()
         self._probe: threading.Thread | None = None
         self._closers: list[Callable[[list[Any]], None]] = []
+        self.placement = (Placement(name, config.placement)
+                          if config.placement is not None else None)
+        if self.placement is not None:
+            threading.Thread(target=self._probe_placement, daemon=True,
+                             name=f"placement-{name}").start()
 
     @property
     def deadline_s(self) -> float:
@@ -71,8 +77,10 @@ class Endpoint:
 
     @property
     def active(self) -> Any:
+        moved = self.placement is not None and self.placement.moved
         with self._lock:
-            return self.fallback if self._on_fallback and self.fallback else self.primary
+            on_fallback = self._on_fallback or moved
+            return self.fallback if on_fallback and self.fallback else self.primary
 
     def call(self, rpc: str, request: Any) -> Any:
         """Calls a gRPC rpc on the active target (a gRPC-only endpoint)."""
@@ -94,8 +102,9 @@ class Endpoint:
         """One target, its deadline, and retries while it refuses the call as busy."""
         deadline = time.monotonic() + self.deadline_s
         for attempt in itertools.count(1):
+            started = time.monotonic()
             try:
-                return work[target.protocol](target, max(deadline - time.monotonic(), 0.001))
+                result = work[target.protocol](target, max(deadline - started, 0.001))
             except grpc.RpcError as exc:
                 wait = self._retry_wait(exc, attempt, deadline - time.monotonic())
                 if wait is None:
@@ -104,6 +113,10 @@ class Endpoint:
                 log.debug("endpoint %s: %s busy, retry %d in %.0f ms", self.name,
                           target.address, attempt, wait * 1000)
                 time.sleep(wait)
+                continue
+            if self.placement is not None and target is self.primary:
+                self.placement.call_took(time.monotonic() - started)
+            return result
         raise AssertionError("unreachable")
 
     def _retry_wait(self, exc: grpc.RpcError, attempt: int, remaining: float) -> float | None:
@@ -153,6 +166,16 @@ class Endpoint:
     def on_close(self, closer: Callable[[list[Any]], None]) -> None:
         """closer(targets) runs before the targets close (e.g. unregisters shared memory)."""
         self._closers.append(closer)
+
+    def _probe_placement(self) -> None:
+        """Times the primary's readiness probe for the placement, all the time: its round
+        trip while within budget tells what a call costs beyond it."""
+        assert self.placement is not None
+        interval = self.placement.config.probe_interval_s
+        while not self._stop.wait(interval):
+            started = time.monotonic()
+            ok = self.primary.serving(min(self.deadline_s, PROBE_TIMEOUT_S * 5))
+            self.placement.probe_took(time.monotonic() - started if ok else None)
 
     def close(self) -> None:
         for closer in self._closers:
