@@ -9,6 +9,8 @@ deadlines, retries, failover), `methods/` (one module per method: Detect, Transc
 Generate, Infer), `post/` (one module per post step), `sources/` and `sinks/` (inputs and
 outputs that are no ROS topics), `recording/` (MCAP record and replay, CDR, message
 definitions), `ros/` (the rclpy node, cameras, publishers, parameters, /rosout, the DDS
-profile). `main` is `oricf gateway`; `without_ros` runs a pipeline with no topics.
+profile), `control/` (the local control API: the pipeline's state and calls over HTTP on
+loopback or a Unix socket), `agents/` (`oricf mcp`: the MCP server and the `agent:` policy
+that commands pass). `main` is `oricf gateway`; `without_ros` runs a pipeline with no topics.
 Importing this package imports nothing. docs/architecture.md walks through it.
 """

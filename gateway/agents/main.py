@@ -29,6 +29,7 @@ from oricf.gateway.agents.http import HttpSettings, serve_http
 from oricf.gateway.agents.mcp_server import build_server
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.control.api import Gateway
+from oricf.metrics import MetricsConfig, MetricsServer
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--audit", type=Path,
                         help="JSON lines of every tool call (default: the policy's "
                              "agent.audit with --config)")
+    parser.add_argument("--metrics-listen", metavar="HOST:PORT",
+                        help="serve the agent's Prometheus counters at "
+                             "http://HOST:PORT/metrics (oricf_agent_calls_total)")
     parser.add_argument("--transport", choices=["stdio", "http"], default="stdio")
     parser.add_argument("--listen", default="127.0.0.1:8765",
                         help="--transport http: HOST:PORT (default 127.0.0.1:8765)")
@@ -82,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         from oricf.gateway.control.client import ControlClient
 
         gateway: Gateway = ControlClient(args.attach, args.token_file, args.ca)
-        return serve(gateway, AuditLog(args.audit), http)
+        return serve(gateway, AuditLog(args.audit), http, args.metrics_listen)
     config = load_pipeline(args.config, args.overlay, sets=args.sets)
     if http is None:
         check_stdio(config)
@@ -91,18 +95,25 @@ def main(argv: list[str] | None = None) -> int:
     hosted = HostedPipeline(config, audit_path=args.audit)
     view = hosted.start()
     try:
-        return serve(view, view.audit, http)
+        return serve(view, view.audit, http, args.metrics_listen)
     finally:
         hosted.stop()
 
 
-def serve(gateway: Gateway, audit: AuditLog, http: HttpSettings | None) -> int:
+def serve(gateway: Gateway, audit: AuditLog, http: HttpSettings | None,
+          metrics_listen: str | None = None) -> int:
     app = build_server(gateway, audit)
-    if http is None:
-        log.info("MCP on standard input and output")
-        app.run("stdio")
-    else:
-        serve_http(app, http)
+    metrics = (MetricsServer(MetricsConfig(listen=metrics_listen), audit.registry)
+               if metrics_listen else None)
+    try:
+        if http is None:
+            log.info("MCP on standard input and output")
+            app.run("stdio")
+        else:
+            serve_http(app, http)
+    finally:
+        if metrics is not None:
+            metrics.close()
     return 0
 
 

@@ -11,24 +11,28 @@ from pathlib import Path
 from typing import Any
 
 import anyio
+import httpx
 import mcp_types as types
 from mcp import ClientSession
 
 from oricf.audio.wav import encode_wav
 from tests.gateway.agents.scene import PEOPLE, RosListener
 from tests.gateway.agents.session import TOOLS, stdio_session, text_of, wait_product, warm_up
+from tests.support.processes import free_port
 from tests.support.speech import speech
 
 
 def test_tools_resources_look_and_ask(pipeline: Path) -> None:
     updated: list[str] = []
+    metrics_port = free_port()
 
     async def on_message(message: Any) -> None:
         if isinstance(message, types.ResourceUpdatedNotification):
             updated.append(str(message.params.uri))
 
     async def scenario() -> None:
-        async with stdio_session("--config", str(pipeline), on_message=on_message) as session:
+        async with stdio_session("--config", str(pipeline), "--metrics-listen",
+                                 f"127.0.0.1:{metrics_port}", on_message=on_message) as session:
             tools = {t.name: t for t in (await session.list_tools()).tools}
             assert set(tools) == TOOLS
             assert all(t.description and t.input_schema["type"] == "object"
@@ -69,6 +73,8 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
             assert status.structured_content is not None
             assert status.structured_content["endpoints"]["detector"]["failovers"] == 0
             assert status.structured_content["agent_calls"]["look/ok"] == 1
+            scraped = httpx.get(f"http://127.0.0.1:{metrics_port}/metrics").text
+            assert 'oricf_agent_calls_total{outcome="ok",tool="look"} 1.0' in scraped
 
     anyio.run(scenario)
 
