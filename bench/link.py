@@ -8,7 +8,10 @@ prints the longest gap between counts (the failover) and how long the route took
 to the edge once the link was back. Needs root, `ip`, `tc` and `iptables`.
 
 Profiles: clean; 20 Mbit/s (tbf); 2% random loss (iptables); 50 +- 10 ms delay each way (a
-user-space relay: this kernel has no netem); all three together.
+user-space relay: this kernel has no netem); all three together. Each profile runs with
+failover only, and with a placement policy (`placement: {latency_budget_ms: --budget-ms}`,
+docs/gateway.md): the share of calls the edge answered and the p90 against the budget, next
+to the route with the onboard detector only.
 """
 
 from __future__ import annotations
@@ -76,15 +79,18 @@ def oricf(*args: str) -> list[str]:
 
 
 def run_profile(edge: EdgeHost, remote: str, onboard: str, frames: list[Frame],
-                profile: dict[str, Any], seconds: float, cut_s: float = 0.0
+                profile: dict[str, Any], seconds: float, cut_s: float = 0.0,
+                placement: dict[str, Any] | None = None
                 ) -> tuple[Counts, Pipeline, float, float]:
     host, _, port = remote.rpartition(":")
     relay = DelayRelay((host, int(port)), profile.get("delay_s", 0.0),
                        profile.get("jitter_s", 0.0))
     edge.degrade(profile.get("rate_mbit"), profile.get("loss", 0.0))
-    data = deep_merge(ROUTE, {"endpoints": {"detector": {
-        "address": relay.address, "fallback": onboard, "deadline_ms": 1500,
-        "probe_interval_s": 0.5, "image": {"transport": "jpeg", "jpeg_quality": 80}}}})
+    detector = {"address": relay.address, "fallback": onboard, "deadline_ms": 1500,
+                "probe_interval_s": 0.5, "image": {"transport": "jpeg", "jpeg_quality": 80}}
+    if placement is not None:
+        detector["placement"] = placement
+    data = deep_merge(ROUTE, {"endpoints": {"detector": detector}})
     counts = Counts()
     pipeline = Pipeline(parse_pipeline(data, "bench link"), counts)
     pipeline.start()
@@ -120,14 +126,45 @@ def feed(pipeline: Pipeline, frames: list[Frame], seconds: float) -> None:
         time.sleep(1 / FPS)
 
 
+def onboard_only(onboard: str, frames: list[Frame], seconds: float) -> Counts:
+    counts = Counts()
+    data = deep_merge(ROUTE, {"endpoints": {"detector": {"address": onboard}}})
+    pipeline = Pipeline(parse_pipeline(data, "bench link onboard"), counts)
+    pipeline.start()
+    try:
+        feed(pipeline, frames, seconds)
+    finally:
+        pipeline.stop()
+    return counts
+
+
+def row(link: str, mode: str, counts: Counts, seconds: float, budget_ms: float,
+        pipeline: Pipeline | None) -> list[Any]:
+    lat = sorted(counts.latencies) or [float("nan")]
+    p90 = lat[int(0.9 * (len(lat) - 1))] * 1e3
+    endpoint = pipeline.endpoints["detector"] if pipeline is not None else None
+    answered = endpoint.answered if endpoint is not None else {"primary": 0, "fallback": 1}
+    share = answered["primary"] / max(1, sum(answered.values()))
+    moves = endpoint.placement.decisions["over_budget"] \
+        if endpoint is not None and endpoint.placement is not None else "-"
+    return [link, mode, f"{len(counts.times) / seconds:.1f}",
+            f"{statistics.median(lat) * 1e3:.0f}", f"{p90:.0f}",
+            "yes" if p90 <= budget_ms else "no", f"{share:.0%}",
+            endpoint.failovers if endpoint is not None else "-", moves]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="oricf bench link", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=20, help="per profile")
     parser.add_argument("--cut", type=float, default=10, help="seconds the link is cut")
+    parser.add_argument("--budget-ms", type=float, default=150,
+                        help="the placement policy's latency budget")
     args = parser.parse_args(argv)
     frames = [Frame.from_pixels(f) for f in load_frames(20)]
     onboard = f"127.0.0.1:{free_port()}"
+    policy = {"latency_budget_ms": args.budget_ms, "window": 20, "hysteresis_s": 5,
+              "probe_interval_s": 0.5}
     rows = []
     with edge_host() as edge, \
             served(edge.exec_argv(oricf("serve", "detector", "--listen",
@@ -135,18 +172,19 @@ def main(argv: list[str] | None = None) -> int:
                    f"{edge.address}:{EDGE_PORT}"), \
             served(oricf("serve", "detector", "--listen", onboard), onboard):
         remote = f"{edge.address}:{EDGE_PORT}"
+        rows.append(row("-", "onboard only", onboard_only(onboard, frames, args.seconds),
+                        args.seconds, args.budget_ms, None))
         for name, profile in PROFILES.items():
-            counts, pipeline, _, _ = run_profile(edge, remote, onboard, frames, profile,
-                                                 args.seconds)
-            lat = sorted(counts.latencies) or [float("nan")]
-            rows.append([name, f"{len(counts.times) / args.seconds:.1f}",
-                         f"{statistics.median(lat) * 1e3:.0f}",
-                         f"{lat[int(0.9 * (len(lat) - 1))] * 1e3:.0f}",
-                         pipeline.endpoints["detector"].failovers])
+            for mode, placement in (("failover only", None), ("placement", policy)):
+                counts, pipeline, _, _ = run_profile(edge, remote, onboard, frames, profile,
+                                                     args.seconds, placement=placement)
+                rows.append(row(name, mode, counts, args.seconds, args.budget_ms, pipeline))
         counts, pipeline, cut_at, returned = run_profile(
             edge, remote, onboard, frames, PROFILES["all three"], 5, args.cut)
     print_table(f"People route to an edge detector, {FPS} fps JPEG frames, {args.seconds:g} s "
-                f"per profile", ["link", "counts/s", "median ms", "p90 ms", "failovers"], rows)
+                f"per profile, budget {args.budget_ms:g} ms",
+                ["link", "mode", "counts/s", "median ms", "p90 ms", "p90 in budget",
+                 "edge share", "failovers", "moves"], rows)
     gaps = [b - a for a, b in zip(counts.times, counts.times[1:], strict=False)
             if b > cut_at - 2]
     print(f"\nlink cut for {args.cut:g} s (profile 'all three'): longest gap between counts "
@@ -155,4 +193,3 @@ def main(argv: list[str] | None = None) -> int:
           f"{pipeline.endpoints['detector'].failovers}, returns "
           f"{pipeline.endpoints['detector'].recoveries}")
     return 0
-

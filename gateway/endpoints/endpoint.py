@@ -60,6 +60,7 @@ class Endpoint:
         self.failovers = 0
         self.recoveries = 0
         self.retries = 0
+        self.answered = {"primary": 0, "fallback": 0}  # calls answered, by target
         self._on_fallback = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -116,6 +117,7 @@ class Endpoint:
                 continue
             if self.placement is not None and target is self.primary:
                 self.placement.call_took(time.monotonic() - started)
+            self.answered["primary" if target is self.primary else "fallback"] += 1
             return result
         raise AssertionError("unreachable")
 
