@@ -11,13 +11,15 @@ from pathlib import Path
 from typing import Any
 
 import anyio
+import cv2
 import httpx
 import mcp_types as types
 from mcp import ClientSession
 
 from oricf.audio.wav import encode_wav
-from tests.gateway.agents.scene import PEOPLE, RosListener
+from tests.gateway.agents.scene import FRAME, PEOPLE, RosListener
 from tests.gateway.agents.session import TOOLS, stdio_session, text_of, wait_product, warm_up
+from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.speech import speech
 
@@ -45,14 +47,32 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
             assert count["value"] == PEOPLE and count["route"] == "people"
             assert count["stale"] is False
 
-            look = await session.call_tool("look", {})
-            assert not look.is_error
+            deadline = time.monotonic() + 30
+            while True:  # tracks are confirmed after the first frames
+                look = await session.call_tool("look", {})
+                assert not look.is_error, text_of(look)
+                assert look.structured_content is not None
+                found = look.structured_content["detections"]
+                if all("track_id" in d for d in found) or time.monotonic() > deadline:
+                    break
+                await anyio.sleep(0.5)
+            assert len({d["track_id"] for d in found}) == PEOPLE
             images = [c for c in look.content if isinstance(c, types.ImageContent)]
             assert len(images) == 1 and images[0].mime_type == "image/jpeg"
             assert base64.b64decode(images[0].data)[:2] == b"\xff\xd8"
             assert look.structured_content is not None
             assert look.structured_content["counts"] == {"person": PEOPLE}
             assert len(look.structured_content["detections"]) == PEOPLE
+
+            jpeg = cv2.imencode(".jpg", video_frames([FRAME])[0])[1].tobytes()
+            image = base64.b64encode(jpeg).decode()
+            for tool, arguments in [("detect", {"image": image}),
+                                    ("infer", {"route": "people", "image": image})]:
+                result = await session.call_tool(tool, arguments)
+                assert result.structured_content is not None, text_of(result)
+                assert result.structured_content["counts"] == {"person": PEOPLE}
+                assert all("track_id" not in d  # an agent's image never reaches the tracker
+                           for d in result.structured_content["detections"])
 
             ask = await session.call_tool("ask", {"question": "How many people do you see?"})
             assert not ask.is_error, text_of(ask)
