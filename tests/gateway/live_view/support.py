@@ -28,13 +28,16 @@ SUBPROTOCOL = "foxglove.sdk.v1"
 
 
 def video_pipeline(detector: str, foxglove: dict[str, Any] | None = None,
-                   fps: float = 20) -> PipelineConfig:
-    """people_video.yaml on vtest.avi at `fps`, counts to a product (plotted) and JSON lines
-    to nowhere, with a live view on a free loopback port."""
+                   fps: float = 20, post: list[dict[str, Any]] | None = None
+                   ) -> PipelineConfig:
+    """people_video.yaml on vtest.avi at `fps` (with other post steps if given), counts to
+    a product (plotted), with a live view on a free loopback port."""
+    route: dict[str, Any] = {"input": {"url": str(video_path()), "fps": fps, "loop": True},
+                             "outputs": [{"product": "people_count", "from": "count"}]}
+    if post is not None:
+        route["post"] = post
     data = deep_merge(read_yaml(PIPELINE), {
-        "endpoints": {"detector": {"address": detector}},
-        "routes": {"people": {"input": {"url": str(video_path()), "fps": fps, "loop": True},
-                              "outputs": [{"product": "people_count", "from": "count"}]}},
+        "endpoints": {"detector": {"address": detector}}, "routes": {"people": route},
         "foxglove": {"listen": "127.0.0.1:0", **(foxglove or {})}})
     return parse_pipeline(data, f"{PIPELINE} (test overlay)", PIPELINE.parent)
 

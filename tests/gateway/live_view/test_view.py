@@ -5,6 +5,7 @@ by viewers that stop reading."""
 from __future__ import annotations
 
 import json
+import re
 import resource
 import time
 from collections.abc import Iterator
@@ -87,6 +88,24 @@ def test_the_official_client_sees_frames_and_annotations_that_match_the_detectio
     endpoint = got.messages["/endpoints/detector"][-1][1]
     assert endpoint["active"] == gateway.pipeline.endpoints["detector"].primary.address
     assert endpoint["on_fallback"] is False and endpoint["latency_ms"] > 0
+
+
+TRACKING = [{"track": {"labels": ["person"]}},
+            {"count_tracks": {"label": "person", "into": "count"}},
+            {"seen_tracks": {"label": "person", "window_s": 60, "into": "seen"}}]
+
+
+def test_tracked_people_carry_their_track_ids_and_the_tracking_measures_are_plotted(
+        detector: RunningService) -> None:
+    with running(video_pipeline(detector.address, {"max_fps": MAX_FPS}, post=TRACKING)) \
+            as tracked:
+        got = official_client(tracked.url, seconds=6)
+    captions = [t.text for _, a in got.messages["/people/detections"] for t in a.texts]
+    ids = {d.track_id for r in tracked.records for d in r["detections"]}
+    assert captions and all(re.fullmatch(r"person #\d+ \d\.\d\d", c) for c in captions)
+    assert {int(c.split("#")[1].split()[0]) for c in captions} <= ids
+    seen = [m["value"] for _, m in got.messages["/people/seen"]]
+    assert seen and seen == sorted(seen)  # unique people in the last minute: never fewer
 
 
 def rss_mb() -> float:
