@@ -113,6 +113,23 @@ def test_played_answers_are_heard_back_word_for_word(
     assert errors / total <= 0.10, f"{voice}: word error rate {errors / total:.0%}"
 
 
+def test_the_first_sentence_plays_while_the_rest_is_synthesized(
+        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        tmp_path: Path) -> None:
+    pipeline = say_route(tts_service.address, "joe", SPEAKER)
+    done = tmp_path / "spoken.jsonl"
+    pipeline["routes"]["say"]["outputs"].append(  # type: ignore[index]
+        {"jsonl": str(done), "from": "spoken"})
+    with local_gateway(tmp_path, pipeline) as gateway:
+        gateway.say("say", LONG_ANSWER)
+        assert gateway.pipeline.idle(120) and gateway.speaker().idle(120)
+        first_sound = gateway.speaker().stats.starts[0] + time.time() - time.monotonic()
+    synthesized = json.loads(done.read_text())["time"]  # the last sentence's audio is in
+    log.info("first sound %.2f s before the whole answer was synthesized",
+             synthesized - first_sound)
+    assert first_sound < synthesized
+
+
 def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
         pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
         asr: RunningService, tmp_path: Path) -> None:
