@@ -4,6 +4,7 @@ and what the agent tests do with them."""
 from __future__ import annotations
 
 import os
+import ssl
 import sys
 import time
 from collections.abc import AsyncIterator
@@ -11,6 +12,7 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 import anyio
+import httpx2
 import mcp_types as types
 from mcp import ClientSession, StdioServerParameters
 from mcp.client.stdio import stdio_client
@@ -44,11 +46,13 @@ async def stdio_session(*args: str, elicit: Elicit = None, on_message: Any = Non
 
 
 @asynccontextmanager
-async def http_session(url: str, token: str | None, elicit: Elicit = None
-                       ) -> AsyncIterator[ClientSession]:
-    """A session over streamable HTTP, with a bearer token."""
+async def http_session(url: str, token: str | None, elicit: Elicit = None,
+                       verify: ssl.SSLContext | None = None) -> AsyncIterator[ClientSession]:
+    """A session over streamable HTTP, with a bearer token (and a CA to trust)."""
     headers = {"Authorization": f"Bearer {token}"} if token else None
-    async with create_mcp_http_client(headers=headers) as http, \
+    http_client = (create_mcp_http_client(headers=headers) if verify is None else
+                   httpx2.AsyncClient(headers=headers, verify=verify, timeout=60))
+    async with http_client as http, \
             streamable_http_client(url, http_client=http) as (read, write), \
             ClientSession(read, write, elicitation_callback=elicit) as session:
         await session.initialize()

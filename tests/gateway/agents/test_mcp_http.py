@@ -5,6 +5,7 @@ subscriber."""
 from __future__ import annotations
 
 import socket
+import ssl
 import subprocess
 import sys
 import time
@@ -25,6 +26,7 @@ from tests.gateway.agents.session import (
     wait_product,
     warm_up,
 )
+from tests.support.certs import local_certificates
 from tests.support.processes import free_port
 
 TOKEN = "agent-test-token-5f1c"
@@ -104,6 +106,30 @@ def test_http_with_tokens(server: str, driver: RosListener) -> None:
             assert not (await session.call_tool("status", {})).is_error
 
     anyio.run(scenario)
+
+
+def test_https_with_tokens(pipeline: Path, tmp_path: Path,
+                           tmp_path_factory: pytest.TempPathFactory) -> None:
+    certs = local_certificates(tmp_path_factory, TOKEN)
+    port = free_port()
+    log = tmp_path / "mcp.log"
+    with mcp_http("--config", str(pipeline), "--listen", f"127.0.0.1:{port}",
+                  "--auth-token-file", str(certs / "tokens"), "--tls-cert",
+                  str(certs / "server.pem"), "--tls-key", str(certs / "server.key"),
+                  log=log) as process:
+        wait_listening(port, process, log)
+        url = f"https://127.0.0.1:{port}/mcp"
+        with pytest.raises(httpx.ConnectError):  # a client that does not trust the CA
+            httpx.post(url, json={})
+
+        async def scenario() -> None:
+            context = ssl.create_default_context(cafile=str(certs / "ca.pem"))
+            async with http_session(url, TOKEN, verify=context) as session:
+                count = await wait_product(session, "people_count")
+                assert count["value"] == PEOPLE
+
+        anyio.run(scenario)
+    assert TOKEN not in log.read_text()
 
 
 def test_beyond_this_machine_needs_tokens_and_tls(pipeline: Path, tmp_path: Path) -> None:
