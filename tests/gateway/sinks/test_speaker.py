@@ -45,9 +45,9 @@ ANSWERS = [
 LONG_ANSWER = ("I can see 4 people. Two of them are walking to the left, one is standing "
                "near the door, and one is carrying a bag. The video shows a street with a "
                "shop window and a bench in the background.")
-# The barge-in bound asserted here is generous for a loaded 2-core machine;
-# docs/audio-out.md states what was measured.
-BARGE_IN_BOUND_S = 1.0
+# The barge-in bound asserted here is generous for a shared 2-core machine under load (the
+# VAD must hear 200 ms of speech first); docs/audio-out.md states what was measured.
+BARGE_IN_BOUND_S = 2.0
 
 
 @pytest.fixture(scope="module")
