@@ -22,6 +22,7 @@ from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.client import ControlClient
 from tests.gateway.agents.scene import PEOPLE, RosListener
 from tests.gateway.agents.session import server_env, stdio_session, text_of, warm_up
+from tests.support.certs import local_certificates
 from tests.support.processes import free_port
 
 
@@ -111,16 +112,20 @@ def test_attach_over_a_unix_socket(socket_gateway: Path, driver: RosListener) ->
     client.close()
 
 
-def test_control_on_tcp_needs_the_token(pipeline: Path, tmp_path: Path) -> None:
+def test_control_on_tcp_needs_tls_and_the_token(pipeline: Path, tmp_path: Path,
+                                        tmp_path_factory: pytest.TempPathFactory) -> None:
+    certs = local_certificates(tmp_path_factory)
     tokens = tmp_path / "control.tokens"
     tokens.write_text("control-secret-9\n")
     port = free_port()
-    config = with_control(pipeline, {"listen": f"127.0.0.1:{port}",
-                                     "auth": {"file": str(tokens)}}, "attach_tcp.yaml")
+    config = with_control(pipeline, {
+        "listen": f"127.0.0.1:{port}", "auth": {"file": str(tokens)},
+        "tls": {"cert": str(certs / "server.pem"), "key": str(certs / "server.key")}},
+        "attach_tcp.yaml")
     log = tmp_path / "gateway.log"
     with gateway(config, log) as process:
-        address = f"http://127.0.0.1:{port}"
-        anonymous = ControlClient(address)
+        address = f"https://127.0.0.1:{port}"
+        anonymous = ControlClient(address, ca=certs / "ca.pem")
 
         def up() -> bool:
             try:
@@ -133,7 +138,9 @@ def test_control_on_tcp_needs_the_token(pipeline: Path, tmp_path: Path) -> None:
         wrong = tmp_path / "wrong"
         wrong.write_text("guess\n")
         with pytest.raises(NotReady, match="bearer token"):
-            ControlClient(address, wrong).status()
-        status = ControlClient(address, tokens).status()
+            ControlClient(address, wrong, certs / "ca.pem").status()
+        with pytest.raises(NotReady, match="CERTIFICATE_VERIFY_FAILED"):
+            ControlClient(address, tokens).status()  # without the CA: not trusted
+        status = ControlClient(address, tokens, certs / "ca.pem").status()
         assert "people" in status["routes"]
     assert "control-secret-9" not in log.read_text()
