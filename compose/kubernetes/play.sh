@@ -3,9 +3,10 @@
 # rendered manifests' Deployments, ConfigMaps and Secret through `podman kube play`, from the
 # image compose/stack.sh builds (docs/kubernetes.md, "On podman").
 #
-#   compose/kubernetes/play.sh up        render, play, wait until every pod is SERVING
-#   compose/kubernetes/play.sh ps        each pod: its address, state, health
-#   compose/kubernetes/play.sh render    what `up` plays, on stdout
+#   compose/kubernetes/play.sh up [DEPLOYMENT...]      render, play (all Deployments, or
+#                                                      those named), wait until each pod is SERVING
+#   compose/kubernetes/play.sh ps                      each pod: its address, health
+#   compose/kubernetes/play.sh render [DEPLOYMENT...]  what `up` plays, on stdout
 #   compose/kubernetes/play.sh down      remove the pods and the volumes and secrets they made
 #
 # 1. Render: kustomize (or kubectl kustomize) of compose/kubernetes/services, with the
@@ -30,7 +31,8 @@ cd "$ROOT"
 CERTS="${ORICF_KUBE_CERTS:-compose/kubernetes/certs}"
 IMAGE="${ORICF_IMAGE:-oricf:local}"
 WORK="${TMPDIR:-/tmp}/oricf-kube-play"
-PLAYED=$WORK/played.yaml
+PLAYED=$WORK/played.yaml      # what `up` played, until `down`
+NEXT=$WORK/next.yaml
 HEALTH_PORT=50050
 export CONTAINERS_CONF="${CONTAINERS_CONF:-$ROOT/compose/containers.conf}"
 
@@ -61,7 +63,7 @@ podman_before() {  # podman's version is older than $1 (MAJOR.MINOR)
     ((10#$major < want_major || (10#$major == want_major && 10#$minor < want_minor)))
 }
 
-render() {  # the manifests podman plays, into $PLAYED; the kinds left out on stderr
+render() {  # the manifests podman plays (Deployments: all, or those named), into $NEXT
     local files=(ca.pem server.pem server.key tokens) file copy secrets_as=secret
     for file in "${files[@]}"; do
         [[ -e "$CERTS/$file" ]] || die "missing $CERTS/$file. Make the certificates once:
@@ -78,10 +80,10 @@ render() {  # the manifests podman plays, into $PLAYED; the kinds left out on st
         || { rm -rf "$copy"; die "kustomize failed"; }
     rm -rf "$copy"
     podman_before 4.4 && secrets_as=configmap
-    "$PY" - "$WORK/rendered.yaml" "$IMAGE" "$secrets_as" >"$PLAYED" <<'EOF'
+    "$PY" - "$WORK/rendered.yaml" "$IMAGE" "$secrets_as" "$@" >"$NEXT" <<'EOF'
 import base64, sys, yaml
-rendered, image, secrets_as = sys.argv[1:]
-played, left_out = [], []
+rendered, image, secrets_as, *asked = sys.argv[1:]
+played, left_out, found = [], [], set()
 for doc in yaml.safe_load_all(open(rendered)):
     if not doc:
         continue
@@ -89,6 +91,9 @@ for doc in yaml.safe_load_all(open(rendered)):
     if kind not in ("Deployment", "ConfigMap", "Secret"):
         left_out.append(f"{kind}/{name}")
         continue
+    if kind == "Deployment" and asked and name not in asked:
+        continue
+    found.add(name)
     if kind == "Secret" and secrets_as == "configmap":
         data = {k: base64.b64decode(v).decode() for k, v in doc.get("data", {}).items()}
         doc = {"apiVersion": "v1", "kind": "ConfigMap", "metadata": doc["metadata"], "data": data}
@@ -104,9 +109,12 @@ for doc in yaml.safe_load_all(open(rendered)):
                 secret = volume.pop("secret")
                 volume["configMap"] = {"name": secret["secretName"]}
     played.append(doc)
+if set(asked) - found:
+    sys.exit(f"no Deployment {' '.join(sorted(set(asked) - found))} in the manifests")
 print("left to a cluster:", " ".join(left_out), file=sys.stderr)
 yaml.safe_dump_all(played, sys.stdout, sort_keys=False)
 EOF
+    [[ -s "$NEXT" ]] || die "nothing to play"
 }
 
 item_folders() {  # VOLUME FOLDER lines: the folders that ConfigMap items' paths need
@@ -151,13 +159,14 @@ health_of() {  # SERVING, or what else: the pod's health port asked from inside 
     else echo "not SERVING yet"; fi
 }
 
-cmd_up() {
+cmd_up() {  # DEPLOYMENT...: those only
     local volume folder mountpoint start=$SECONDS timeout="${ORICF_WAIT_TIMEOUT:-600}"
     local pod container health pending next
     podman image exists "$IMAGE" \
         || die "no image $IMAGE in podman: ORICF_ENGINE=podman compose/stack.sh build detector"
-    render
-    podman kube play --down "$PLAYED" >/dev/null 2>&1 || true
+    [[ ! -e "$PLAYED" ]] || cmd_down >/dev/null     # what an earlier `up` left
+    render "$@"
+    mv "$NEXT" "$PLAYED"
     while read -r volume folder; do
         podman volume exists "$volume" || podman volume create "$volume" >/dev/null
         mountpoint=$(podman volume inspect -f '{{.Mountpoint}}' "$volume")
@@ -203,8 +212,12 @@ cmd_ps() {
 cmd_down() {
     local name kind
     [[ -e "$PLAYED" ]] || { echo "==> nothing played here"; return; }
-    podman kube play --down "$PLAYED" >"$WORK/down.log" 2>&1 \
-        || { cat "$WORK/down.log"; die "podman kube play --down failed"; }
+    while read -r name _; do   # SIGTERM, then terminationGracePeriodSeconds as rendered
+        if podman pod exists "$name"; then
+            podman pod stop -t 15 "$name" >>"$WORK/down.log" 2>&1 || true
+            podman pod rm -f "$name" >>"$WORK/down.log" 2>&1 || true
+        fi
+    done < <(pods)
     while read -r kind name; do   # the volumes and secrets kube play made stay otherwise
         podman volume rm -f "$name" >/dev/null 2>&1 || true
         [[ $kind == Secret ]] && { podman secret rm "$name" >/dev/null 2>&1 || true; }
@@ -226,8 +239,8 @@ esac
 command -v podman >/dev/null || die "podman is not installed: apt-get install -y podman catatonit"
 pick_python
 case $1 in
-    up) kustomize_command; cmd_up; cmd_ps ;;
+    up) shift; kustomize_command; cmd_up "$@"; cmd_ps ;;
     ps) cmd_ps ;;
-    render) kustomize_command; render; cat "$PLAYED" ;;
+    render) shift; kustomize_command; render "$@"; cat "$NEXT" ;;
     down) cmd_down ;;
 esac

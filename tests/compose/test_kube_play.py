@@ -106,7 +106,7 @@ def played(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Played]:
     certs = tmp_path_factory.mktemp("kubernetes-certs")
     make_certificates(certs, HOSTS)
     env = {"ORICF_KUBE_CERTS": str(certs), "ORICF_WAIT_TIMEOUT": "600"}
-    up = play("up", env=env, timeout=900)
+    up = play("up", *PORTS, env=env, timeout=900)
     try:
         assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
         yield Played(certs, {name: pod_address(f"{name}-pod-0") for name in PORTS}, up.stdout)
