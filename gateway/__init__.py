@@ -6,7 +6,8 @@ audio clips, records), `products` (data products), `route` (input -> method -> p
 and `text_channels` with `text_clients` (the line-based TCP text server). Around it, a
 package per concern: `endpoints/` (the servers routes call over gRPC or the OpenAI API:
 deadlines, retries, failover), `methods/` (one module per method: Detect, Transcribe,
-Generate, Infer), `post/` (one module per post step), `sources/` and `sinks/` (inputs and
+Generate, Infer), `post/` (one module per post step), `tracking/` (multi-object tracking
+and what is measured over tracks), `sources/` and `sinks/` (inputs and
 outputs that are no ROS topics), `recording/` (MCAP record and replay, CDR, message
 definitions), `ros/` (the rclpy node, cameras, publishers, parameters, /rosout, the DDS
 profile), `control/` (the local control API: the pipeline's state and calls over HTTP on
