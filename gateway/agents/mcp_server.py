@@ -121,11 +121,15 @@ def build_server(gateway: Gateway, audit: AuditLog, name: str = "oricf") -> MCPS
                                     lambda: gateway.detect(data, route)))
 
     @app.tool(description="Run the model of any image route of the pipeline (a detector or "
-                          "a classifier declared in YAML) on an image you pass (base64).")
-    async def infer(route: Name, image: ImageB64) -> CallToolResult:
-        data = decoded(image, "image")
-        return as_result(await call("infer", {"route": route, "image": data},
-                                    lambda: gateway.infer(route, data)))
+                          "a classifier declared in YAML) on an image you pass (base64), or "
+                          "an Infer route's model on tensors: {name: {datatype: FP32, "
+                          "shape: [1, 3, 48, 192], data: [flat numbers]}}; give one of them.")
+    async def infer(route: Name, image: ImageB64 | None = None,
+                    tensors: dict[str, Any] | None = None) -> CallToolResult:
+        data = None if image is None else decoded(image, "image")
+        return as_result(await call("infer", {"route": route, "image": data,
+                                              "tensors": "..." if tensors else None},
+                                    lambda: gateway.infer(route, data, tensors)))
 
     @app.tool(description="Ask the robot's language model; it answers with the current "
                           "facts (data products such as people_count) as context.")

@@ -32,8 +32,10 @@ class Gateway(Protocol):
     def detect(self, image: bytes, route: str | None = None) -> Json:
         """A detection route's model on an image the caller passes (JPEG or PNG)."""
 
-    def infer(self, route: str, image: bytes) -> Json:
-        """Any image route's model (Detect or Infer: detections or classes) on an image."""
+    def infer(self, route: str, image: bytes | None = None,
+              tensors: dict[str, Any] | None = None) -> Json:
+        """Any image route's model (Detect or Infer: detections or classes) on an image, or
+        an Infer route's model on tensors ({name: {datatype, shape, data}})."""
 
     def ask(self, question: str) -> Json:
         """The pipeline's language model, with the route's context products as facts."""

@@ -68,9 +68,12 @@ class ControlClient:
         return dict(self._call("POST", "/v1/detect", json={
             "image": base64.b64encode(image).decode(), "route": route}))
 
-    def infer(self, route: str, image: bytes) -> Json:
-        return dict(self._call("POST", "/v1/infer", json={
-            "route": route, "image": base64.b64encode(image).decode()}))
+    def infer(self, route: str, image: bytes | None = None,
+              tensors: dict[str, Any] | None = None) -> Json:
+        body: Json = {"route": route, "tensors": tensors}
+        if image is not None:
+            body["image"] = base64.b64encode(image).decode()
+        return dict(self._call("POST", "/v1/infer", json=body))
 
     def ask(self, question: str) -> Json:
         return dict(self._call("POST", "/v1/ask", json={"question": question}))

@@ -123,8 +123,10 @@ def control_app(gateway: Gateway, max_body_bytes: int) -> Starlette:
     }
     calls: dict[str, Callable[[Request, Json], Any]] = {
         "/v1/detect": lambda r, d: g.detect(b64(d.get("image"), "image"), d.get("route")),
-        "/v1/infer": lambda r, d: g.infer(str(d.get("route", "")),
-                                          b64(d.get("image"), "image")),
+        "/v1/infer": lambda r, d: g.infer(
+            str(d.get("route", "")),
+            None if d.get("image") is None else b64(d.get("image"), "image"),
+            d.get("tensors")),
         "/v1/ask": lambda r, d: g.ask(d.get("question")),  # type: ignore[arg-type]
         "/v1/transcribe": lambda r, d: g.transcribe(b64(d.get("audio"), "audio")),
         "/v1/say": lambda r, d: g.say(d.get("text")),  # type: ignore[arg-type]
