@@ -1,9 +1,12 @@
 """SIGKILL on either side of a shared-memory route leaves nothing in /dev/shm: the gateway
 releases each object's name as soon as the detector holds it open, and the detector, which
-creates none, frees a dead gateway's regions when the next client registers."""
+creates none, frees a dead gateway's regions when the next client registers. A detector
+that restarted has forgotten the regions: the gateway sends that call on the wire and
+registers a new ring on the next."""
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import subprocess
@@ -90,3 +93,31 @@ def test_a_detector_killed_mid_stream_leaves_nothing() -> None:
     after = sorted(p.name for p in Path("/dev/shm").iterdir()
                    if p.name.startswith((OWN_PREFIX, "triton")))
     assert after == before
+
+
+def test_a_detector_restarted_gets_the_regions_registered_again(
+        caplog: pytest.LogCaptureFixture) -> None:
+    address = f"127.0.0.1:{free_port()}"
+    frame = Frame.from_pixels(video_frames([0])[0])
+    endpoint = Endpoint("detector", EndpointConfig(address=address, deadline_ms=30_000,
+                                                   image={"transport": "shm"}), METHOD)
+    products: Any = None
+    invoke = METHOD.bind(DetectCall(method="Detect", service="detector"), endpoint, products)
+    try:
+        with oricf_process("serve", "detector", "--listen", address) as server:
+            wait_serving(address, process=server)
+            assert len(invoke({"image": frame}).detections) >= 4
+        with oricf_process("serve", "detector", "--listen", address) as server, \
+                caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
+            wait_serving(address, process=server)
+            # the new process knows no region: this call goes on the wire, the next
+            # registers a new ring
+            assert len(invoke({"image": frame}).detections) >= 4
+            assert "forgot its shared-memory regions" in caplog.text
+            assert len(invoke({"image": frame}).detections) >= 4
+            assert "regions of 1327104 bytes registered" in caplog.text
+            stub = oip_grpc.GRPCInferenceServiceStub(endpoint.primary.channel)
+            assert len(stub.SystemSharedMemoryStatus(
+                oip.SystemSharedMemoryStatusRequest(), timeout=10).regions) == 2
+    finally:
+        endpoint.close()
