@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Literal
+from typing import Any, Literal
 
 import grpc
 import numpy as np
@@ -22,13 +22,14 @@ from oricf.gateway.endpoints import Endpoint, Metadata
 from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
 from oricf.gateway.methods.base import CallBase, Invoke, Method, input_frame
 from oricf.gateway.methods.detect import Detections
+from oricf.gateway.methods.infer_shared import output_bytes, placed_outputs
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import Box, Detection, encoded_size
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.models.heads import ClassificationHead, DetectionHead, Prepared, declared_head
 from oricf.models.image import geometry
-from oricf.models.shared_memory import SharedMemoryRef
+from oricf.models.shared_memory import BYTE_SIZE, OFFSET, REGION, SharedMemoryRef
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
@@ -169,22 +170,40 @@ def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
                            for b, s, c in zip(found.boxes, found.scores, found.class_ids,
                                               strict=True)])
 
+    # Per target: the output's bytes, for its room in a slot (None: it comes on the wire).
+    output_sizes: dict[str, int | None] = {}
+
     def invoke(record: Record) -> Detections | Classes:
         prepared = prepare(input_frame(record, "Infer"))
         feeds = prepared.feeds
         encoding = {head.input_name: {"encoding": "bgr8"}} if call.decoded else {}
 
         def build(refs: list[SharedMemoryRef] | None) -> oip.ModelInferRequest:
-            placed = {head.input_name: refs[0]} if refs else None
-            return infer_request(call.server_model, feeds, wanted, placed=placed,
+            outputs = wanted
+            if refs and len(refs) > 1:  # the output into the slot too
+                outputs = {output: {REGION: refs[1].region, OFFSET: refs[1].offset,
+                                    BYTE_SIZE: refs[1].byte_size}}
+            return infer_request(call.server_model, feeds, outputs,
+                                 placed={head.input_name: refs[0]} if refs else None,
                                  input_parameters=encoding)
+
+        def on_target(target: Any, timeout: float) -> Detections | Classes:
+            assert shared is not None
+            if target.address not in output_sizes:
+                output_sizes[target.address] = (
+                    output_bytes(target, call.server_model, output)
+                    if output and not call.decoded else None)
+            room = output_sizes[target.address]
+            data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
+            return shared.call(target, "ModelInfer", timeout, [data, *([room] if room else [])],
+                               build, lambda response, region: finish(
+                                   {**response_outputs(response),
+                                    **(placed_outputs(response, region) if region else {})},
+                                   prepared))
 
         if shared is None:
             return finish(response_outputs(endpoint.call("ModelInfer", build(None))), prepared)
-        data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
-        return endpoint.run({"grpc": lambda target, timeout: shared.call(
-            target, "ModelInfer", timeout, [data], build,
-            lambda response, _: finish(response_outputs(response), prepared))})
+        return endpoint.run({"grpc": on_target})
 
     return invoke
 

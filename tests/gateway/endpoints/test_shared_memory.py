@@ -45,12 +45,16 @@ def test_detect_through_shared_memory_counts_as_the_wire(
     assert own_objects() == before  # every name released as soon as the server held it
 
 
-def test_infer_through_shared_memory_with_decoded_detections() -> None:
+def test_infer_through_shared_memory_with_decoded_detections(
+        caplog: pytest.LogCaptureFixture) -> None:
     decoded = {"routes": {"people": {"call": {"decoded": True}}}}
     with running_service("models") as models:
         _, wire = run_frames(infer_config(models.address), FRAMES)
-        _, tensor = run_frames(infer_config(models.address, {"endpoints": {"models": SHM}}),
-                               FRAMES)
+        with caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
+            _, tensor = run_frames(infer_config(models.address,
+                                                 {"endpoints": {"models": SHM}}), FRAMES)
+        # a slot holds the FP32 input (2,076,672 bytes) and the output (1,206,660)
+        assert "regions of 3283332 bytes registered" in caplog.text
         _, small = run_frames(infer_config(models.address, {
             "endpoints": {"models": SHM}, **decoded}), FRAMES)
         _, edge = run_frames(infer_config(models.address, {
