@@ -21,7 +21,8 @@ on without decoding. For each input:
    not counted as robot CPU when offloaded. Onboard is measured with the shipped detector
    config and with the other thread count (1 or 2).
    The same onboard gateway tracking people (`track` and `count_tracks`) is measured
-   beside it, with the post steps timed alone (oricf.bench.gateway_track).
+   beside it, with the post steps timed alone (oricf.bench.gateway_track); and serving
+   the live view, with nobody watching and with one viewer (oricf.bench.gateway_view).
 3. Estimated energy per frame: the power model in oricf.bench.gateway_report (CPU-seconds x
    watts per busy core, plus radio bytes x joules per bit when offloaded; both are flags).
 4. The offloaded gateway's thread wake-ups per frame, what one wake-up costs a process on
@@ -70,6 +71,7 @@ from oricf.bench.gateway_report import (
     wakeup_note,
 )
 from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
+from oricf.bench.gateway_view import Viewer, view_overlay, view_table
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import load_pipeline
@@ -77,6 +79,7 @@ from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.ros.dds import dds_profile
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
+from oricf.launch.health import free_port
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 COMPRESSED_TOPIC = "camera/compressed"
@@ -110,7 +113,7 @@ def placement_detector(name: str) -> EndpointConfig:
 
 
 def overlay(detector: str, compressed: bool, transport: str | None = None,
-            track: bool = False) -> dict[str, Any]:
+            track: bool = False, view: int | None = None) -> dict[str, Any]:
     """Applied after the placement: the detector's address here (and another image
     transport if given), and the people route counting only (no annotated image), or
     tracking (track=True)."""
@@ -127,17 +130,20 @@ def overlay(detector: str, compressed: bool, transport: str | None = None,
                                  "from": "count"},
                                 {"product": "people_count", "from": "count",
                                  "max_age_s": 5}]}}}
+    if view is not None:
+        counting = view_overlay(counting, view)
     return tracking_overlay(counting) if track else counting
 
 
 @contextmanager
 def gateway(detector: str, where: str, folder: Path, compressed: bool,
-            transport: str | None = None, track: bool = False
+            transport: str | None = None, track: bool = False, view: int | None = None
             ) -> Iterator[subprocess.Popen[bytes]]:
     """`oricf gateway` at placement `where` (onboard or edge), sending to detector (with
     another image transport if given; tracking if track)."""
-    path = folder / f"{where}-{transport or 'placed'}{'-track' if track else ''}-here.yaml"
-    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport, track)))
+    path = folder / (f"{where}-{transport or 'placed'}{'-track' if track else ''}"
+                     f"{'-view' if view else ''}-here.yaml")
+    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport, track, view)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
                str(pipeline_path()), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
@@ -294,6 +300,20 @@ def request_sizes(prepared: list[tuple[Any, detector_pb2.DetectRequest]]) -> dic
     return {t: statistics.median(size(t, r) for _, r in prepared) for t in ("raw", "jpeg")}
 
 
+def view_cost(camera: Camera, messages: list[Any], fps: float, detector: str,
+              folder: Path, result: InputResult) -> None:
+    """The onboard gateway's CPU with the live view: nobody watching, then one viewer."""
+    port = free_port()
+    with gateway(detector, "onboard", folder, camera.compressed, view=port) as viewed:
+        camera.warm_up(messages[0], viewed)
+        (result.cpu["gw view idle"],) = cpu_per_frame(camera, messages, fps, [viewed.pid])
+        with Viewer(port).watching() as viewer:
+            started, before = time.monotonic(), viewer.images
+            (result.cpu["gw view"],) = cpu_per_frame(camera, messages, fps, [viewed.pid])
+            result.view_images_per_s = ((viewer.images - before)
+                                        / (time.monotonic() - started))
+
+
 def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputResult:
     """Every phase for one kind of camera input."""
     import grpc
@@ -318,6 +338,7 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                     camera, messages, args.fps, [tracked.pid, detector.pid])
             post_cost(detector_pb2_grpc.DetectorStub(channel), [r for _, r in prepared],
                       result)
+            view_cost(camera, messages, args.fps, address, folder, result)
             with gateway(address, "onboard", folder, compressed, "shm") as shm:
                 camera.warm_up(messages[0], shm)
                 cpu["gw shm"], cpu["det shm"] = cpu_per_frame(camera, messages, args.fps,
@@ -375,6 +396,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
                    (shipped_threads(), other_threads()))
         wakeup_note(result, wakeup_s)
         track_table(result)
+        view_table(result, args.fps)
     idle_note(burst, period_s)
 
 

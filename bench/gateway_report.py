@@ -41,6 +41,7 @@ class InputResult:
     response_bytes: float = 0.0
     edge_wakeups: float = 0.0  # the offloaded (edge) gateway's thread wake-ups per frame
     post_us: dict[str, float] = field(default_factory=dict)  # post steps -> median us/frame
+    view_images_per_s: float = 0.0  # images the live view's viewer received, its CPU phase
 
 
 def latency_table(result: InputResult, frames: int) -> None:

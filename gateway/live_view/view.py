@@ -134,6 +134,9 @@ class LiveView:
             self._json_channel(topic, numbers).log(numbers, log_time=ns)
 
     def _hold_frame(self, route: str, frame: Frame, detections: Any, ns: int) -> None:
+        if not self._watched(route):  # nobody to send it to: not even the thread is woken
+            self.stats.frames_unwatched += 1
+            return
         with self._lock:
             if route in self._pending:
                 self.stats.frames_replaced += 1
@@ -166,11 +169,17 @@ class LiveView:
         times = [self._next_at.get(r, 0.0) - now for r in self._pending]
         return max(0.0, min(times)) if times else None
 
+    def _watched(self, route: str) -> bool:
+        """Whether some viewer is subscribed to the route's image or detections."""
+        return bool(self._channel(f"/{route}/image", CompressedImageChannel).has_sinks()
+                    or self._channel(f"/{route}/detections",
+                                     ImageAnnotationsChannel).has_sinks())
+
     def _send_frame(self, route: str, pending: PendingFrame) -> None:
         images = self._channel(f"/{route}/image", CompressedImageChannel)
         annotations = (self._channel(f"/{route}/detections", ImageAnnotationsChannel)
                        if pending.detections is not None else None)
-        if not images.has_sinks() and (annotations is None or not annotations.has_sinks()):
+        if not self._watched(route):  # the viewer left meanwhile
             self.stats.frames_unwatched += 1
             return
         ns = pending.ns

@@ -10,7 +10,13 @@ const headers = token ? { Authorization: `Bearer ${token}` } : {};
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL], { headers });
 const client = new FoxgloveClient({ ws });
 const channels = new Map();
-const print = (line) => process.stdout.write(JSON.stringify(line) + "\n");
+let done = false;
+const print = (line) => done || process.stdout.write(JSON.stringify(line) + "\n");
+// Exits once everything printed has been written out (a pipe takes it in pieces).
+const finish = () => {
+  done = true;
+  process.stdout.write("", () => process.exit(0));
+};
 
 client.on("serverInfo", (info) => print({ serverInfo: info }));
 client.on("advertise", (advertised) => {
@@ -27,10 +33,10 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
 client.on("error", (error) => print({ error: String(error) }));
 client.on("close", (event) => {
   print({ close: event.code });
-  process.exit(0);
+  finish();
 });
-process.on("SIGTERM", () => process.exit(0));
+process.on("SIGTERM", finish);
 setTimeout(() => {
   client.close();
-  process.exit(0);
+  finish();
 }, Number(seconds) * 1000);

@@ -92,6 +92,4 @@ def watching(url: str) -> Iterator[list[Received]]:
         assert client.returncode == 0, err[-2000:]
         out.seek(0)
         lines = out.read().splitlines()
-    if lines and not lines[-1].endswith("}"):  # cut by the exit
-        lines.pop()
     got.append(Received([json.loads(line) for line in lines]))
