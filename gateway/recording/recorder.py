@@ -37,7 +37,7 @@ from typing import Any, BinaryIO
 from mcap.well_known import MessageEncoding, Profile, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
-from oricf.errors import OricfError
+from oricf.errors import InvalidInput, OricfError
 from oricf.gateway.config import OutputConfig
 from oricf.gateway.recording import definitions as msgdefs
 from oricf.gateway.recording.topic_values import serialize_output
@@ -222,6 +222,7 @@ class TopicOutputs:
             return
         try:
             self._recorder.output(topic, output.type, value, record)
-        except (TypeError, ValueError) as exc:  # a value that does not fit the topic type
+        except (TypeError, ValueError, InvalidInput) as exc:  # a value that does not fit
+            # the topic type, or a type without a writer (vision_msgs)
             self._throttle.error(f"emit:{topic}", "cannot record %r on %s (%s): %s", value,
                                  topic, output.type, exc)

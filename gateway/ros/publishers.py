@@ -9,6 +9,7 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
+from oricf.errors import InvalidInput
 from oricf.gateway.config import OutputConfig, PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros import messages
@@ -56,4 +57,9 @@ class TopicPublishers:
                 raise
             log.debug("shutting down: %s not published", output.topic)
         if self._recorder is not None:
-            self._recorder.output(publisher.topic_name, output.type, value, record)
+            try:
+                self._recorder.output(publisher.topic_name, output.type, value, record)
+            except (TypeError, ValueError, InvalidInput) as exc:  # e.g. a type without a
+                # writer (vision_msgs): published all the same, and said, not recorded
+                self._throttle.error(f"record:{output.topic}", "cannot record %s (%s): %s",
+                                     output.topic, output.type, exc)
