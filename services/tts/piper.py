@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -36,6 +37,9 @@ class PiperVoiceConfig(Schema):
     engine: Literal["piper"]
     model: str = Field(description="catalog name in configs/models.yaml, e.g. piper-joe-medium")
     threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads")
+    parallel: int = Field(
+        1, ge=1, le=16, description="sentences synthesized at once; each holds the decoder's "
+                                    "activations, about 20 MB per second of its audio")
     noise_scale: float | None = Field(None, ge=0, le=2, description="voice variation")
     length_scale: float | None = Field(None, gt=0, le=4, description=">1 speaks slower")
     noise_w: float | None = Field(None, ge=0, le=2, description="phoneme length variation")
@@ -57,6 +61,7 @@ class PiperVoice:
         self._ids: dict[str, int] = {}
         self._scales = np.zeros(3, dtype=np.float32)
         self._session: Any = None
+        self._turns = threading.BoundedSemaphore(config.parallel)
 
     def load(self) -> None:
         import onnxruntime as ort
@@ -65,6 +70,9 @@ class PiperVoice:
         options = ort.SessionOptions()
         options.intra_op_num_threads = self.config.threads
         options.inter_op_num_threads = 1
+        # Without the arena each run's activations (hundreds of MB for a long sentence) go
+        # back when it ends; with it the process kept its largest run's memory for good.
+        options.enable_cpu_mem_arena = False
         self._session = ort.InferenceSession(str(self.weights), options,
                                              providers=["CPUExecutionProvider"])
         self.runtime = f"onnxruntime {ort.__version__} + {espeak.version()}"
@@ -96,6 +104,7 @@ class PiperVoice:
         noise, length, noise_w = (f"{v:g}" for v in self._scales)
         return {"engine": "piper", "model": self.model, "espeak_voice": self.espeak_voice,
                 "sample_rate": str(self.sample_rate), "threads": str(self.config.threads),
+                "parallel": str(self.config.parallel),
                 "noise_scale": noise, "length_scale": length, "noise_w": noise_w}
 
     def phoneme_ids(self, sentence: str) -> list[int]:
@@ -118,7 +127,8 @@ class PiperVoice:
         ids = np.array([self.phoneme_ids(sentence)], dtype=np.int64)
         scales = self._scales.copy()
         scales[1] /= speed
-        audio = session.run(None, {"input": ids,
-                                   "input_lengths": np.array([ids.shape[1]], dtype=np.int64),
-                                   "scales": scales})[0]
+        with self._turns:  # concurrent calls take turns sentence by sentence
+            audio = session.run(None, {"input": ids,
+                                       "input_lengths": np.array([ids.shape[1]], dtype=np.int64),
+                                       "scales": scales})[0]
         return (np.clip(audio.reshape(-1), -1.0, 1.0) * 32767).astype(np.int16)

@@ -73,7 +73,7 @@ class TextSettings(Schema):
     max_chars: int = Field(2000, ge=1, le=100_000,
                            description="longest text one request may carry (characters)")
     max_sentence_chars: int = Field(
-        300, ge=20, le=10_000, description="a longer sentence is cut at a comma or a space")
+        200, ge=20, le=10_000, description="a longer sentence is cut at a comma or a space")
     abbreviations: dict[str, str] = Field(
         default_factory=dict, description="said in full, beside the built-in ones")
 
