@@ -1,7 +1,8 @@
 """Outputs that are not ROS topics: JSON lines on standard output or in a file.
 
 One object per output value: {"route": ..., "time": unix seconds, FIELD: value}, where FIELD
-is the output's `from`. Detections become objects with label, score and box; images are not
+is the output's `from`. Detections become objects with label, class_id, score, box, and
+the track_id and velocity a `track` step gives them (null otherwise); images are not
 written (use a topic, or an annotation file output, for those).
 """
 

@@ -12,6 +12,7 @@ the same label are matched to a track.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -82,6 +83,22 @@ class _Track:
                          self.first_seen, self.last_seen, self.hits)
 
 
+# Farther out than any image's pixels (oricf.imaging.MAX_PIXELS), or smaller than a
+# hundredth of a pixel: such a box is garbage, and its numbers would overflow or vanish.
+MAX_COORDINATE = 1e8
+MIN_SIZE = 0.01
+
+
+def usable(detection: Detection) -> bool:
+    """A finite score and a box of at least MIN_SIZE within MAX_COORDINATE: anything else
+    (a model behind the Open Inference Protocol may send it) would poison a track's filter."""
+    b = detection.box
+    coordinates = (b.x_min, b.y_min, b.x_max, b.y_max)
+    return (math.isfinite(detection.score)
+            and all(abs(v) <= MAX_COORDINATE for v in coordinates)  # False for NaN
+            and b.x_max - b.x_min >= MIN_SIZE and b.y_max - b.y_min >= MIN_SIZE)
+
+
 def iou_matrix(a: list[Box], b: list[Box]) -> np.ndarray:
     if not a or not b:
         return np.zeros((len(a), len(b)))
@@ -121,7 +138,8 @@ class ByteTracker:
         """This frame's detections that belong to confirmed tracks, each with its track id
         and velocity."""
         c = self.config
-        wanted = [d for d in detections if not self._labels or d.label in self._labels]
+        wanted = [d for d in detections
+                  if (not self._labels or d.label in self._labels) and usable(d)]
         high = [d for d in wanted if d.score >= c.high_score]
         low = [d for d in wanted if c.low_score <= d.score < c.high_score]
         for track in self._tracks:

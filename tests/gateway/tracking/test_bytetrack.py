@@ -3,7 +3,11 @@ matches of weak detections, dropping, labels kept apart, velocities in pixels pe
 
 from __future__ import annotations
 
+import math
+
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from oricf.gateway.tracking.bytetrack import ByteTracker, TrackerConfig
 from oricf.imaging import Box, Detection
@@ -82,3 +86,29 @@ def test_bad_settings_are_refused(key: str, value: object) -> None:
 def test_low_score_above_high_score_is_refused() -> None:
     with pytest.raises(ValueError, match=r"low_score 0\.6 is above high_score 0\.5"):
         TrackerConfig(low_score=0.6, high_score=0.5)
+
+
+finite = st.floats(-1e4, 1e4, allow_nan=False)
+any_float = st.one_of(finite, st.sampled_from([float("nan"), float("inf"), -float("inf"),
+                                               0.0, 1e308, 1e-300, 5e-3]))
+
+
+@st.composite
+def detection(draw: st.DrawFn) -> Detection:
+    return Detection(draw(st.sampled_from(["person", "dog"])), 0, draw(any_float),
+                     Box(draw(any_float), draw(any_float), draw(any_float), draw(any_float)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.lists(detection(), max_size=12), max_size=15))
+def test_any_detections_never_break_the_tracker(frames: list[list[Detection]]) -> None:
+    """Boxes that are not finite, inverted or empty, and any score, are left out: the
+    tracker neither raises nor lets them into a track."""
+    tracker = ByteTracker(TrackerConfig())
+    for i, frame in enumerate(frames):
+        out = tracker.update([*frame, person(100 + 5 * i)], i / FPS)
+        assert all(isinstance(d.track_id, int) for d in out)
+        assert all(math.isfinite(v) for d in out for v in d.velocity or ())
+    for track in tracker.confirmed():
+        b = track.box
+        assert all(math.isfinite(v) for v in (b.x_min, b.y_min, b.x_max, b.y_max))
