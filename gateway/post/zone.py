@@ -5,20 +5,21 @@ A track first seen inside has entered; one dropped while inside has left."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from pydantic import Field, field_validator
 
 from oricf.gateway.post.base import Step
 from oricf.gateway.post.over_tracks import Placed
+from oricf.gateway.tracking.bytetrack import MAX_COORDINATE
 from oricf.gateway.tracking.measures import Zone, ZoneMeasure
 from oricf.gateway.values import Record
 
 
 def finite_point(point: tuple[float, float]) -> tuple[float, float]:
-    if not all(math.isfinite(v) for v in point):
-        raise ValueError(f"point {list(point)} is not two finite numbers")
+    if not all(abs(v) <= MAX_COORDINATE for v in point):  # False for NaN
+        raise ValueError(f"point {list(point)} is not two finite numbers of pixels "
+                         f"(at most {MAX_COORDINATE:g})")
     return point
 
 

@@ -58,6 +58,8 @@ def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> N
      "polygon"),
     ({"zone": {"polygon": [[0, 0], [1, 1], [float("nan"), 0]], "measure": "inside", "into": "z"}},
      "finite"),
+    ({"line": {"start": [0, 1e300], "end": [5, 5], "measure": "in", "into": "c"}},
+     "at most 1e"),
     ({"zone": {"polygon": [[0, 0], [1, 1], [1, 0]], "measure": "people", "into": "z"}},
      "measure"),
     ({"line": {"start": [5, 5], "end": [5, 5], "measure": "in", "into": "c"}},
