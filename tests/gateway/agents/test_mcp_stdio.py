@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -14,11 +15,20 @@ import anyio
 import cv2
 import httpx
 import mcp_types as types
-from mcp import ClientSession
+from mcp import ClientSession, StdioServerParameters
+from mcp.client.stdio import stdio_client
+from mcp.client.subscriptions import ResourceUpdated, listen
 
 from oricf.audio.wav import encode_wav
 from tests.gateway.agents.scene import FRAME, PEOPLE, RosListener
-from tests.gateway.agents.session import TOOLS, stdio_session, text_of, wait_product, warm_up
+from tests.gateway.agents.session import (
+    TOOLS,
+    server_env,
+    stdio_session,
+    text_of,
+    wait_product,
+    warm_up,
+)
 from tests.support.data import video_frames
 from tests.support.processes import free_port
 from tests.support.speech import speech
@@ -95,6 +105,29 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
             assert status.structured_content["agent_calls"]["look/ok"] == 1
             scraped = httpx.get(f"http://127.0.0.1:{metrics_port}/metrics").text
             assert 'oricf_agent_calls_total{outcome="ok",tool="look"} 1.0' in scraped
+
+    anyio.run(scenario)
+
+
+def test_listen_for_updates_on_the_2026_protocol(pipeline: Path) -> None:
+    """A client of protocol 2026-07-28 (server/discover, no initialize) listens for resource
+    updates on subscriptions/listen instead of resources/subscribe."""
+    async def scenario() -> None:
+        params = StdioServerParameters(command=sys.executable, env=server_env(),
+                                       args=["-m", "oricf", "mcp", "--config", str(pipeline)])
+        async with stdio_client(params) as (read, write), \
+                ClientSession(read, write) as session:
+            await session.discover()
+            assert session.protocol_version == "2026-07-28"
+            uri = "oricf://products/people_count"
+            with anyio.fail_after(60):
+                async with listen(session, resource_subscriptions=[uri]) as events:
+                    event = await events.__anext__()
+            assert isinstance(event, ResourceUpdated) and event.uri == uri
+            count = await session.read_resource(uri)
+            text = count.contents[0]
+            assert isinstance(text, types.TextResourceContents)
+            assert json.loads(text.text)["value"] == PEOPLE
 
     anyio.run(scenario)
 
