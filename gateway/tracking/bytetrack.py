@@ -17,7 +17,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from pydantic import Field, model_validator
-from scipy.optimize import linear_sum_assignment
 
 from oricf.config import Schema
 from oricf.gateway.tracking.kalman import BoxFilter
@@ -119,6 +118,9 @@ def match(tracks: list[_Track], detections: list[Detection], least_iou: float
     iou = iou_matrix([t.motion.box for t in tracks], [d.box for d in detections])
     if iou.size == 0:
         return []
+    # Imported on the first match, not with the gateway: most pipelines never track.
+    from scipy.optimize import linear_sum_assignment
+
     same = np.array([[t.label == d.label for d in detections] for t in tracks])
     iou = np.where(same, iou, 0.0)
     rows, cols = linear_sum_assignment(-iou)
