@@ -70,7 +70,8 @@ class SharedMemoryRegistry:
         try:
             self._check_object(fd, name, key, offset, byte_size)
             with self._lock:
-                self._evict_orphans()
+                if not self._fits(byte_size):
+                    self._evict_orphans()
                 self._check_room(name, byte_size)
                 self._regions[name] = Region(name, key, offset, byte_size, fd)
         except BaseException:
@@ -90,9 +91,15 @@ class SharedMemoryRegistry:
             raise InvalidInput(f"region '{name}': offset {offset} + byte_size {byte_size} "
                                f"runs past the object's {info.st_size} bytes")
 
+    def _fits(self, byte_size: int) -> bool:
+        total = sum(r.byte_size for r in self._regions.values()) + byte_size
+        return (len(self._regions) < self.settings.max_regions
+                and total <= self.settings.max_total_mb * 2**20)
+
     def _evict_orphans(self) -> None:
         """Drops the regions of ORICF clients that died (SIGKILL gives them no time to
-        unregister), so that their memory is freed and a restarted client finds room."""
+        unregister), so that a restarted client finds room. Only when room is needed: a
+        client in another PID namespace (a container) may look dead from here."""
         for name in [n for n, r in self._regions.items() if owner_gone(r.key)]:
             region = self._regions.pop(name)
             with region.lock:

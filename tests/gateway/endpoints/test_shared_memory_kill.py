@@ -1,6 +1,6 @@
 """SIGKILL on either side of a shared-memory route leaves nothing in /dev/shm: the gateway
 releases each object's name as soon as the detector holds it open, and the detector, which
-creates none, frees a dead gateway's regions when the next client registers. A detector
+creates none, frees a dead gateway's regions when the next client needs their room. A detector
 that restarted has forgotten the regions: the gateway sends that call on the wire and
 registers a new ring on the next."""
 
@@ -42,7 +42,8 @@ def regions(channel: grpc.Channel) -> list[str]:
 
 
 def test_a_gateway_killed_mid_stream_leaves_nothing() -> None:
-    with running_service("detector") as detector:
+    # Room for the child's ring alone: the next registration needs the dead one's room.
+    with running_service("detector", {"shared_memory": {"max_regions": 2}}) as detector:
         child = subprocess.Popen([sys.executable, str(CHILD), detector.address],
                                  stdout=subprocess.PIPE, text=True, cwd=REPO_ROOT,
                                  env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
