@@ -8,6 +8,7 @@ import logging
 import threading
 from typing import Any, Protocol
 
+from oricf.errors import ConfigError
 from oricf.gateway.agents.messages import ros_message
 from oricf.gateway.agents.policy import AgentPolicy
 from oricf.gateway.text_channels import Channels
@@ -25,10 +26,15 @@ class RosSender:
     """One publisher per topic target, made when the sender starts."""
 
     def __init__(self, policy: AgentPolicy, node_name: str = "oricf_agent") -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.node import Node
-        from rclpy.qos import QoSProfile
+        try:
+            import rclpy
+            from rclpy.context import Context
+            from rclpy.node import Node
+            from rclpy.qos import QoSProfile
+        except ImportError as exc:
+            raise ConfigError(f"agent targets on ROS topics need ROS 2's Python packages "
+                              f"({exc}): source /opt/ros/jazzy/setup.bash, or pip install "
+                              f"'oricf[ros]' on x86-64") from None
 
         from oricf.gateway.ros.dds import use_dds_profile
 
