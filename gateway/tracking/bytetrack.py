@@ -53,6 +53,7 @@ class TrackView:
     first_seen: float
     last_seen: float
     hits: int
+    age_s: float                   # since the track started
 
 
 class _Track:
@@ -79,7 +80,8 @@ class _Track:
     def view(self) -> TrackView:
         box = self.box if self.last_seen == self.predicted_at else self.motion.box
         return TrackView(self.track_id, self.label, box, self.motion.velocity,
-                         self.first_seen, self.last_seen, self.hits)
+                         self.first_seen, self.last_seen, self.hits,
+                         self.predicted_at - self.first_seen)
 
 
 # Farther out than any image's pixels (oricf.imaging.MAX_PIXELS), or smaller than a

@@ -61,7 +61,7 @@ def test_an_unseen_track_is_kept_for_max_age_s_then_dropped() -> None:
     tracker = ByteTracker(TrackerConfig(max_age_s=1.0))
     run(tracker, [[person(100 + 5 * i)] for i in range(5)])
     run(tracker, [[] for _ in range(8)], start=5)            # 0.8 s unseen
-    assert [t.track_id for t in tracker.confirmed()] == [1]
+    assert [(t.track_id, t.age_s) for t in tracker.confirmed()] == [(1, pytest.approx(1.2))]
     # back where its motion says it would be: the same id
     back = tracker.update([person(100 + 5 * 13)], 1.3)
     assert [d.track_id for d in back] == [1]

@@ -12,7 +12,7 @@ def at(track_id: int, x: float, y: float, now: float, last_seen: float | None = 
        label: str = "person") -> TrackView:
     """A track whose box's bottom centre is (x, y)."""
     return TrackView(track_id, label, Box(x - 10, y - 60, x + 10, y), (0.0, 0.0), 0.0,
-                     now if last_seen is None else last_seen, 5)
+                     now if last_seen is None else last_seen, 5, now)
 
 
 def test_count_now_holds_a_track_missed_for_less_than_hold_s() -> None:
