@@ -16,6 +16,14 @@ from oricf.gateway.text_channels import Channels
 log = logging.getLogger(__name__)
 
 
+def message_class(type_: str) -> Any:
+    try:
+        return type(ros_message(type_, {}))
+    except ImportError as exc:
+        raise ConfigError(f"agent target of type {type_}: its ROS message package is not "
+                          f"installed ({exc})") from None
+
+
 class Sender(Protocol):
     def send(self, target: str, fields: dict[str, Any]) -> None: ...
 
@@ -44,7 +52,7 @@ class RosSender:
         self._node = Node(node_name, context=self._context)
         self._types = {name: t.type for name, t in policy.targets.items() if t.topic}
         self._publishers = {
-            name: self._node.create_publisher(type(ros_message(t.type, {})), t.topic,
+            name: self._node.create_publisher(message_class(t.type), t.topic,
                                               QoSProfile(depth=10))
             for name, t in policy.targets.items() if t.topic}
         self._lock = threading.Lock()
