@@ -11,7 +11,12 @@ oricf.config.config_dir) does two things, both explained in the file:
       export FASTRTPS_DEFAULT_PROFILES_FILE=$(python -m oricf.gateway.ros.dds)
 
 - it keeps reliable writers (the count, the answers) from arming a timer for every sample,
-  which woke Fast DDS's event thread twice per published message.
+  which woke Fast DDS's event thread twice per published message;
+
+- it keeps DDS on this machine: every socket on 127.0.0.1, discovery by unicast there. Under
+  ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (or the older ROS_LOCALHOST_ONLY=1) rmw_fastrtps
+  would add a UDP transport of its own on every interface, so with this profile the range is
+  left to the profile (SYSTEM_DEFAULT). docs/security.md says how to open DDS to a network.
 
 No ROS import here: call use_dds_profile() before rclpy.init().
 """
@@ -25,14 +30,24 @@ from pathlib import Path
 
 from oricf.config import config_dir
 from oricf.errors import ConfigError
+from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
+
+
+# rcl's values that leave Fast DDS's transports to the profile; any other value (LOCALHOST, or
+# one rcl does not know, which it reads as LOCALHOST) makes rmw_fastrtps add its own.
+RANGES_LEFT_TO_THE_PROFILE = ("", "OFF", "SUBNET", "SYSTEM_DEFAULT")
+
+
+def shipped_profile_path() -> Path:
+    return config_dir() / "pipelines" / "dds" / "fastdds.xml"
 
 
 def dds_profile() -> Path:
     """The shipped profile (in the checkout's or the installed package's configs); a missing
     one is a ConfigError, never skipped: without it raw frames are silently lost."""
-    path = config_dir() / "pipelines" / "dds" / "fastdds.xml"
+    path = shipped_profile_path()
     if not path.is_file():
         raise ConfigError(f"{path}: the Fast DDS profile is missing (reinstall ORICF, or set "
                           f"FASTRTPS_DEFAULT_PROFILES_FILE to a profile of your own)")
@@ -40,13 +55,34 @@ def dds_profile() -> Path:
 
 
 def use_dds_profile() -> None:
-    """Points Fast DDS at the shipped profile unless the user chose a profile or another RMW."""
-    if os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or \
-            os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+    """Points Fast DDS at the shipped profile unless the user chose a profile or another RMW;
+    while the shipped profile is the one in use, the discovery range is left to it."""
+    if os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
         return
-    profile = dds_profile()
-    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
-    log.info("Fast DDS profile: %s", profile)
+    chosen = os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE")
+    if not chosen:
+        profile = dds_profile()
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
+        log.info("Fast DDS profile: %s (DDS on 127.0.0.1 only)", profile)
+    elif Path(chosen).resolve() != shipped_profile_path().resolve():
+        return
+    leave_discovery_range_to_the_profile()
+
+
+def leave_discovery_range_to_the_profile() -> None:
+    """The shipped profile keeps discovery on 127.0.0.1; ROS's LOCALHOST range would add
+    sockets on every interface to it (see the top)."""
+    requested = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")
+    localhost_only = os.environ.get("ROS_LOCALHOST_ONLY", "").startswith("1")
+    if requested in RANGES_LEFT_TO_THE_PROFILE and not localhost_only:
+        return
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    log.info("ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT instead of %s: the Fast DDS profile "
+             "keeps discovery on 127.0.0.1, where rmw_fastrtps's LOCALHOST range would add a "
+             "UDP transport on every interface",
+             "ROS_LOCALHOST_ONLY=1" if localhost_only
+             else f"ROS_AUTOMATIC_DISCOVERY_RANGE={quoted(requested, 40)}")
 
 
 def main() -> int:

@@ -43,6 +43,38 @@ def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
 
 
+@pytest.mark.parametrize(("profile", "requested", "localhost_only", "left"), [
+    (None, "LOCALHOST", None, "SYSTEM_DEFAULT"),
+    (None, "localhost", None, "SYSTEM_DEFAULT"),  # rcl reads a value it does not know so
+    (None, "SUBNET", "1", "SYSTEM_DEFAULT"),  # the deprecated setting overrides the range
+    ("shipped", "LOCALHOST", None, "SYSTEM_DEFAULT"),  # the shipped file, named by hand
+    (None, "SUBNET", None, "SUBNET"),
+    (None, "OFF", "0", "OFF"),
+    (None, None, None, None),
+    ("/etc/robot/fastdds.xml", "LOCALHOST", "1", "LOCALHOST"),  # a profile of the user's
+])
+def test_the_shipped_profile_decides_the_discovery_range_instead_of_localhost(
+        monkeypatch: pytest.MonkeyPatch, profile: str | None, requested: str | None,
+        localhost_only: str | None, left: str | None) -> None:
+    """Under ROS's LOCALHOST range rmw_fastrtps adds a UDP transport on every interface to
+    the profile's loopback-only ones (tests/gateway/ros/test_dds_loopback.py sees it)."""
+    monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
+    for name, value in (("FASTRTPS_DEFAULT_PROFILES_FILE",
+                         str(dds_profile()) if profile == "shipped" else profile),
+                        ("ROS_AUTOMATIC_DISCOVERY_RANGE", requested),
+                        ("ROS_LOCALHOST_ONLY", localhost_only)):
+        if value is None:
+            monkeypatch.delenv(name, raising=False)
+        else:
+            monkeypatch.setenv(name, value)
+    use_dds_profile()
+    assert os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE") == left
+    if left == "SYSTEM_DEFAULT":
+        assert "ROS_LOCALHOST_ONLY" not in os.environ
+    else:
+        assert os.environ.get("ROS_LOCALHOST_ONLY") == localhost_only
+
+
 
 def test_a_missing_profile_stops_the_gateway_instead_of_being_skipped(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
