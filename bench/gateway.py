@@ -62,6 +62,7 @@ from oricf.bench.common import (
     shipped_detector_model,
     stop,
 )
+from oricf.bench.gateway_infer import infer_overlay
 from oricf.bench.gateway_report import (
     InputResult,
     PowerModel,
@@ -71,7 +72,7 @@ from oricf.bench.gateway_report import (
     wakeup_note,
 )
 from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
-from oricf.bench.gateway_view import Viewer, view_overlay, view_table
+from oricf.bench.gateway_view import view_overlay, view_table, watching
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import load_pipeline
@@ -113,7 +114,8 @@ def placement_detector(name: str) -> EndpointConfig:
 
 
 def overlay(detector: str, compressed: bool, transport: str | None = None,
-            track: bool = False, view: int | None = None) -> dict[str, Any]:
+            track: bool = False, view: int | None = None, infer: str | None = None
+            ) -> dict[str, Any]:
     """Applied after the placement: the detector's address here (and another image
     transport if given), and the people route counting only (no annotated image), or
     tracking (track=True)."""
@@ -132,18 +134,22 @@ def overlay(detector: str, compressed: bool, transport: str | None = None,
                                  "max_age_s": 5}]}}}
     if view is not None:
         counting = view_overlay(counting, view)
+    if infer is not None:  # Infer with decoded detections on the models server there
+        counting = infer_overlay(counting, infer)
     return tracking_overlay(counting) if track else counting
 
 
 @contextmanager
 def gateway(detector: str, where: str, folder: Path, compressed: bool,
-            transport: str | None = None, track: bool = False, view: int | None = None
-            ) -> Iterator[subprocess.Popen[bytes]]:
+            transport: str | None = None, track: bool = False, view: int | None = None,
+            infer: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
     """`oricf gateway` at placement `where` (onboard or edge), sending to detector (with
-    another image transport if given; tracking if track)."""
+    another image transport if given; tracking if track; Infer with decoded detections on
+    the models server at `infer` if given)."""
     path = folder / (f"{where}-{transport or 'placed'}{'-track' if track else ''}"
-                     f"{'-view' if view else ''}-here.yaml")
-    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport, track, view)))
+                     f"{'-view' if view else ''}{'-infer' if infer else ''}-here.yaml")
+    path.write_text(yaml.safe_dump(overlay(detector, compressed, transport, track, view,
+                                           infer)))
     command = [sys.executable, "-m", "oricf", "--log-level", "WARNING", "gateway", "--config",
                str(pipeline_path()), "--overlay", str(placement(where)), "--overlay", str(path)]
     process = subprocess.Popen(command, env=os.environ.copy(), start_new_session=True)
@@ -307,11 +313,10 @@ def view_cost(camera: Camera, messages: list[Any], fps: float, detector: str,
     with gateway(detector, "onboard", folder, camera.compressed, view=port) as viewed:
         camera.warm_up(messages[0], viewed)
         (result.cpu["gw view idle"],) = cpu_per_frame(camera, messages, fps, [viewed.pid])
-        with Viewer(port).watching() as viewer:
-            started, before = time.monotonic(), viewer.images
+        with watching(port) as rate:
+            time.sleep(1)  # connected and subscribed
             (result.cpu["gw view"],) = cpu_per_frame(camera, messages, fps, [viewed.pid])
-            result.view_images_per_s = ((viewer.images - before)
-                                        / (time.monotonic() - started))
+        result.view_images_per_s = rate[0]
 
 
 def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputResult:
@@ -348,6 +353,11 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                 woken = wakeups(jpeg.pid)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
                 result.edge_wakeups = (wakeups(jpeg.pid) - woken) / len(messages)
+            with served("models") as (models, _), \
+                    gateway(address, "edge", folder, compressed, infer=models) as decoded:
+                camera.warm_up(messages[0], decoded)
+                (cpu["gw infer decoded"],) = cpu_per_frame(camera, messages, args.fps,
+                                                           [decoded.pid])
         other = str(detector_with_threads(other_threads(), folder))
         with served("detector", "--config", other) as (address, det1), \
                 gateway(address, "onboard", folder, compressed) as raw:

@@ -1,13 +1,17 @@
 """The cost of the live view in `oricf bench gateway`: the onboard gateway's CPU per
 processed frame with no live view, with the live view and nobody watching, and with one
-viewer subscribed to every channel (a Python viewer on `websockets` in this process that
-reads everything), at the view's default frame cap. With a viewer, raw camera frames are
-JPEG-encoded for it (at most max_fps of them); nobody watching, frames are not encoded."""
+viewer subscribed to every channel (a Python viewer on `websockets` that reads everything,
+in a process of its own), at the view's default frame cap. With a viewer, raw camera frames
+are JPEG-encoded for it (at most max_fps of them); nobody watching, they are not."""
 
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -24,17 +28,22 @@ def view_overlay(overlay: dict[str, Any], port: int) -> dict[str, Any]:
 
 
 class Viewer:
-    """Subscribes to every channel advertised and reads everything, counting images."""
+    """Subscribes to every channel advertised and reads everything, counting images: in a
+    process of its own (`python -m oricf.bench.gateway_view URL`), so that the benchmark's
+    camera and this viewer do not share one interpreter and make it a slow viewer."""
 
-    def __init__(self, port: int) -> None:
-        self.url = f"ws://127.0.0.1:{port}"
+    def __init__(self, url: str) -> None:
+        self.url = url
         self.images = 0
-        self.bytes = 0
+        self.first_s = self.last_s = 0.0
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._watch, daemon=True)
         self._topics: dict[int, str] = {}
 
-    def _watch(self) -> None:
+    @property
+    def images_per_s(self) -> float:
+        return (self.images - 1) / (self.last_s - self.first_s) if self.images > 1 else 0.0
+
+    def watch(self) -> None:
         from websockets.exceptions import ConnectionClosed
         from websockets.sync.client import connect
         from websockets.typing import Subprotocol
@@ -51,9 +60,15 @@ class Viewer:
                 if isinstance(message, str):
                     self._subscribe(viewer, json.loads(message))
                 elif message[:1] == b"\x01":
-                    self.bytes += len(message)
                     channel = int.from_bytes(message[1:5], "little")
-                    self.images += self._topics.get(channel, "").endswith("/image")
+                    if self._topics.get(channel, "").endswith("/image"):
+                        self._count_image()
+
+    def _count_image(self) -> None:
+        self.last_s = time.monotonic()
+        if not self.images:
+            self.first_s = self.last_s
+        self.images += 1
 
     def _subscribe(self, viewer: Any, message: dict[str, Any]) -> None:
         if message.get("op") != "advertise":
@@ -63,14 +78,32 @@ class Viewer:
         viewer.send(json.dumps({"op": "subscribe", "subscriptions": [
             {"id": c["id"], "channelId": c["id"]} for c in new]}))
 
-    @contextmanager
-    def watching(self) -> Iterator[Viewer]:
-        self._thread.start()
-        try:
-            yield self
-        finally:
-            self._stop.set()
-            self._thread.join(timeout=10)
+    def stop(self) -> None:
+        self._stop.set()
+
+
+@contextmanager
+def watching(port: int) -> Iterator[list[float]]:
+    """A viewer process watching until the block ends; then its images per second are in
+    the list yielded."""
+    viewer = subprocess.Popen([sys.executable, "-m", "oricf.bench.gateway_view",
+                               f"ws://127.0.0.1:{port}"], stdout=subprocess.PIPE, text=True)
+    rate: list[float] = []
+    try:
+        yield rate
+    finally:
+        viewer.send_signal(signal.SIGTERM)
+        out, _ = viewer.communicate(timeout=30)
+    rate.append(float(out.split()[-1]) if out.strip() else 0.0)
+
+
+def main() -> int:
+    """The viewer process: watches until SIGTERM, then prints its images per second."""
+    viewer = Viewer(sys.argv[1])
+    signal.signal(signal.SIGTERM, lambda *_: viewer.stop())
+    viewer.watch()
+    print(f"{viewer.images_per_s:.2f}")
+    return 0
 
 
 def view_table(result: InputResult, fps: float) -> None:
@@ -86,3 +119,7 @@ def view_table(result: InputResult, fps: float) -> None:
                 f"{LiveViewConfig().max_fps:g}/s, raw ones JPEG quality "
                 f"{LiveViewConfig().jpeg_quality})",
                 ["people route", "gateway CPU ms", "ratio", "images/s received"], rows)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
