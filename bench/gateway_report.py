@@ -70,9 +70,11 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple
                  f"{shared * 1e3:.2f}",
                  *(f"{(1 - shared / on) * 100:.1f}%" for on in onboard.values()),
                  f"{power.joules(shared) * 1e3:.1f}", "0", "-", "-"])
-    offloaded = {"raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2, "jpeg": cpu["gw jpeg"]}
+    offloaded = {"raw": (cpu["gw raw 1"] + cpu["gw raw 2"]) / 2, "jpeg": cpu["gw jpeg"],
+                 "jpeg, Infer decoded": cpu["gw infer decoded"]}
     for transport, value in offloaded.items():
-        radio = result.request_bytes[transport] + result.response_bytes
+        # Infer's request carries the same JPEG; its reply is about the size of Detect's.
+        radio = result.request_bytes[transport.split(",")[0]] + result.response_bytes
         energy = power.joules(value, radio)
         cuts = [f"{(1 - value / on) * 100:.1f}%" for on in onboard.values()]
         energy_cuts = [f"{(1 - energy / power.joules(on)) * 100:.1f}%"
