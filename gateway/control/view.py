@@ -31,6 +31,7 @@ from oricf.gateway.route import Route
 from oricf.gateway.values import AudioClip, Frame, Record
 from oricf.imaging import Detection, draw_detections, encode_image, encoded_size, label_counts
 from oricf.logs import quoted
+from oricf.metrics import LatencyHistogram
 from oricf.models.tensors import datatype, datatype_of
 from oricf.models.wire import infer_request, response_outputs
 
@@ -101,6 +102,7 @@ class PipelineView:
             routes[name] = {"method": route.config.call.method, "endpoint": route.endpoint.name,
                             "ok": stats.ok, "skipped": stats.skipped,
                             "errors": dict(stats.errors), "last_ms": round(stats.last_ms, 1),
+                            "mean_ms": mean_ms(stats.latency),
                             "received": self.pipeline.workers[name].stats.received,
                             "dropped": self.pipeline.workers[name].stats.dropped}
         return {"endpoints": endpoints, "routes": routes, "agent_calls": self.audit.counts()}
@@ -216,6 +218,13 @@ class PipelineView:
             raise NotReady(f"{route.endpoint.name} failed: {exc.code().name}") from None
         fields = {f: getattr(result, f) for f in result.__dataclass_fields__}
         return {"route": route.name, **findings(fields)}
+
+
+def mean_ms(latency: LatencyHistogram) -> float | None:
+    """The mean time a route took per input handled, since the start."""
+    buckets, total = latency.snapshot()
+    count = buckets[-1][1]
+    return round(total / count * 1000, 1) if count else None
 
 
 def findings(record: Record) -> Json:

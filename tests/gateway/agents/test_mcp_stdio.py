@@ -15,6 +15,7 @@ import anyio
 import cv2
 import httpx
 import mcp_types as types
+import yaml
 from mcp import ClientSession, StdioServerParameters
 from mcp.client.stdio import stdio_client
 from mcp.client.subscriptions import ResourceUpdated, listen
@@ -105,6 +106,29 @@ def test_tools_resources_look_and_ask(pipeline: Path) -> None:
             assert status.structured_content["agent_calls"]["look/ok"] == 1
             scraped = httpx.get(f"http://127.0.0.1:{metrics_port}/metrics").text
             assert 'oricf_agent_calls_total{outcome="ok",tool="look"} 1.0' in scraped
+
+    anyio.run(scenario)
+
+
+def test_status_shows_a_failover(pipeline: Path, services: dict[str, Any]) -> None:
+    """The detector's primary is down: the edge's (here: the real one) answers, and status
+    says so."""
+    data = yaml.safe_load(pipeline.read_text())
+    data["endpoints"]["detector"] = {"address": f"127.0.0.1:{free_port()}",
+                                     "fallback": services["detector"].address,
+                                     "deadline_ms": 5000}
+    failing = pipeline.parent / "failover.yaml"
+    failing.write_text(yaml.safe_dump(data))
+
+    async def scenario() -> None:
+        async with stdio_session("--config", str(failing)) as session:
+            assert (await wait_product(session, "people_count"))["value"] == PEOPLE
+            status = await session.call_tool("status", {})
+            assert status.structured_content is not None
+            detector = status.structured_content["endpoints"]["detector"]
+            assert detector["on_fallback"] is True and detector["failovers"] >= 1
+            assert detector["active"] == services["detector"].address
+            assert status.structured_content["routes"]["people"]["mean_ms"] > 0
 
     anyio.run(scenario)
 
