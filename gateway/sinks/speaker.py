@@ -7,7 +7,8 @@ The route hands audio over (play) and goes on; a thread of the speaker's own pla
 order. Pieces that follow each other within IDLE_S play in one stream, so the sentences of
 an answer sound as one; the stream is closed when none follows. interrupt() (a barge-in)
 drops what is queued and aborts the stream, which discards what the device still buffers
-(LATENCY_S); the player looks for it every POLL_S.
+(LATENCY_S); the player looks for it every POLL_S. A device that stops taking samples, or
+a PulseAudio sink that is gone, ends the answer (logged); the next one opens it again.
 
 While a stream plays, the pipeline's Speaking says so (muted microphones hear silence).
 """
@@ -31,9 +32,15 @@ from oricf.gateway.values import AudioClip, SpokenAudio
 
 log = logging.getLogger(__name__)
 
-LATENCY_S = 0.1       # the device's buffer: a barge-in discards it
+# The device's buffer: room for a callback that comes late on a busy machine (0.1 s broke
+# up under load); a barge-in discards it, and the first sample does not wait for it.
+LATENCY_S = 0.5
+# Silence at the start of each stream: PortAudio's ALSA plugin into PulseAudio lost the
+# first ~0.12 s of a new stream ("There are 12" heard as "Well 12").
+LEAD_IN_S = 0.15
 POLL_S = 0.02         # how often the player looks for a barge-in and the buffer's end
 IDLE_S = 0.5          # a piece arriving within this after the last keeps the stream open
+STALL_S = 2.0         # samples waiting this long untaken: the device stopped playing
 PREFERRED_RATES = (48000, 44100, 22050, 16000)
 
 
@@ -97,12 +104,20 @@ class SampleBuffer:
         self._pieces: deque[np.ndarray] = deque()
         self._offset = 0
         self._lock = threading.Lock()
+        self._moved_at = time.monotonic()  # when the callback last took samples
         self.pieces = 0
 
     def append(self, samples: np.ndarray) -> None:
         with self._lock:
+            if not self._pieces:
+                self._moved_at = time.monotonic()
             self._pieces.append(samples)
             self.pieces += 1
+
+    def stalled(self, seconds: float) -> bool:
+        """Whether samples wait that the callback has not taken for `seconds`."""
+        with self._lock:
+            return bool(self._pieces) and time.monotonic() - self._moved_at > seconds
 
     def clear(self) -> None:
         with self._lock:
@@ -127,6 +142,8 @@ class SampleBuffer:
                 if self._offset == len(piece):
                     self._pieces.popleft()
                     self._offset = 0
+            if filled:
+                self._moved_at = time.monotonic()
         out[filled:] = 0
 
 
@@ -197,6 +214,11 @@ class Speaker:
                 continue
             try:
                 self._play_burst(audio)
+            except audio_device.DeviceLost as exc:  # the next answer opens it again
+                with self._cond:
+                    self.stats.dropped += len(self._queue)
+                    self._queue.clear()
+                log.warning("speaker: %s; the rest of this answer is dropped", exc)
             except Exception:  # the speaker goes on with the next answer
                 log.exception("speaker: %s failed", self.device.describe())
                 time.sleep(1.0)
@@ -209,18 +231,29 @@ class Speaker:
         leaves silence, never a broken sample."""
         sd = audio_device.portaudio()
         buffer = SampleBuffer()
+        buffer.append(np.zeros(int(self.rate * LEAD_IN_S), np.int16))
         buffer.append(audio.mono(self.rate))
-        with audio_device.pulse_target("PULSE_SINK", self.device.pulse_sink):
-            stream = sd.OutputStream(device=self.device.index, samplerate=self.rate,
-                                     channels=1, dtype="int16", latency=LATENCY_S,
-                                     callback=buffer.fill)
+        try:
+            with audio_device.pulse_target("PULSE_SINK", self.device.pulse_sink):
+                stream = sd.OutputStream(device=self.device.index, samplerate=self.rate,
+                                         channels=1, dtype="int16", latency=LATENCY_S,
+                                         callback=buffer.fill)
+        except sd.PortAudioError as exc:
+            raise audio_device.DeviceLost(f"cannot open {self.device.describe()}: {exc}"
+                                          ) from None
         self._speaking.started()
         try:
-            stream.start()
-            self.stats.starts.append(time.monotonic() + stream.latency)
+            stream.start()  # with its buffer filled: it sounds from now on
+            self.stats.starts.append(time.monotonic() + LEAD_IN_S)
             empty_since: float | None = None
+            checked = time.monotonic()
             while True:
                 piece = self._next(POLL_S)
+                if not stream.active or buffer.stalled(STALL_S):
+                    raise audio_device.DeviceLost(f"{self.device.describe()} stopped playing")
+                if time.monotonic() - checked > audio_device.PRESENCE_CHECK_S:
+                    checked = time.monotonic()
+                    self._check_presence()
                 if self._cut or self._stopping:
                     buffer.clear()
                     stream.abort()  # what the device holds is discarded too
@@ -234,13 +267,23 @@ class Speaker:
                     empty_since = empty_since or time.monotonic()
                     if time.monotonic() - empty_since > IDLE_S:
                         break
-            self.stats.played += buffer.pieces
+            self.stats.played += buffer.pieces - 1  # not the lead-in
             time.sleep(stream.latency)  # the device plays out what it holds
             stream.stop()
         finally:
             stream.close(ignore_errors=True)
             audio_device.stream_closed()
             self._speaking.stopped()
+
+    def _check_presence(self) -> None:
+        """PulseAudio moves a stream whose sink went away to another sink instead of ending
+        it: a named sink that is gone counts as lost, so speech never goes on quietly
+        playing somewhere else."""
+        if self.device.pulse_sink is None:
+            return
+        sinks = audio_device.pulse_sinks()
+        if sinks is not None and self.device.pulse_sink not in sinks:
+            raise audio_device.DeviceLost(f"{self.device.describe()} is gone")
 
     def idle(self, timeout: float) -> bool:
         """Waits until nothing is queued or playing (for tests and benchmarks)."""

@@ -34,7 +34,7 @@ from tests.support.tts import VOICES, stub, tts_service  # noqa: F401 (a fixture
 
 log = logging.getLogger(__name__)
 
-SPEAKER, MIC, ROOM = "oricf_speaker", "oricf_mic", "oricf_room"
+SPEAKER, MIC, ROOM, GONE = "oricf_speaker", "oricf_mic", "oricf_room", "oricf_gone"
 ANSWERS = [
     "I can see 4 people in the video.",
     "There are 12 people walking near the door.",
@@ -226,3 +226,25 @@ def test_a_speaker_key_of_the_wrong_kind_is_an_error_naming_the_file_and_key(
     with pytest.raises(ConfigError) as error, local_gateway(tmp_path, pipeline):
         pass
     assert "voice.yaml: routes.say.outputs[0].audio.volume: unknown key" in str(error.value)
+
+
+def test_a_speaker_that_vanishes_while_playing_plays_again_once_it_is_back(
+        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        asr: RunningService, tmp_path: Path) -> None:
+    module = pulse_env.add_sink(GONE)
+    with local_gateway(tmp_path, say_route(tts_service.address, "espeak", GONE)) as gateway:
+        speaker = gateway.speaker()
+        gateway.say("say", LONG_ANSWER)
+        deadline = time.monotonic() + 30
+        while not speaker.stats.starts and time.monotonic() < deadline:
+            time.sleep(0.05)
+        pulse_env.remove(module)  # pulled out while it plays
+        assert gateway.pipeline.idle(60) and speaker.idle(60)
+        pulse_env.add_sink(GONE)
+        recorder = Recorder(pulse_env, GONE, tmp_path / "again.raw")
+        gateway.say("say", ANSWERS[0])
+        assert gateway.pipeline.idle(60) and speaker.idle(60)
+        recording = recorder.samples()
+    heard = transcribe(asr.channel, recording)
+    reference = spoken_words(ANSWERS[0])
+    assert word_errors(reference, spoken_words(heard)) / len(reference) <= 0.2, heard

@@ -50,3 +50,23 @@ def test_speech_on_a_topic_is_16_khz_mono_int16() -> None:
                                    Int16MultiArray)
     assert list(recorded.data) == list(message.data)
     assert 7000 < np.abs(np.asarray(message.data)).max() < 8500
+
+
+def test_text_the_synthesizer_refuses_is_counted_and_the_route_goes_on(
+        tts_service: RunningService, tmp_path: Path) -> None:  # noqa: F811
+    path = tmp_path / "spoken.wav"
+    pipeline = {"endpoints": {"tts": {"address": tts_service.address, "deadline_ms": 30000}},
+                "routes": {"say": {"input": {"text": "-"},
+                                   "call": {"service": "tts", "method": "Synthesize",
+                                            "text": "{text}", "voice": "espeak"},
+                                   "outputs": [{"wav": str(path), "from": "speech"}]}}}
+    with local_gateway(tmp_path, pipeline) as gateway:
+        for text in ("ring \x07 the bell", "<speak>hello</speak>", "x" * 100_000, "   "):
+            gateway.say("say", text)
+        gateway.say("say", ANSWER)
+        assert gateway.pipeline.idle(60)
+        stats = gateway.pipeline.routes["say"].stats
+    assert stats.errors.get("INVALID_ARGUMENT") == 3, stats
+    assert stats.skipped == 1 and stats.ok == 1  # nothing to say; then the answer
+    with wave.open(str(path)) as spoken:
+        assert spoken.getnframes() / spoken.getframerate() > 2
