@@ -27,6 +27,7 @@ from foxglove.channels import CompressedImageChannel, ImageAnnotationsChannel, L
 from oricf.gateway.live_view import messages
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.live_view.front import Front
+from oricf.gateway.live_view.sdk_logs import make_sdk_logs_safe
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Frame, Record
 
@@ -78,6 +79,7 @@ class LiveView:
     def start(self, states: States | None = None) -> None:
         """Opens the SDK's server on loopback and the front on `listen`; a port in use (or a
         certificate or token that cannot be read) is a ConfigError now."""
+        make_sdk_logs_safe()
         self._server = foxglove.start_server(
             name=self.name, host="127.0.0.1", port=0, context=self._context,
             message_backlog_size=self.config.backlog)

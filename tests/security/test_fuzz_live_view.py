@@ -9,6 +9,7 @@ served."""
 from __future__ import annotations
 
 import json
+import logging
 import socket
 import threading
 import time
@@ -228,3 +229,20 @@ def test_connections_that_never_finish_their_handshake_are_closed(
     finally:
         for sock in idle:
             sock.close()
+
+
+def test_what_a_viewer_sends_cannot_forge_log_lines(fed: Fed,
+                                                    caplog: pytest.LogCaptureFixture) -> None:
+    """The SDK logs an unparsable message with the viewer's words in it: escaped, clipped,
+    and a warning (a viewer's mistake is no error of the gateway)."""
+    with caplog.at_level(logging.INFO), suppress(ConnectionClosed), connect(
+            fed.view.url, subprotocols=SUBPROTOCOL) as viewer:  # type: ignore[arg-type]
+        viewer.send(json.dumps({"op": "evil\n12:00:00 ERROR forged" + "x" * 3000}))
+        deadline = time.monotonic() + 10
+        while not any("forged" in r.getMessage() for r in caplog.records):
+            assert time.monotonic() < deadline, caplog.text
+            time.sleep(0.05)
+    sdk = [r for r in caplog.records if r.name.startswith("foxglove")]
+    assert all("\n" not in r.getMessage() and len(r.getMessage()) < 400 for r in sdk)
+    assert all(r.levelno <= logging.WARNING for r in sdk if "forged" in r.getMessage())
+    serves_a_viewer(fed)
