@@ -4,6 +4,8 @@ the key's path, and a measure before any track step is refused when the pipeline
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from oricf.errors import ConfigError
@@ -11,6 +13,7 @@ from oricf.gateway import post
 from oricf.gateway.post import PostStep
 from oricf.gateway.post import track as track_step
 from oricf.gateway.post.track import TrackStep
+from oricf.gateway.sinks.jsonl import jsonable
 from oricf.gateway.values import Record
 from oricf.imaging import Box, Detection
 from tests.gateway.pipelines import people_qa
@@ -51,6 +54,9 @@ def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> N
     assert [r["dwell"] > 0 for r in records].index(True) == 10
     assert records[28]["dwell"] == pytest.approx(1.9)
     assert records[29]["dwell"] == 0
+    # JSON lines carry what a track gives a detection
+    line = json.loads(json.dumps(jsonable(last["detections"])))
+    assert line[0]["track_id"] == 1 and line[0]["velocity"] == pytest.approx([100, 0], abs=5)
 
 
 @pytest.mark.parametrize(("steps", "message"), [
