@@ -19,6 +19,7 @@ from tests.launch.helpers import (
 from tests.support.data import video_path
 from tests.support.processes import free_port
 from tests.support.services import running_service
+from tests.support.sockets import inet_sockets
 
 # vtest.avi's first 10 frames (1 s) show 4 people each. A demo sending only those has one
 # count from its first report on, so the count it prints is the one the gateway gave the
@@ -82,6 +83,33 @@ def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
         assert not any(alive(pid) or group_members(pid) for pid in pids), started
     log = (tmp_path / "demo.log").read_text()
     assert "gateway  | " in log and "detector | " in log
+
+
+def test_demo_keeps_every_socket_on_this_machine(tmp_path: Path) -> None:
+    """Under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, as private_ros_env sets it: once the
+    gateway counts, every UDP and TCP socket of the demo's processes (its own DDS
+    participant, the gateway's, the services') is bound to a loopback address, as
+    `ss -tuanp` would show them."""
+    command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
+                           "--question", "How many people do you see?", *STILL_SCENE,
+                           "--no-speak", "--log", str(tmp_path / "demo.log"),
+                           env=private_ros_env())
+    try:
+        command.wait_for("the gateway counts people", timeout=600)
+        started = command.started()
+        processes = {"demo": [command.process.pid],
+                     **{name: group_members(pids[-1]) for name, pids in started.items()}}
+        sockets = {name: [s for pid in pids for s in inet_sockets(pid)]
+                   for name, pids in processes.items()}
+        assert command.finish(timeout=600) == 0, command.output
+    finally:
+        command.kill()
+    assert set(sockets) == {"demo", "detector", "asr", "llm", "gateway"}
+    for name in ("demo", "gateway"):  # DDS participants: discovery on 127.0.0.1
+        assert any(s.table == "udp" and str(s.address) == "127.0.0.1"
+                   for s in sockets[name]), sockets[name]
+    for name, held in sockets.items():
+        assert all(s.loopback for s in held), f"{name}: {[str(s) for s in held]}"
 
 
 def test_demo_takes_its_camera_from_an_rtsp_stream(tmp_path: Path) -> None:

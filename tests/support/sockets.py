@@ -20,7 +20,9 @@ class Socket:
 
     @property
     def loopback(self) -> bool:
-        return self.address.is_loopback
+        """127.0.0.0/8, ::1, or 127.0.0.1 as an IPv6 socket holds it (::ffff:127.0.0.1)."""
+        mapped = getattr(self.address, "ipv4_mapped", None)
+        return (mapped or self.address).is_loopback
 
     def __str__(self) -> str:
         return f"{self.table} {self.address}:{self.port}"

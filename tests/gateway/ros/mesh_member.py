@@ -5,8 +5,8 @@ Fast DDS as ORICF's processes do (oricf.gateway.ros.dds.use_dds_profile), `plain
 environment as it is, as a node ORICF did not write.
 Publishes on /mesh/member_INDEX five times a second, prints `heard [...]` (JSON) whenever
 another member is heard for the first time, and goes on publishing (so the others hear it
-too) until its standard input closes. Then prints one JSON object: the members it heard and
-the UDP and TCP sockets it held.
+too) until its standard input closes. Then prints one JSON object: the members it heard,
+the UDP and TCP sockets it held, and those bound to an address other hosts can reach.
 """
 
 from __future__ import annotations
@@ -65,8 +65,10 @@ def main(index: int, total: int, kind: str) -> int:
         if len(heard) > announced:
             announced = len(heard)
             print("heard", json.dumps(sorted(heard)), flush=True)
-    sockets = [str(s) for s in inet_sockets(os.getpid())]
-    print(json.dumps({"index": index, "heard": sorted(heard), "sockets": sockets}), flush=True)
+    sockets = inet_sockets(os.getpid())
+    print(json.dumps({"index": index, "heard": sorted(heard),
+                      "sockets": [str(s) for s in sockets],
+                      "off_loopback": [str(s) for s in sockets if not s.loopback]}), flush=True)
     executor.shutdown()
     node.destroy_node()
     rclpy.try_shutdown(context=context)
