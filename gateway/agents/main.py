@@ -23,7 +23,7 @@ import logging
 import sys
 from pathlib import Path
 
-from oricf.errors import ConfigError
+from oricf.errors import ConfigError, NotReady
 from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.http import HttpSettings, serve_http
 from oricf.gateway.agents.mcp_server import build_server
@@ -86,6 +86,11 @@ def main(argv: list[str] | None = None) -> int:
         from oricf.gateway.control.client import ControlClient
 
         gateway: Gateway = ControlClient(args.attach, args.token_file, args.ca)
+        try:
+            gateway.status()  # fail now, with the reason, if the gateway cannot be reached
+        except NotReady as exc:
+            log.error("%s", exc)
+            return 2
         return serve(gateway, AuditLog(args.audit), http, args.metrics_listen)
     config = load_pipeline(args.config, args.overlay, sets=args.sets)
     if http is None:

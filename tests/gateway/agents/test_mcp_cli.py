@@ -38,3 +38,9 @@ def test_stdout_outputs_refused_over_stdio(tmp_path: Path) -> None:
 def test_attach_needs_an_address_it_knows() -> None:
     done = oricf_mcp("--attach", "ftp://robot")
     assert done.returncode == 2 and "unix:PATH or http(s)://HOST:PORT" in done.stderr
+
+
+def test_attach_to_no_gateway(tmp_path: Path) -> None:
+    done = oricf_mcp("--attach", f"unix:{tmp_path / 'nobody.sock'}")
+    assert done.returncode == 2 and "gateway control API at unix:" in done.stderr
+    assert "Traceback" not in done.stderr
