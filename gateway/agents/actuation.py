@@ -64,15 +64,16 @@ class Actuation:
         target = self.policy.target(name)
         checked = target.check(name, message)
         with self._locks[name]:
+            self._check_rate(name, target)  # before asking anyone
+        if target.approval == "elicit" and not approved:
+            raise Refused(f"{name}: needs a person's approval, asked through the agent's "
+                          f"client (MCP elicitation), and it was not given")
+        if target.approval == "channel":  # without the lock: the deadman must not wait
+            question = f"{name}: {json.dumps(nested(checked.fields))}"
+            if not self._approvers[name].ask(question, target.approval_timeout_s):
+                raise Refused(f"{name}: not approved on channel {target.approval_channel}")
+        with self._locks[name]:
             self._check_rate(name, target)
-            if target.approval == "elicit" and not approved:
-                raise Refused(f"{name}: needs a person's approval, asked through the agent's "
-                              f"client (MCP elicitation), and it was not given")
-            if target.approval == "channel":
-                question = f"{name}: {json.dumps(nested(checked.fields))}"
-                if not self._approvers[name].ask(question, target.approval_timeout_s):
-                    raise Refused(f"{name}: not approved on channel {target.approval_channel}")
-                self._check_rate(name, target)
             self._sender.send(name, checked.fields)
             self._last_sent[name] = self._clock()
         if target.deadman_ms is not None:

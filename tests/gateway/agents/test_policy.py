@@ -19,9 +19,10 @@ from oricf.errors import ConfigError
 from oricf.gateway.agents.actuation import Actuation
 from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.policy import AgentPolicy, Refused
-from oricf.gateway.agents.senders import ChannelSender
+from oricf.gateway.agents.senders import ChannelSender, Senders
 from oricf.gateway.config import load_pipeline
 from oricf.gateway.text_channels import ChannelConfig, Channels
+from tests.gateway.agents.scene import ARM_TOPIC, ros_listener
 from tests.support.processes import free_port
 
 TWIST = {"topic": "/cmd_vel", "type": "geometry_msgs/Twist",
@@ -168,3 +169,65 @@ def test_shipped_mobile_base_policy() -> None:
     with pytest.raises(Refused, match=r"linear\.y must be 0"):
         base.check("cmd_vel", {"linear": {"y": 0.1}})
     assert config.agent.targets["arm_lift"].approval == "elicit"
+
+
+def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Path,
+                                               ros_env: dict[str, str]) -> None:
+    rules = AgentPolicy.model_validate({"targets": {"arm": {
+        "topic": ARM_TOPIC, "type": "std_msgs/Float64", "bounds": {"data": [0, 1]},
+        "approval": "channel", "approval_channel": "approvals", "approval_timeout_s": 5,
+        "max_rate_hz": 1000, "deadman_ms": 300}}})
+    audit = AuditLog(tmp_path / "audit.jsonl")
+    with ros_listener() as driver:
+        actuation = Actuation(rules, Senders(rules, channels), audit, channels)
+        person = LineClient(channels.get("approvals").address)
+        try:
+            deadline = time.monotonic() + 10
+            while not channels.get("approvals").clients:
+                assert time.monotonic() < deadline
+                time.sleep(0.02)
+            approving = threading.Event()
+            approving.set()
+
+            def answer() -> None:
+                while True:
+                    try:
+                        asked = person.line()
+                    except (OSError, ValueError):  # closed at the end of the test
+                        return
+                    if not asked:
+                        return
+                    if approving.is_set():
+                        person.say(f"yes {asked.split()[1].rstrip('?')}")
+
+            threading.Thread(target=answer, daemon=True).start()
+            driver.wait_publisher(ARM_TOPIC)
+            while driver.arm.empty():  # until discovery is complete both ways
+                assert time.monotonic() < deadline, "nothing reached the arm"
+                actuation.send("arm", {"data": 0.5})
+                time.sleep(0.1)
+            time.sleep(0.5)
+            driver.drain()
+            actuation.send("arm", {"data": 0.5})
+            assert driver.arm.get(timeout=5).data == 0.5
+            approving.clear()  # the next command waits for a person who does not answer
+            refusals: list[str] = []
+
+            def unanswered() -> None:
+                try:
+                    actuation.send("arm", {"data": 0.9})
+                except Refused as exc:
+                    refusals.append(str(exc))
+
+            pending = threading.Thread(target=unanswered)
+            started = time.monotonic()
+            pending.start()
+            stop = driver.arm.get(timeout=3)
+            assert stop.data == 0.0 and time.monotonic() - started < 2.0
+            pending.join(10)
+            assert refusals == ["arm: not approved on channel approvals"]
+            assert driver.arm.empty()  # the unapproved 0.9 never went out
+        finally:
+            person.close()
+            actuation.close()
+            audit.close()
