@@ -76,8 +76,8 @@ class Actuation:
             self._check_rate(name, target)
             self._sender.send(name, checked.fields)
             self._last_sent[name] = self._clock()
-        if target.deadman_ms is not None:
-            self._deadman.renew(name, target.deadman_ms / 1000)
+            if target.deadman_ms is not None:
+                self._deadman.renew(name, target.deadman_ms / 1000)
         outcome = "clamped" if checked.clamped else "sent"
         self.audit.record("publish", outcome, target=name, message=message,
                           sent=nested(checked.fields), clamped=checked.clamped)
@@ -95,6 +95,8 @@ class Actuation:
     def _expire(self, name: str) -> None:
         target = self.policy.targets[name]
         with self._locks[name]:
+            if self._deadman.armed(name):  # a command came while this expiry waited
+                return
             self._sender.send(name, zero(target.type))
         log.info("agent target %s: not renewed within %d ms, zero command sent", name,
                  target.deadman_ms)
@@ -122,6 +124,10 @@ class Deadman:
         with self._wake:
             self._deadlines[target] = time.monotonic() + seconds
             self._wake.notify()
+
+    def armed(self, target: str) -> bool:
+        with self._wake:
+            return target in self._deadlines
 
     def _run(self) -> None:
         while True:
