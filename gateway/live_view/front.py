@@ -30,6 +30,7 @@ from websockets.typing import Subprotocol
 
 from oricf.errors import ConfigError
 from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.throttle import ThrottledLog
 from oricf.metrics import split_listen
 from oricf.tls import token_matches
 
@@ -43,6 +44,7 @@ START_TIMEOUT_S = 10.0
 # The wait for the other side's close frame once one side has gone: a viewer that left must
 # not hold its place among max_clients for long.
 CLOSE_TIMEOUT_S = 1.0
+REFUSAL_LOG_INTERVAL_S = 10.0
 # From the SDK (trusted, on loopback): a frame of the largest image the gateway takes.
 UPSTREAM_MAX_BYTES = 256 << 20
 # Bytes written to a viewer before the relay waits for it: a slow viewer stalls only its own
@@ -58,6 +60,7 @@ class Front:
         self._tokens = [t.encode() for t in config.auth.tokens()] if config.auth else []
         self._ssl = config.tls.ssl_context("foxglove.tls") if config.tls else None
         self._viewers: set[ServerConnection] = set()
+        self._refusals = ThrottledLog(log, REFUSAL_LOG_INTERVAL_S)  # a flood logs a line
         self._loop = asyncio.new_event_loop()
         self._server: Server | None = None
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True,
@@ -94,11 +97,12 @@ class Front:
     def _admit(self, connection: ServerConnection, request: Request) -> Response | None:
         """Refuses before the upgrade: a wrong or missing token, one viewer too many."""
         if self._tokens and not token_matches(_token(request), self._tokens):
-            log.warning("live view: %s refused: no valid token", _peer(connection))
+            self._refusals.warning("token", "live view: %s refused: no valid token",
+                                   _peer(connection))
             return connection.respond(HTTPStatus.UNAUTHORIZED, "a valid token is needed\n")
         if len(self._viewers) >= self.config.max_clients:
-            log.warning("live view: %s refused: %d viewers already", _peer(connection),
-                        len(self._viewers))
+            self._refusals.warning("full", "live view: %s refused: %d viewers already",
+                                   _peer(connection), len(self._viewers))
             return connection.respond(HTTPStatus.SERVICE_UNAVAILABLE, "too many viewers\n")
         return None
 
