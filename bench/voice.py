@@ -27,6 +27,7 @@ the other. Goal: first audio within 1.0 s of the end of the question
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import threading
 import time
@@ -88,8 +89,7 @@ class Voice:
                  "routes.speech.outputs=[{product: transcript, from: transcript}]",
                  "routes.answer.outputs=[{product: answer_sentence, from: sentence}]",
                  f"routes.voice.call.voice={voice}",
-                 f"routes.voice.outputs=[{{{next(iter(output))}: "
-                 f"{_flow(next(iter(output.values())))}, from: speech}}]"]
+                 f"routes.voice.outputs={json.dumps([{**output, 'from': 'speech'}])}"]
         self.config: PipelineConfig = load_pipeline(PIPELINE, sets=sets)
         self.turn = Turn()
         self.outlets = Outlets(self.config)
@@ -150,13 +150,6 @@ class Voice:
         self.camera.stop()
         self.pipeline.stop()
         self.outlets.close()
-
-
-def _flow(value: Any) -> str:
-    """A value as YAML flow text for a --set."""
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k}: {_flow(v)}" for k, v in value.items()) + "}"
-    return str(value)
 
 
 def spoken_questions() -> list[tuple[np.ndarray, int]]:

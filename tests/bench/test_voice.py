@@ -1,0 +1,38 @@
+"""`oricf bench voice`'s arithmetic: a question's stages from its clock marks, and the
+median and p90 of each stage and of the total."""
+
+from __future__ import annotations
+
+import pytest
+
+from oricf.bench.voice import STAGES, Turn, summary
+
+
+def turn(ended: float, *marks: tuple[str, float]) -> Turn:
+    result = Turn(ended=ended)
+    result.marks.update(marks)
+    return result
+
+
+def test_the_stages_are_the_gaps_between_the_marks_in_order() -> None:
+    done = turn(10.0, ("utterance", 10.5), ("transcript", 10.6), ("sentence", 11.0),
+                ("audio", 11.1))
+    stages = done.stages()
+    assert stages is not None
+    assert list(stages) == list(STAGES[:4])
+    assert [round(v, 3) for v in stages.values()] == [0.5, 0.1, 0.4, 0.1]
+
+
+def test_a_question_that_never_reached_audio_has_no_stages() -> None:
+    assert turn(10.0, ("utterance", 10.5), ("transcript", 10.6)).stages() is None
+
+
+def test_medians_and_p90_over_the_answered_questions() -> None:
+    turns = [turn(0.0, ("utterance", 0.4), ("transcript", 0.5), ("sentence", 0.5 + s),
+                  ("audio", 0.6 + s)) for s in (0.1, 0.2, 0.3, 0.4, 0.5)]
+    turns.append(turn(0.0, ("utterance", 0.4)))  # unanswered: left out
+    table = summary(turns)
+    assert table["LLM 1st sentence"][0] == pytest.approx(300)
+    assert table["LLM 1st sentence"][1] == pytest.approx(460)
+    assert table["total"][0] == pytest.approx(900)
+    assert "device" not in table
