@@ -35,8 +35,10 @@ APT_PACKAGES+=(libportaudio2)
 ((DEV)) && APT_PACKAGES+=(shellcheck)
 # CMake and a C/C++ compiler: the tests build vision_msgs with the rosidl generators.
 ((DEV)) && APT_PACKAGES+=(cmake g++)
-# The live view's tests connect with the Foxglove protocol's own client, run by Node.js.
-((DEV)) && APT_PACKAGES+=(nodejs npm)
+# The live view's tests connect with the Foxglove protocol's own client, run by Node.js
+# (Debian's npm only where no npm came with nodejs, as NodeSource's packages bring it).
+((DEV)) && APT_PACKAGES+=(nodejs)
+((DEV)) && ! command -v npm >/dev/null && APT_PACKAGES+=(npm)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
