@@ -98,7 +98,11 @@ class EspeakVoice:
     def load(self) -> None:
         self.runtime = version()
         c = self.config  # the voice exists and speaks; its sample rate is the program's
-        _, self.sample_rate = speak("ready", c.voice, c.words_per_minute, c.pitch)
+        try:
+            _, self.sample_rate = speak("ready", c.voice, c.words_per_minute, c.pitch)
+        except RuntimeError as exc:
+            raise ConfigError(f"voices.{self.name}: espeak-ng cannot speak with voice "
+                              f"'{c.voice}' (see `espeak-ng --voices`): {exc}") from None
 
     def close(self) -> None:
         pass
