@@ -1,5 +1,6 @@
 """sensor_msgs/Image and CompressedImage read straight from their serialized (CDR) bytes;
-Image, String and Int32 written (for recordings made without ROS).
+Image, String, Int32, Int16MultiArray and vision_msgs/Detection2DArray written (for
+recordings made without ROS).
 
 Camera routes take frames serialized (rclpy's `raw=True`): rclpy would otherwise build a
 Python message first, copying the pixels into an array.array. Reading the few fields here
@@ -151,6 +152,9 @@ class _Writer:
     def uint8(self, value: int) -> None:
         self._put(bytes((value,)))
 
+    def float64(self, value: float) -> None:
+        self._put(struct.pack("<d", value), 8)
+
     def octets(self, data: bytes) -> None:
         self.uint32(len(data))
         self._put(data)
@@ -189,6 +193,38 @@ def write_int16_array(samples: bytes) -> bytes:
     write.uint32(0)  # layout.data_offset
     write.uint32(len(samples) // 2)
     write._put(samples, 2)
+    return write.getvalue()
+
+
+@dataclass(frozen=True)
+class BoxFields:
+    """One vision_msgs/Detection2D: its id, one hypothesis, its box's centre and size."""
+
+    id: str
+    class_id: str
+    score: float
+    center_x: float
+    center_y: float
+    size_x: float
+    size_y: float
+
+
+def write_detection_array(header: Stamp, boxes: list[BoxFields]) -> bytes:
+    """vision_msgs/Detection2DArray, serialized: each detection with the array's header,
+    one hypothesis at an identity pose with zero covariance, and a box without rotation."""
+    write = _Writer()
+    write.header(header)
+    write.uint32(len(boxes))
+    for box in boxes:
+        write.header(header)
+        write.uint32(1)  # results
+        write.string(box.class_id)
+        write.float64(box.score)
+        for value in (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, *[0.0] * 36):  # pose, covariance
+            write.float64(value)
+        for value in (box.center_x, box.center_y, 0.0, box.size_x, box.size_y):
+            write.float64(value)
+        write.string(box.id)
     return write.getvalue()
 
 

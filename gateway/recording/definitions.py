@@ -28,6 +28,20 @@ DEFINITIONS: dict[str, str] = {
     "sensor_msgs/Image": ("std_msgs/Header header\nuint32 height\nuint32 width\n"
                           "string encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n"),
     "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data\n",
+    "geometry_msgs/Point": "float64 x\nfloat64 y\nfloat64 z\n",
+    "geometry_msgs/Quaternion": "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
+    "geometry_msgs/Pose": "Point position\nQuaternion orientation\n",
+    "geometry_msgs/PoseWithCovariance": "Pose pose\nfloat64[36] covariance\n",
+    # vision_msgs 4.1.1 (ROS 2 Jazzy); no wheel installs these, a robot's apt does.
+    "vision_msgs/Point2D": "float64 x\nfloat64 y\n",
+    "vision_msgs/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
+    "vision_msgs/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
+    "vision_msgs/ObjectHypothesis": "string class_id\nfloat64 score\n",
+    "vision_msgs/ObjectHypothesisWithPose": ("ObjectHypothesis hypothesis\n"
+                                             "geometry_msgs/PoseWithCovariance pose\n"),
+    "vision_msgs/Detection2D": ("std_msgs/Header header\nObjectHypothesisWithPose[] results\n"
+                                "BoundingBox2D bbox\nstring id\n"),
+    "vision_msgs/Detection2DArray": "std_msgs/Header header\nDetection2D[] detections\n",
 }
 SEPARATOR = "=" * 80
 PRIMITIVES = frozenset({"bool", "byte", "char", "float32", "float64", "int8", "uint8",

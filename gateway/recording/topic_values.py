@@ -28,7 +28,7 @@ from oricf.gateway.values import (
     compressed_frame,
     raw_frame,
 )
-from oricf.imaging import RAW_CHANNELS
+from oricf.imaging import RAW_CHANNELS, Detection
 
 
 def image_record(type_: str, serialized: bytes) -> Record:
@@ -80,4 +80,17 @@ def serialize_output(type_: str, value: Any, header: cdr.Stamp | None = None) ->
         return cdr.write_image(cdr.ImageFields(
             header or cdr.Stamp(0, 0, ""), frame.height, frame.width, frame.encoding, 0,
             frame.width * RAW_CHANNELS[frame.encoding], frame.data))
+    if type_ == "vision_msgs/Detection2DArray":
+        return cdr.write_detection_array(header or cdr.Stamp(0, 0, ""),
+                                         [box_fields(d) for d in value])
     raise InvalidInput(f"unsupported output type {type_}")
+
+
+def box_fields(detection: Detection) -> cdr.BoxFields:
+    """A detection as a vision_msgs/Detection2D's fields (as oricf.gateway.ros.vision)."""
+    if not isinstance(detection, Detection):
+        raise TypeError(f"{type(detection).__name__} is not a detection")
+    b = detection.box
+    return cdr.BoxFields("" if detection.track_id is None else str(detection.track_id),
+                         detection.label, float(detection.score), (b.x_min + b.x_max) / 2,
+                         (b.y_min + b.y_max) / 2, b.x_max - b.x_min, b.y_max - b.y_min)

@@ -39,6 +39,8 @@ def detection_array(detections: list[Detection], header: Any | None = None) -> A
     if header is not None:
         array.header = header
     for d in detections:
+        if not isinstance(d, Detection):
+            raise TypeError(f"{type(d).__name__} is not a detection")
         box = d.box
         item = msgs.Detection2D()
         item.header = array.header

@@ -22,11 +22,18 @@ from oricf.gateway.recording.topic_values import serialize_output
 from oricf.gateway.ros import messages as convert
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
+from tests.support.vision_msgs import PACKAGE
+
+VISION_MSGS = PACKAGE / "msg"
 
 
 def test_the_table_has_the_fields_of_the_installed_message_files() -> None:
     for type_, fields in msgdefs.DEFINITIONS.items():
         installed = msgdefs.installed_definition(type_)
+        if type_.startswith("vision_msgs/") and installed is None:  # no wheel: the copies
+            kept = VISION_MSGS / f"{type_.partition('/')[2]}.msg"   # the tests build from
+            assert msgdefs.fields_only(kept.read_text()) == fields, type_
+            continue
         assert installed is not None, f"{type_}.msg is not installed"
         assert msgdefs.fields_only(installed) == fields, type_
         assert msgdefs.definition(type_) == installed  # comments kept, as rosbag2 keeps them

@@ -1,7 +1,8 @@
 """Detections as vision_msgs/Detection2DArray: the gateway tracks people in a video and
 publishes each frame's detections with their track ids; a plain rclpy subscriber receives
-the same detections the JSON lines output writes. vision_msgs is built from its definitions
-(tests/support/vision_msgs.py); without it, a pipeline asking for it is refused at start."""
+the same detections the JSON lines output writes, and so does a recording's reader.
+vision_msgs is built from its definitions (tests/support/vision_msgs.py); without it, a
+pipeline asking for it is refused at start."""
 
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ from typing import Any
 import cv2
 import pytest
 import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
 from tests.support.data import video_frames
 from tests.support.services import running_service
@@ -83,6 +86,12 @@ def pipeline(folder: Path, detector: str, clip: Path) -> Path:
     return path
 
 
+def recorded_messages(path: Path) -> list[Any]:
+    with path.open("rb") as file:
+        reader = make_reader(file, decoder_factories=[DecoderFactory()])
+        return list(reader.iter_decoded_messages())
+
+
 def as_rows(detections: list[dict[str, Any]]) -> list[list[Any]]:
     """JSON lines detections in the subscriber's form."""
     rows = []
@@ -123,8 +132,14 @@ def test_tracked_detections_reach_a_subscriber_as_the_json_lines_carry_them(
     assert {row[1] for message in received for row in message} == {"person"}
     assert all(d["velocity"] is not None for frame in lines for d in frame)
     assert gateway.returncode == 0, stderr[-2000:]
-    # --record has no writer for the type yet: published all the same, and said
-    assert "cannot record /people/detections (vision_msgs/Detection2DArray)" in stderr
+    # --record wrote them without vision_msgs (oricf.gateway.recording.cdr), and a decoder
+    # that reads the recording's own definitions finds the same detections
+    recorded = [[[d.id, d.results[0].hypothesis.class_id, d.results[0].hypothesis.score,
+                  d.bbox.center.position.x, d.bbox.center.position.y, d.bbox.size_x,
+                  d.bbox.size_y] for d in msg.detections]
+                for _, channel, _, msg in recorded_messages(tmp_path / "run.mcap")
+                if channel.topic == TOPIC]
+    assert len(recorded) >= MESSAGES and all(m in written for m in recorded)
 
 
 def test_without_vision_msgs_the_pipeline_is_refused_saying_what_to_install(
