@@ -223,6 +223,6 @@ class TopicOutputs:
         try:
             self._recorder.output(topic, output.type, value, record)
         except (TypeError, ValueError, InvalidInput) as exc:  # a value that does not fit
-            # the topic type, or a type without a writer (vision_msgs)
+            # the topic type, or a type without a writer
             self._throttle.error(f"emit:{topic}", "cannot record %r on %s (%s): %s", value,
                                  topic, output.type, exc)

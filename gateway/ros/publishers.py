@@ -59,7 +59,7 @@ class TopicPublishers:
         if self._recorder is not None:
             try:
                 self._recorder.output(publisher.topic_name, output.type, value, record)
-            except (TypeError, ValueError, InvalidInput) as exc:  # e.g. a type without a
-                # writer (vision_msgs): published all the same, and said, not recorded
+            except (TypeError, ValueError, InvalidInput) as exc:  # a value that does not fit
+                # the type, or a type without a writer: published all the same, not recorded
                 self._throttle.error(f"record:{output.topic}", "cannot record %s (%s): %s",
                                      output.topic, output.type, exc)
