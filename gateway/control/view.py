@@ -13,7 +13,6 @@ import time
 from typing import Any
 
 import grpc
-import numpy as np
 
 from oricf.audio.wav import parse_wav
 from oricf.errors import InvalidInput, NotReady
@@ -22,6 +21,7 @@ from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.messages import nested
 from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.api import MAX_AUDIO_BYTES, MAX_IMAGE_BYTES, MAX_TEXT_CHARS, Json
+from oricf.gateway.control.tensors import tensor_inputs, tensor_json
 from oricf.gateway.methods import METHODS
 from oricf.gateway.methods.base import Skip
 from oricf.gateway.methods.generate import context_readings
@@ -32,13 +32,9 @@ from oricf.gateway.values import AudioClip, Frame, Record
 from oricf.imaging import Detection, draw_detections, encode_image, encoded_size, label_counts
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
-from oricf.models.tensors import datatype, datatype_of
 from oricf.models.wire import infer_request, response_outputs
 
 IMAGE_METHODS = ("Detect", "Infer")
-MAX_TENSORS = 8
-MAX_TENSOR_ELEMENTS = 1_000_000
-MAX_OUTPUT_ELEMENTS = 10_000
 
 
 class PipelineView:
@@ -259,48 +255,6 @@ def image_frame(data: bytes) -> Frame:
         raise InvalidInput(f"image of {len(data):,} bytes; at most {MAX_IMAGE_BYTES:,}")
     encoding, width, height = encoded_size(bytes(data))
     return Frame(bytes(data), encoding, width, height)
-
-
-def tensor_inputs(tensors: Any) -> dict[str, np.ndarray]:
-    """{"x": {"datatype": "FP32", "shape": [1, 3], "data": [...]}} -> arrays, every count
-    checked before anything is allocated."""
-    if not isinstance(tensors, dict) or not tensors or len(tensors) > MAX_TENSORS:
-        raise InvalidInput(f"tensors: an object of 1 to {MAX_TENSORS} named tensors")
-    arrays = {}
-    for name, tensor in tensors.items():
-        if not isinstance(tensor, dict) or set(tensor) != {"datatype", "shape", "data"}:
-            raise InvalidInput(f"tensor {quoted(name, 50)}: give datatype, shape and data")
-        shape, data = tensor["shape"], tensor["data"]
-        if not isinstance(shape, list) or not all(
-                isinstance(d, int) and not isinstance(d, bool) and d > 0 for d in shape) \
-                or len(shape) > 8:
-            raise InvalidInput(f"tensor {quoted(name, 50)}: shape is up to 8 positive sizes")
-        count = int(np.prod(shape, dtype=np.int64))
-        if count > MAX_TENSOR_ELEMENTS or not isinstance(data, list) or len(data) != count:
-            raise InvalidInput(f"tensor {quoted(name, 50)}: data must be a flat list of the "
-                               f"shape's {count:,} elements (at most "
-                               f"{MAX_TENSOR_ELEMENTS:,})")
-        kind = datatype(str(tensor["datatype"]))
-        if kind.name == "BYTES" or not all(
-                isinstance(v, int | float) and not isinstance(v, bool) for v in data):
-            raise InvalidInput(f"tensor {quoted(name, 50)}: numbers only")
-        try:
-            arrays[str(name)] = np.asarray(data, dtype=kind.numpy).reshape(shape)
-        except (OverflowError, ValueError) as exc:
-            raise InvalidInput(f"tensor {quoted(name, 50)}: {exc}") from None
-    return arrays
-
-
-def tensor_json(array: np.ndarray) -> Json:
-    flat = array.reshape(-1)
-    out: Json = {"datatype": datatype_of(array).name, "shape": list(array.shape)}
-    if flat.dtype.kind in "OSU":
-        out["data"] = [str(v)[:200] for v in flat[:MAX_OUTPUT_ELEMENTS]]
-    else:
-        out["data"] = [round(float(v), 6) for v in flat[:MAX_OUTPUT_ELEMENTS]]
-    if flat.size > MAX_OUTPUT_ELEMENTS:
-        out["truncated"] = f"the first {MAX_OUTPUT_ELEMENTS:,} of {flat.size:,} elements"
-    return out
 
 
 def text_arg(text: Any, name: str) -> str:
