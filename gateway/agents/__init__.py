@@ -4,7 +4,9 @@
 `messages` (the message types a target may carry, as flat numeric fields), `actuation`
 (checks, rate limits, approval, sending, the deadman), `senders` (ROS topics and text
 channels), `approval` (a human's yes or no on a text channel), `audit` (JSON lines and
-counters of every tool call), `mcp_server` (the tools and resources on the `mcp` SDK),
-`host` (a pipeline run in the same process), `main` (`oricf mcp`). docs/agents.md.
+counters of every tool call), `mcp_server` (the tools on the `mcp` SDK), `resources` (data
+products and frames as resources, with update notifications), `http` (streamable HTTP:
+tokens, TLS), `host` (a pipeline run in the same process), `main` (`oricf mcp`).
+docs/agents.md.
 Importing this package imports nothing.
 """
