@@ -61,6 +61,10 @@ class Front:
         self._ssl = config.tls.ssl_context("foxglove.tls") if config.tls else None
         self._viewers: set[ServerConnection] = set()
         self._refusals = ThrottledLog(log, REFUSAL_LOG_INTERVAL_S)  # a flood logs a line
+        # The library logs each request line and header at DEBUG, a token with them: its
+        # log for the front stops at INFO whatever the process's level.
+        self._library_log = logging.getLogger(f"{__name__}.connections")
+        self._library_log.setLevel(logging.INFO)
         self._loop = asyncio.new_event_loop()
         self._server: Server | None = None
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True,
@@ -91,7 +95,7 @@ class Front:
             process_request=self._admit, max_size=self.config.max_message_bytes,
             max_queue=4, write_limit=WRITE_LIMIT_BYTES, open_timeout=HANDSHAKE_TIMEOUT_S,
             ping_interval=PING_INTERVAL_S, ping_timeout=PING_INTERVAL_S,
-            close_timeout=CLOSE_TIMEOUT_S, server_header=None)
+            close_timeout=CLOSE_TIMEOUT_S, server_header=None, logger=self._library_log)
         self.port = self._server.sockets[0].getsockname()[1]
 
     def _admit(self, connection: ServerConnection, request: Request) -> Response | None:

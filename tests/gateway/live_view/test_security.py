@@ -3,6 +3,7 @@ before the upgrade; the official client connects with its token, others are refu
 
 from __future__ import annotations
 
+import logging
 import ssl
 from collections.abc import Iterator
 from pathlib import Path
@@ -57,10 +58,21 @@ def test_a_viewer_without_the_token_is_refused_before_the_upgrade(
     assert refused.value.response.status_code == 401
 
 
-def test_a_browser_passes_the_token_in_the_url(secured: Running, certs: Path) -> None:
-    with connect(f"{secured.url}/?token={TOKEN}", ssl=client_tls(certs),
-                 subprotocols=["foxglove.websocket.v1"]) as viewer:  # type: ignore[list-item]
-        assert '"op":"serverInfo"' in str(viewer.recv(timeout=5))
+def test_a_browser_passes_the_token_in_the_url_and_no_token_is_logged(
+        secured: Running, certs: Path, caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.DEBUG):
+        with connect(f"{secured.url}/?token={TOKEN}", ssl=client_tls(certs),
+                     subprotocols=["foxglove.websocket.v1"]) as viewer:  # type: ignore[list-item]
+            assert '"op":"serverInfo"' in str(viewer.recv(timeout=5))
+        with pytest.raises(InvalidStatus):
+            connect(f"{secured.url}/?token=guessed-{TOKEN}", ssl=client_tls(certs),
+                    subprotocols=["foxglove.sdk.v1"])  # type: ignore[list-item]
+        with connect(secured.url, ssl=client_tls(certs), subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
+                     additional_headers={"Authorization": f"Bearer {TOKEN}"}) as viewer:
+            viewer.recv(timeout=5)
+    gateway = [r.getMessage() for r in caplog.records  # this test's own client aside
+               if not r.name.startswith("websockets.client")]
+    assert gateway and not any(TOKEN in line for line in gateway)
 
 
 def test_plain_ws_to_the_tls_port_gets_nothing(secured: Running) -> None:
