@@ -95,7 +95,9 @@ class Front:
             process_request=self._admit, max_size=self.config.max_message_bytes,
             max_queue=4, write_limit=WRITE_LIMIT_BYTES, open_timeout=HANDSHAKE_TIMEOUT_S,
             ping_interval=PING_INTERVAL_S, ping_timeout=PING_INTERVAL_S,
-            close_timeout=CLOSE_TIMEOUT_S, server_header=None, logger=self._library_log)
+            close_timeout=CLOSE_TIMEOUT_S, server_header=None, logger=self._library_log,
+            # asyncio's own TLS handshake deadline (60 s) cut to the WebSocket one
+            ssl_handshake_timeout=HANDSHAKE_TIMEOUT_S if self._ssl else None)
         self.port = self._server.sockets[0].getsockname()[1]
 
     def _admit(self, connection: ServerConnection, request: Request) -> Response | None:

@@ -4,7 +4,9 @@ before the upgrade; the official client connects with its token, others are refu
 from __future__ import annotations
 
 import logging
+import socket
 import ssl
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -107,3 +109,11 @@ def detector_address() -> Iterator[str]:
         yield detector.address
 
 
+
+
+def test_a_connection_that_never_starts_tls_is_closed(secured: Running) -> None:
+    host, port = secured.url.removeprefix("wss://").rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=30) as idle:
+        started = time.monotonic()
+        assert idle.recv(1) == b""  # closed by the server
+    assert time.monotonic() - started < 25  # the handshake deadline (10 s), not asyncio's 60
