@@ -9,6 +9,7 @@ stay separate works (docs/speech-out.md). One process per sentence costs a few m
 
 from __future__ import annotations
 
+import logging
 import re
 import shutil
 import subprocess
@@ -20,6 +21,9 @@ from pydantic import Field
 from oricf.audio import parse_wav
 from oricf.config import Schema
 from oricf.errors import ConfigError
+from oricf.logs import quoted
+
+log = logging.getLogger(__name__)
 
 PROGRAM = "espeak-ng"
 TIMEOUT_S = 30.0
@@ -44,11 +48,17 @@ def version() -> str:
 
 
 def _run(args: list[str], text: str) -> bytes:
+    """The program's output; a failure is its exit status or no output at all. What it says on
+    stderr otherwise (its audio library's complaints about a home it cannot write) is logged,
+    not fatal: the output does not depend on it."""
     result = subprocess.run([program(), *args], input=text.encode(), capture_output=True,
                             timeout=TIMEOUT_S, check=False)
-    if result.returncode != 0 or result.stderr.strip():
-        problem = result.stderr.decode(errors="replace").strip()[:200]
-        raise RuntimeError(f"{PROGRAM} {' '.join(args)} failed ({result.returncode}): {problem}")
+    said = result.stderr.decode(errors="replace").strip()
+    if result.returncode != 0 or not result.stdout:
+        raise RuntimeError(f"{PROGRAM} {' '.join(args)} failed ({result.returncode}): "
+                           f"{said[:200]}")
+    if said:
+        log.debug("%s said: %s", PROGRAM, quoted(said))
     return result.stdout
 
 

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from oricf.errors import ConfigError, ModelMissing
+from oricf.services.tts.espeak import EspeakVoice
 from oricf.services.tts.service import create_model
 from oricf.store import ModelStore
 from tests.support.services import service_config
@@ -52,3 +53,14 @@ def test_a_missing_voice_model_names_the_pull_command(tmp_path: Path) -> None:
     with pytest.raises(ModelMissing) as refused:
         create_model(service_config("tts"), ModelStore(root=tmp_path))
     assert "oricf models pull piper-joe-medium" in str(refused.value)
+
+
+def test_espeak_ng_complaining_about_its_home_still_speaks(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """As in a container whose user cannot write its home: espeak-ng's audio library says so
+    on stderr, and the WAV it writes is whole all the same."""
+    monkeypatch.setenv("XDG_CONFIG_HOME", "/etc/passwd/not-a-folder")
+    monkeypatch.setenv("HOME", "/etc/passwd/not-a-folder")
+    voice = EspeakVoice("espeak", service_config("tts").voices["espeak"])
+    voice.load()
+    assert len(voice.speak("Still speaking.", 1.0)) / voice.sample_rate > 0.5
