@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from oricf.errors import ConfigError
 from oricf.gateway.config import SpeakerConfig
+from oricf.gateway.sinks.speaker_device import SampleBuffer, find_output, playback_rate
 from oricf.gateway.sources import audio_device
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip, SpokenAudio
@@ -41,110 +41,6 @@ LEAD_IN_S = 0.15
 POLL_S = 0.02         # how often the player looks for a barge-in and the buffer's end
 IDLE_S = 0.5          # a piece arriving within this after the last keeps the stream open
 STALL_S = 2.0         # samples waiting this long untaken: the device stopped playing
-PREFERRED_RATES = (48000, 44100, 22050, 16000)
-
-
-@dataclass(frozen=True)
-class OutputDevice:
-    index: int
-    name: str
-    pulse_sink: str | None
-    default_rate: int
-
-    def describe(self) -> str:
-        if self.pulse_sink:
-            return f"PulseAudio sink '{self.pulse_sink}' (through PortAudio " \
-                   f"'{audio_device.PULSE_DEVICE}')"
-        return f"'{self.name}' (PortAudio device {self.index})"
-
-
-def find_output(spec: str) -> OutputDevice:
-    """The output device `spec` names, or a ConfigError listing those there are."""
-    sd = audio_device.portaudio()
-    wanted: int | str | None = None if spec == "default" else (
-        int(spec) if spec.isdigit() else spec)
-    try:
-        info = sd.query_devices(wanted, "output")
-        return OutputDevice(int(info["index"]), str(info["name"]), None,
-                            int(info["default_samplerate"]))
-    except (ValueError, sd.PortAudioError):
-        pass
-    if wanted is not None and spec in (audio_device.pulse_sinks() or []):
-        for info in sd.query_devices():
-            if info["name"] == audio_device.PULSE_DEVICE and info["max_output_channels"] > 0:
-                return OutputDevice(int(info["index"]), str(info["name"]), spec,
-                                    int(info["default_samplerate"]))
-    outputs = [f"{d['index']} '{d['name']}'" for d in sd.query_devices()
-               if d["max_output_channels"] > 0]
-    text = f"no audio output device '{spec}'; PortAudio output devices: " \
-           f"{', '.join(outputs) or 'none'}"
-    sinks = audio_device.pulse_sinks()
-    if sinks:
-        text += f"; PulseAudio sinks: {', '.join(sinks)}"
-    raise ConfigError(text + " (give 'default', an index or a name)")
-
-
-def playback_rate(device: OutputDevice, rate: int) -> int:
-    """`rate` if the device plays it, else the first it does of its own and common rates."""
-    sd = audio_device.portaudio()
-    for candidate in dict.fromkeys((rate, device.default_rate, *PREFERRED_RATES)):
-        try:
-            sd.check_output_settings(device.index, channels=1, dtype="int16",
-                                     samplerate=candidate)
-            return candidate
-        except sd.PortAudioError:
-            continue
-    raise ConfigError(f"{device.describe()} plays no 16-bit mono audio")
-
-
-class SampleBuffer:
-    """Mono int16 pieces the stream's callback plays in order (silence when it runs dry)."""
-
-    def __init__(self) -> None:
-        self._pieces: deque[np.ndarray] = deque()
-        self._offset = 0
-        self._lock = threading.Lock()
-        self._moved_at = time.monotonic()  # when the callback last took samples
-        self.pieces = 0
-
-    def append(self, samples: np.ndarray) -> None:
-        with self._lock:
-            if not self._pieces:
-                self._moved_at = time.monotonic()
-            self._pieces.append(samples)
-            self.pieces += 1
-
-    def stalled(self, seconds: float) -> bool:
-        """Whether samples wait that the callback has not taken for `seconds`."""
-        with self._lock:
-            return bool(self._pieces) and time.monotonic() - self._moved_at > seconds
-
-    def clear(self) -> None:
-        with self._lock:
-            self._pieces.clear()
-            self._offset = 0
-
-    @property
-    def empty(self) -> bool:
-        with self._lock:
-            return not self._pieces
-
-    def fill(self, out: np.ndarray, frames: int, _time: Any, _status: Any) -> None:
-        """PortAudio's callback: the next `frames` samples into `out`."""
-        filled = 0
-        with self._lock:
-            while filled < frames and self._pieces:
-                piece = self._pieces[0]
-                count = min(frames - filled, len(piece) - self._offset)
-                out[filled:filled + count, 0] = piece[self._offset:self._offset + count]
-                filled += count
-                self._offset += count
-                if self._offset == len(piece):
-                    self._pieces.popleft()
-                    self._offset = 0
-            if filled:
-                self._moved_at = time.monotonic()
-        out[filled:] = 0
 
 
 @dataclass
@@ -229,51 +125,60 @@ class Speaker:
         """Plays `audio` and every piece that follows within IDLE_S, in one stream. The
         stream pulls from a buffer (PortAudio's callback), so a piece that comes late
         leaves silence, never a broken sample."""
-        sd = audio_device.portaudio()
         buffer = SampleBuffer()
         buffer.append(np.zeros(int(self.rate * LEAD_IN_S), np.int16))
         buffer.append(audio.mono(self.rate))
-        try:
-            with audio_device.pulse_target("PULSE_SINK", self.device.pulse_sink):
-                stream = sd.OutputStream(device=self.device.index, samplerate=self.rate,
-                                         channels=1, dtype="int16", latency=LATENCY_S,
-                                         callback=buffer.fill)
-        except sd.PortAudioError as exc:
-            raise audio_device.DeviceLost(f"cannot open {self.device.describe()}: {exc}"
-                                          ) from None
+        stream = self._open(buffer)
         self._speaking.started()
         try:
             stream.start()  # with its buffer filled: it sounds from now on
             self.stats.starts.append(time.monotonic() + LEAD_IN_S)
-            empty_since: float | None = None
-            checked = time.monotonic()
-            while True:
-                piece = self._next(POLL_S)
-                if not stream.active or buffer.stalled(STALL_S):
-                    raise audio_device.DeviceLost(f"{self.device.describe()} stopped playing")
-                if time.monotonic() - checked > audio_device.PRESENCE_CHECK_S:
-                    checked = time.monotonic()
-                    self._check_presence()
-                if self._cut or self._stopping:
-                    buffer.clear()
-                    stream.abort()  # what the device holds is discarded too
-                    self.stats.cut += 1
-                    self.stats.cuts.append(time.monotonic())
-                    return
-                if piece is not None:
-                    buffer.append(piece.mono(self.rate))
-                    empty_since = None
-                elif buffer.empty:
-                    empty_since = empty_since or time.monotonic()
-                    if time.monotonic() - empty_since > IDLE_S:
-                        break
-            self.stats.played += buffer.pieces - 1  # not the lead-in
-            time.sleep(stream.latency)  # the device plays out what it holds
-            stream.stop()
+            if self._feed(stream, buffer):
+                self.stats.played += buffer.pieces - 1  # not the lead-in
+                time.sleep(stream.latency)  # the device plays out what it holds
+                stream.stop()
+            else:
+                buffer.clear()
+                stream.abort()  # what the device holds is discarded too
+                self.stats.cut += 1
+                self.stats.cuts.append(time.monotonic())
         finally:
             stream.close(ignore_errors=True)
             audio_device.stream_closed()
             self._speaking.stopped()
+
+    def _open(self, buffer: SampleBuffer) -> Any:
+        sd = audio_device.portaudio()
+        try:
+            with audio_device.pulse_target("PULSE_SINK", self.device.pulse_sink):
+                return sd.OutputStream(device=self.device.index, samplerate=self.rate,
+                                       channels=1, dtype="int16", latency=LATENCY_S,
+                                       callback=buffer.fill)
+        except sd.PortAudioError as exc:
+            raise audio_device.DeviceLost(f"cannot open {self.device.describe()}: {exc}"
+                                          ) from None
+
+    def _feed(self, stream: Any, buffer: SampleBuffer) -> bool:
+        """Adds the pieces that come to the buffer until none came for IDLE_S after it ran
+        dry (True), or a barge-in or stop (False); raises DeviceLost."""
+        empty_since: float | None = None
+        checked = time.monotonic()
+        while True:
+            piece = self._next(POLL_S)
+            if not stream.active or buffer.stalled(STALL_S):
+                raise audio_device.DeviceLost(f"{self.device.describe()} stopped playing")
+            if time.monotonic() - checked > audio_device.PRESENCE_CHECK_S:
+                checked = time.monotonic()
+                self._check_presence()
+            if self._cut or self._stopping:
+                return False
+            if piece is not None:
+                buffer.append(piece.mono(self.rate))
+                empty_since = None
+            elif buffer.empty:
+                empty_since = empty_since or time.monotonic()
+                if time.monotonic() - empty_since > IDLE_S:
+                    return True
 
     def _check_presence(self) -> None:
         """PulseAudio moves a stream whose sink went away to another sink instead of ending

@@ -41,6 +41,9 @@ ANSWERS = [
     "The robot counted 3 people and 2 bicycles.",
     "The battery is at 80 percent.",
     "Turn left after 7 meters, then stop.",
+    "I counted 6 people near the window.",
+    "Two people are standing and 3 are walking.",
+    "Please wait 10 seconds before you cross.",
 ]
 LONG_ANSWER = ("I can see 4 people. Two of them are walking to the left, one is standing "
                "near the door, and one is carrying a bag. The video shows a street with a "
