@@ -68,8 +68,13 @@ class RosSender:
         return int(self._publishers[target].get_subscription_count())
 
     def close(self) -> None:
+        """After the last (zero) commands are acknowledged by the subscribers, or 1 s."""
         import rclpy
+        from rclpy.duration import Duration
 
+        with self._lock:
+            for publisher in self._publishers.values():
+                publisher.wait_for_all_acked(Duration(seconds=1))
         self._node.destroy_node()
         rclpy.try_shutdown(context=self._context)
 
