@@ -171,6 +171,7 @@ def test_hostile_http_requests(served: tuple[str, Path, subprocess.Popen[bytes]]
     headers = {"Authorization": f"Bearer {TOKEN}", "Accept": "application/json, "
                "text/event-stream", "Content-Type": "application/json"}
     client = httpx.Client(timeout=30)
+    sent: list[bytes] = []
     message = st.fixed_dictionaries({"jsonrpc": st.sampled_from(["2.0", "1.0", 2]),
                                      "method": st.sampled_from(
                                          ["initialize", "tools/list", "tools/call",
@@ -184,6 +185,7 @@ def test_hostile_http_requests(served: tuple[str, Path, subprocess.Popen[bytes]]
               suppress_health_check=list(HealthCheck))
     @given(body, st.booleans())
     def hostile(data: bytes, lie: bool) -> None:
+        sent.append(data)
         if lie:
             status = lying_request(port, data, headers)
             assert status is None or status < 500, status
@@ -192,6 +194,7 @@ def test_hostile_http_requests(served: tuple[str, Path, subprocess.Popen[bytes]]
         assert response.status_code < 500, (response.status_code, response.text[:300])
 
     hostile()
+    assert len(sent) >= EXAMPLES, len(sent)
     client.close()
     assert process.poll() is None
     still_serving(url)
@@ -212,11 +215,14 @@ def test_hostile_tool_arguments(served: tuple[str, Path, subprocess.Popen[bytes]
                 for tool, arguments in calls:
                     result = await session.call_tool(tool, arguments)
                     assert result.content  # a result, error or not: the server answered
+                    answered.append(tool)
 
         anyio.run(scenario)
         within_policy(driver)
 
+    answered: list[str] = []
     hostile()
+    assert len(answered) >= EXAMPLES, len(answered)
     time.sleep(1.0)  # the deadman's zero commands
     within_policy(driver)
     assert process.poll() is None
@@ -235,10 +241,13 @@ def test_hostile_control_requests(served: tuple[str, Path, subprocess.Popen[byte
            st.one_of(st.binary(max_size=200), JSON.map(lambda v: json.dumps(v).encode()),
                      ARGUMENTS.map(lambda v: json.dumps(v).encode())))
     def hostile(path: str, method: str, data: bytes) -> None:
+        asked.append(path)
         response = client.request(method, path, content=data)
         assert response.status_code < 500, (path, response.status_code, response.text[:300])
 
+    asked: list[str] = []
     hostile()
+    assert len(asked) >= EXAMPLES, len(asked)
     oversized = client.post("/v1/detect", content=b'{"image": "' + b"A" * (13 << 20) + b'"}')
     assert oversized.status_code == 400 and "over" in oversized.json()["error"]
     client.close()
