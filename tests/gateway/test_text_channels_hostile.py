@@ -11,8 +11,8 @@ import ssl
 import struct
 import threading
 import time
-from collections.abc import Iterator
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -151,37 +151,48 @@ def test_the_answer_to_a_client_that_left_goes_to_nobody_else(
         assert line_of(other) == "for everyone\n"
 
 
-def test_a_question_the_routes_queue_drops_is_told_so(channels: list[TextChannel]) -> None:
-    """The route is busy and its queue holds two questions: the oldest waiting ones are
-    dropped as more come, and their client hears of it."""
+@contextmanager
+def busy_route(queue_size: int) -> Iterator[tuple[TextChannel, RouteWorker[Question],
+                                                 threading.Event]]:
+    """A channel whose questions go to a route that answers `answered LINE` once released,
+    one at a time, from a queue of queue_size: the channel, the route's worker, the release."""
     channel = open_channel({})
-    channels.append(channel)
     release = threading.Event()
 
-    def busy_route(load: Question) -> None:
+    def answer(load: Question) -> None:
         record = load()
         release.wait(10)
         channel.send(f"answered {record['text']}", record["reply_to"])
 
-    worker: RouteWorker[Question] = RouteWorker("ask", busy_route, "queue", queue_size=2)
+    worker: RouteWorker[Question] = RouteWorker("ask", answer, "queue", queue_size=queue_size)
     worker.start()
-    source = TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
-                        FixedChannels(channel))
-    source.start()
+    TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
+               FixedChannels(channel)).start()
     try:
-        with connect(channel) as sock:
-            lines = sock.makefile("r", encoding="utf-8")
-            sock.sendall(b"q0\n")
-            deadline = time.monotonic() + 10
-            while not worker.busy and time.monotonic() < deadline:
-                time.sleep(0.01)
-            sock.sendall(b"q1\nq2\nq3\nq4\n")  # q0 runs; q1 and q2 give way to q3 and q4
-            told = [lines.readline() for _ in range(2)]
-            release.set()
-            answers = [lines.readline() for _ in range(3)]
+        yield channel, worker, release
     finally:
         release.set()
         worker.stop()
+        channel.close()
+
+
+def wait_until(condition: Callable[[], bool], timeout: float = 10) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+def test_a_question_the_routes_queue_drops_is_told_so() -> None:
+    """The route is busy and its queue holds two questions: the oldest waiting ones are
+    dropped as more come, and their client hears of it."""
+    with busy_route(queue_size=2) as (channel, worker, release), connect(channel) as sock:
+        lines = sock.makefile("r", encoding="utf-8")
+        sock.sendall(b"q0\n")
+        wait_until(lambda: worker.busy)
+        sock.sendall(b"q1\nq2\nq3\nq4\n")  # q0 runs; q1 and q2 give way to q3 and q4
+        told = [lines.readline() for _ in range(2)]
+        release.set()
+        answers = [lines.readline() for _ in range(3)]
     assert told == ["error: too many questions waiting; this one was dropped\n"] * 2
     assert answers == ["answered q0\n", "answered q3\n", "answered q4\n"]
 
@@ -190,38 +201,17 @@ def test_questions_waiting_when_the_gateway_stops_are_told_so() -> None:
     """The route is busy with one question and two wait: stopping the gateway (its workers,
     then its channels) answers the waiting two with an error line, the one in progress with
     its answer, and only then closes the connection."""
-    channel = open_channel({})
-    release = threading.Event()
-
-    def busy_route(load: Question) -> None:
-        record = load()
-        release.wait(10)
-        channel.send(f"answered {record['text']}", record["reply_to"])
-
-    worker: RouteWorker[Question] = RouteWorker("ask", busy_route, "queue", queue_size=4)
-    worker.start()
-    source = TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
-                        FixedChannels(channel))
-    source.start()
-    try:
-        with connect(channel) as sock:
-            lines = sock.makefile("r", encoding="utf-8")
-            sock.sendall(b"q0\n")
-            deadline = time.monotonic() + 10
-            while not worker.busy and time.monotonic() < deadline:
-                time.sleep(0.01)
-            sock.sendall(b"q1\nq2\n")
-            while worker.depth < 2 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            worker.stop(timeout=0.1)  # as the gateway stops: q0 is still running
-            release.set()
-            assert worker.idle(10)
-            channel.close()
-            received = lines.readlines()  # to the end: the channel closed the connection
-    finally:
+    with busy_route(queue_size=4) as (channel, worker, release), connect(channel) as sock:
+        lines = sock.makefile("r", encoding="utf-8")
+        sock.sendall(b"q0\n")
+        wait_until(lambda: worker.busy)
+        sock.sendall(b"q1\nq2\n")
+        wait_until(lambda: worker.depth == 2)
+        worker.stop(timeout=0.1)  # as the gateway stops: q0 is still running
         release.set()
-        worker.stop()
+        assert worker.idle(10)
         channel.close()
+        received = lines.readlines()  # to the end: the channel closed the connection
     assert received == ["error: the gateway is stopping; this question was not answered\n"] * 2 \
         + ["answered q0\n"]
 
