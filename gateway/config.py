@@ -106,8 +106,9 @@ class InputConfig(Schema):
             raise ValueError(f"give exactly one of {', '.join(SOURCE_KEYS)}")
         if self.url is None and (self.fps is not None or self.loop):
             raise ValueError("fps, loop: only with url")
-        if self.audio is None and (self.vad is not None or self.while_speaking is not None):
-            raise ValueError("vad, while_speaking: only with audio")
+        audio_only = [key for key in ("vad", "while_speaking") if getattr(self, key) is not None]
+        if self.audio is None and audio_only:
+            raise ValueError(f"{', '.join(audio_only)}: only with audio")
         if self.topic is None and self.type is not None:
             raise ValueError("type: only with topic (the other inputs carry their own kind)")
         if self.topic is not None and self.type is None:

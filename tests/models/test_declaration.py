@@ -103,7 +103,8 @@ def test_an_unavailable_execution_provider_is_refused_at_load(tmp_path: Path) ->
 
 def test_overrides_rename_tensors_and_must_fit_the_file(tmp_path: Path) -> None:
     path = declared(tmp_path, {"inputs": [{"name": "pixels"}], "task.image.input": "pixels",
-                               "outputs": [{"name": "rows", "shape": [-1, 3549, 85]}]})
+                               "outputs": [{"name": "rows", "shape": [-1, 3549, 85]}],
+                               "task.output": "rows"})
     model = DeclaredModel(load_declaration(path), ModelStore())
     model.load()
     assert [(s.name, s.shape) for s in model.outputs] == [("rows", (-1, 3549, 85))]
