@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
+from typing import TextIO
 
 FORMAT = "%(asctime)s %(levelname)-5s %(name)s: %(message)s"
 # HTTP clients that log every request at INFO (the openai client's httpx): a line per
@@ -11,9 +13,24 @@ FORMAT = "%(asctime)s %(levelname)-5s %(name)s: %(message)s"
 QUIET = ("httpx", "httpx2", "httpcore", "openai")
 
 
+class CurrentStderr(logging.StreamHandler):  # type: ignore[type-arg]
+    """Writes to whatever sys.stderr is when a line is logged, as logging's own last-resort
+    handler does: a thread that logs after its caller replaced sys.stderr (a test harness, a
+    daemon) must not write to a stream that has been closed since."""
+
+    def __init__(self) -> None:
+        logging.Handler.__init__(self)
+
+    @property  # type: ignore[override]
+    def stream(self) -> TextIO:
+        return sys.stderr
+
+
 def setup_logging(level: str | None = None) -> None:
     level_name = (level or os.environ.get("ORICF_LOG_LEVEL") or "INFO").upper()
-    logging.basicConfig(level=level_name, format=FORMAT, datefmt="%H:%M:%S", force=True)
+    handler = CurrentStderr()
+    handler.setFormatter(logging.Formatter(FORMAT, datefmt="%H:%M:%S"))
+    logging.basicConfig(level=level_name, handlers=[handler], force=True)
     if logging.getLogger().level > logging.DEBUG:
         for name in QUIET:
             logging.getLogger(name).setLevel(logging.WARNING)
