@@ -5,6 +5,7 @@ the same exception types (InvalidInput, NotReady, Refused)."""
 from __future__ import annotations
 
 import base64
+import ssl
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,8 @@ class ControlClient:
             self._http = httpx.Client(transport=transport, base_url="http://gateway",
                                       headers=headers, timeout=TIMEOUT_S)
         elif address.startswith(("http://", "https://")):
-            verify: Any = str(ca) if ca is not None else True
+            verify: ssl.SSLContext | bool = (
+                ssl.create_default_context(cafile=str(ca)) if ca is not None else True)
             self._http = httpx.Client(base_url=address.rstrip("/"), headers=headers,
                                       timeout=TIMEOUT_S, verify=verify)
         else:
