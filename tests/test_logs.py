@@ -32,3 +32,29 @@ def test_an_encoding_from_outside_is_quoted_in_the_error(refuse: object) -> None
     message = str(err.value)
     assert message.isprintable() and len(message) < 400
     assert r"'\x1b[31m\nfake log line" in message.lower()
+
+
+def test_log_lines_go_to_the_stderr_of_the_moment(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A thread that logs after its caller replaced sys.stderr (and closed the old one, as a
+    test harness does) writes to the new one, never to the closed one."""
+    import io
+    import logging
+    import sys
+
+    from oricf.logs import setup_logging
+
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    first = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", first)
+    setup_logging("INFO")
+    try:
+        logging.getLogger("oricf.test").info("one")
+        second = io.StringIO()
+        monkeypatch.setattr(sys, "stderr", second)
+        first.close()
+        logging.getLogger("oricf.test").info("two")
+        assert "oricf.test: two" in second.getvalue()
+    finally:
+        root.handlers[:] = handlers
+        root.setLevel(level)
