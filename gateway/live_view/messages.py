@@ -29,8 +29,6 @@ from oricf.imaging import ENCODED, Detection, encode_image
 # Box colours, one per label (chosen by the label's CRC, so a label keeps its colour).
 PALETTE = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
            (0.58, 0.4, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.74, 0.74, 0.13))
-# The JSON schema of a plotted number: what Foxglove's channel list shows for it.
-VALUE_SCHEMA = {"type": "object", "properties": {"value": {"type": "number"}}}
 MAX_LOG_CHARS = 4000
 
 
