@@ -16,13 +16,13 @@ from typing import Any
 
 from oricf.bench.common import print_table
 from oricf.bench.gateway_report import InputResult
+from oricf.bench.tracking import TRACK_MIN_SCORE
 from oricf.gateway.methods.detect import detections
 from oricf.gateway.post import PostStep, chain
 from oricf.gateway.values import Record
 from oricf.imaging import Detection
 from oricf.v1 import detector_pb2
 
-TRACK_MIN_SCORE = 0.1
 TRACKING: list[dict[str, Any]] = [{"track": {"labels": ["person"]}},
                                   {"count_tracks": {"label": "person", "into": "count"}}]
 COUNTING: list[dict[str, Any]] = [{"count": {"label": "person", "into": "count"}}]
