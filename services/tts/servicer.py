@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import grpc
 import numpy as np
 
-from oricf.audio import encode_wav
+from oricf.audio import ENCODINGS, encode_wav
 from oricf.errors import Cancelled, InvalidInput
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import check_deadline
@@ -18,8 +18,6 @@ from oricf.services.tts.model import SpokenSentence, SynthesisModel
 from oricf.v1 import common_pb2, speech_pb2, synthesis_pb2, synthesis_pb2_grpc
 
 log = logging.getLogger(__name__)
-
-ENCODINGS = ("pcm_s16le", "wav")
 
 
 def check_encoding(encoding: str) -> str:
