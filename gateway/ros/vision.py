@@ -15,6 +15,7 @@ import importlib
 from typing import Any
 
 from oricf.errors import ConfigError
+from oricf.gateway.recording.topic_values import box_fields
 from oricf.imaging import Detection
 
 DETECTION_ARRAY = "vision_msgs/Detection2DArray"
@@ -38,20 +39,17 @@ def detection_array(detections: list[Detection], header: Any | None = None) -> A
     array = msgs.Detection2DArray()
     if header is not None:
         array.header = header
-    for d in detections:
-        if not isinstance(d, Detection):
-            raise TypeError(f"{type(d).__name__} is not a detection")
-        box = d.box
+    for fields in map(box_fields, detections):  # the fields a recording writes, too
         item = msgs.Detection2D()
         item.header = array.header
-        item.id = "" if d.track_id is None else str(d.track_id)
-        item.bbox.center.position.x = (box.x_min + box.x_max) / 2
-        item.bbox.center.position.y = (box.y_min + box.y_max) / 2
-        item.bbox.size_x = box.x_max - box.x_min
-        item.bbox.size_y = box.y_max - box.y_min
+        item.id = fields.id
+        item.bbox.center.position.x = fields.center_x
+        item.bbox.center.position.y = fields.center_y
+        item.bbox.size_x = fields.size_x
+        item.bbox.size_y = fields.size_y
         hypothesis = msgs.ObjectHypothesisWithPose()
-        hypothesis.hypothesis.class_id = d.label
-        hypothesis.hypothesis.score = float(d.score)
+        hypothesis.hypothesis.class_id = fields.class_id
+        hypothesis.hypothesis.score = fields.score
         item.results = [hypothesis]
         array.detections.append(item)
     return array
