@@ -186,17 +186,10 @@ def infer_request(model: str, inputs: dict[str, np.ndarray],
     outputs: names, or names -> their parameters; placed: the inputs (by name) whose bytes
     are in shared memory (and, for outputs, where each goes); input_parameters: by name."""
     request = oip.ModelInferRequest(model_name=model, id=request_id)
-    placed = placed or {}
-    for name, array in inputs.items():
-        ref = placed.get(name)
-        if ref is None:
-            _add_raw(request.inputs, request.raw_input_contents, {name: array})
-        else:
-            tensor = request.inputs.add(name=name, datatype=datatype_of(array).name,
-                                        shape=array.shape)
-            _set_ref(tensor.parameters, ref)
-        for key, value in (input_parameters or {}).get(name, {}).items():
-            set_parameter(request.inputs[-1].parameters[key], value)
+    _add_tensors(request.inputs, request.raw_input_contents, inputs, placed)
+    for tensor in request.inputs:
+        for key, value in (input_parameters or {}).get(tensor.name, {}).items():
+            set_parameter(tensor.parameters[key], value)
     wanted = outputs if isinstance(outputs, Mapping) else {name: {} for name in outputs}
     for name, settings in wanted.items():
         output = request.outputs.add(name=name)
@@ -219,24 +212,24 @@ def infer_response(model: str, outputs: dict[str, np.ndarray], request_id: str =
     """The response: raw contents for every output but those placed in shared memory, which
     carry its parameters instead (as Triton answers)."""
     response = oip.ModelInferResponse(model_name=model, id=request_id)
-    placed = placed or {}
-    for name, array in outputs.items():
-        ref = placed.get(name)
-        if ref is None:
-            _add_raw(response.outputs, response.raw_output_contents, {name: array})
-            continue
-        tensor = response.outputs.add(name=name, datatype=datatype_of(array).name,
-                                      shape=array.shape)
-        _set_ref(tensor.parameters, ref)
+    _add_tensors(response.outputs, response.raw_output_contents, outputs, placed)
     return response
 
 
-def _add_raw(tensors: Any, contents: Any, arrays: dict[str, np.ndarray]) -> None:
-    """Each array as a tensor entry (name, datatype, shape) plus its raw contents."""
+def _add_tensors(tensors: Any, contents: Any, arrays: dict[str, np.ndarray],
+                 placed: Mapping[str, SharedMemoryRef] | None) -> None:
+    """Each array as a tensor entry (name, datatype, shape) plus its raw contents, or, if
+    placed in shared memory, with the region's parameters instead."""
     for name, array in arrays.items():
-        kind, raw = to_raw(array)
-        tensors.add(name=name, datatype=kind.name, shape=array.shape)
-        contents.append(raw)
+        ref = (placed or {}).get(name)
+        if ref is None:
+            kind, raw = to_raw(array)
+            tensors.add(name=name, datatype=kind.name, shape=array.shape)
+            contents.append(raw)
+        else:
+            tensor = tensors.add(name=name, datatype=datatype_of(array).name,
+                                 shape=array.shape)
+            _set_ref(tensor.parameters, ref)
 
 
 def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:
