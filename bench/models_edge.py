@@ -10,6 +10,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from oricf.gateway.methods.infer_shared import placed_outputs
 from oricf.imaging import encode_image
 from oricf.models.declaration import ModelDeclaration
 from oricf.models.heads import DetectionHead
@@ -62,10 +63,7 @@ def edge_ways(declaration: ModelDeclaration, head: DetectionHead,
                 {output: {"shared_memory_region": "bench-out",
                           "shared_memory_byte_size": out_size}},
                 placed={head.input_name: SharedMemoryRef("bench-in", 0, tensor.nbytes)})
-            placed = models.ModelInfer(request, timeout=10).outputs[0]
-            count = int(np.prod(placed.shape))
-            values = np.frombuffer(tensor_out.view(0, count * 4), np.float32)
-            outputs = {output: values.reshape(tuple(placed.shape)).copy()}
+            outputs = placed_outputs(models.ModelInfer(request, timeout=10), tensor_out)
             return head.decode(outputs, prepared, score)
 
         def over_uint8(frame: np.ndarray) -> object:
