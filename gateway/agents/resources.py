@@ -20,13 +20,12 @@ from mcp.server.mcpserver import MCPServer
 from mcp.server.mcpserver.resources import FunctionResource
 from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated
 
-from oricf.gateway.control.api import Gateway
+from oricf.gateway.control.api import IMAGE_METHODS, Gateway
 
 log = logging.getLogger(__name__)
 
 POLL_S = 0.5
 MIN_NOTIFY_INTERVAL_S = 1.0
-IMAGE_METHODS = ("Detect", "Infer")
 
 
 class ResourceFeed:

@@ -20,7 +20,13 @@ from oricf.gateway.agents.actuation import Actuation
 from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.messages import nested
 from oricf.gateway.agents.policy import Refused
-from oricf.gateway.control.api import MAX_AUDIO_BYTES, MAX_IMAGE_BYTES, MAX_TEXT_CHARS, Json
+from oricf.gateway.control.api import (
+    IMAGE_METHODS,
+    MAX_AUDIO_BYTES,
+    MAX_IMAGE_BYTES,
+    MAX_TEXT_CHARS,
+    Json,
+)
 from oricf.gateway.control.tensors import tensor_inputs, tensor_json
 from oricf.gateway.methods import METHODS
 from oricf.gateway.methods.base import Skip
@@ -33,8 +39,6 @@ from oricf.imaging import Detection, draw_detections, encode_image, encoded_size
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
 from oricf.models.wire import infer_request, response_outputs
-
-IMAGE_METHODS = ("Detect", "Infer")
 
 
 class PipelineView:
@@ -130,9 +134,7 @@ class PipelineView:
         try:
             outputs = response_outputs(chosen.endpoint.call("ModelInfer", request))
         except grpc.RpcError as exc:
-            if exc.code() == grpc.StatusCode.INVALID_ARGUMENT:
-                raise InvalidInput(quoted(exc.details() or "", 300)) from None
-            raise NotReady(f"{chosen.endpoint.name} failed: {exc.code().name}") from None
+            raise call_error(exc, chosen) from None
         return {"route": chosen.name, "model": call.server_model,
                 "outputs": {name: tensor_json(array) for name, array in outputs.items()}}
 
@@ -209,11 +211,17 @@ class PipelineView:
             raise InvalidInput(f"route {route.name} needs the field {exc} in its prompt, "
                                f"which a caller cannot give") from None
         except grpc.RpcError as exc:
-            if exc.code() == grpc.StatusCode.INVALID_ARGUMENT:
-                raise InvalidInput(quoted(exc.details() or "", 300)) from None
-            raise NotReady(f"{route.endpoint.name} failed: {exc.code().name}") from None
+            raise call_error(exc, route) from None
         fields = {f: getattr(result, f) for f in result.__dataclass_fields__}
         return {"route": route.name, **findings(fields)}
+
+
+def call_error(exc: grpc.RpcError, route: Route) -> InvalidInput | NotReady:
+    """A failed model call as the caller is told it: bad input with the server's reason,
+    anything else as the endpoint's failure."""
+    if exc.code() == grpc.StatusCode.INVALID_ARGUMENT:
+        return InvalidInput(quoted(exc.details() or "", 300))
+    return NotReady(f"{route.endpoint.name} failed: {exc.code().name}")
 
 
 def mean_ms(latency: LatencyHistogram) -> float | None:
