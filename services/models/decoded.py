@@ -41,7 +41,9 @@ def decode_ask(model: DeclaredModel,
                ) -> DecodeAsk | None:
     """What the request asks to decode, None if nothing; refused for a model that is not a
     declared detection model."""
-    asking = [o for o in wanted if parameter_value(o.parameters[DECODED]) is True]
+    # Looked up with `in` first: indexing a protobuf map adds the key to the request.
+    asking = [o for o in wanted
+              if DECODED in o.parameters and parameter_value(o.parameters[DECODED]) is True]
     if not asking:
         return None
     head = model.head
