@@ -10,13 +10,13 @@ import grpc
 
 from oricf.audio import decode_audio, to_model_input
 from oricf.audio.endpointing import Utterance
-from oricf.errors import Cancelled, InvalidInput
+from oricf.errors import InvalidInput
 from oricf.services.asr.config import AsrConfig
 from oricf.services.asr.model import SpeechModel
 from oricf.services.asr.recognizer import Recognition
 from oricf.services.asr.stream import StreamDecoder
 from oricf.services.runtime import ModelSlot
-from oricf.services.runtime.errors import check_deadline
+from oricf.services.runtime.errors import check_deadline, check_wanted
 from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, speech_pb2, speech_pb2_grpc
 
@@ -54,9 +54,7 @@ class SpeechRecognizerServicer(speech_pb2_grpc.SpeechRecognizerServicer):
         count = 0
 
         def still_wanted() -> None:
-            check_deadline(context, "during voice activity detection")
-            if not context.is_active():
-                raise Cancelled("the caller went away")
+            check_wanted(context, "during voice activity detection")
 
         for request in request_iterator:
             received = time.perf_counter()

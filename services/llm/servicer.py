@@ -7,13 +7,12 @@ from collections.abc import Iterator
 
 import grpc
 
-from oricf.errors import Cancelled
 from oricf.services.llm.config import LlmConfig
 from oricf.services.llm.domain import Chunk, Finished, GenerationRequest, StillWanted
 from oricf.services.llm.model import LlamaModel
 from oricf.services.llm.request import to_generation_request
 from oricf.services.runtime import ModelSlot
-from oricf.services.runtime.errors import check_deadline
+from oricf.services.runtime.errors import check_wanted
 from oricf.services.runtime.info import model_info_response
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
@@ -23,12 +22,8 @@ log = logging.getLogger(__name__)
 def still_wanted(context: grpc.ServicerContext) -> StillWanted:
     """The model's between-tokens check: stop as soon as the caller cannot use the answer."""
 
-    def check() -> None:
-        check_deadline(context, "while generating; generation stopped")
-        if not context.is_active():
-            raise Cancelled("the caller went away; generation stopped")
-
-    return check
+    return lambda: check_wanted(context, "while generating; generation stopped",
+                                "the caller went away; generation stopped")
 
 
 class LanguageModelServicer(language_pb2_grpc.LanguageModelServicer):

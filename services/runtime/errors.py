@@ -62,6 +62,15 @@ def check_deadline(context: grpc.ServicerContext,
         raise DeadlineExceeded(f"the deadline passed {when}")
 
 
+def check_wanted(context: grpc.ServicerContext, when: str,
+                 gone: str = "the caller went away") -> None:
+    """Between pieces of work (tokens, sentences, audio chunks): stops when the deadline
+    has passed or the caller has gone, so nobody's work goes on for no one."""
+    check_deadline(context, when)
+    if not context.is_active():
+        raise Cancelled(gone)
+
+
 def _already_aborted(context: grpc.ServicerContext) -> bool:
     code = getattr(context, "code", None)
     return callable(code) and code() not in (None, grpc.StatusCode.OK)

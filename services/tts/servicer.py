@@ -10,9 +10,9 @@ import grpc
 import numpy as np
 
 from oricf.audio import ENCODINGS, encode_wav
-from oricf.errors import Cancelled, InvalidInput
+from oricf.errors import InvalidInput
 from oricf.services.runtime import ModelSlot
-from oricf.services.runtime.errors import check_deadline
+from oricf.services.runtime.errors import check_wanted
 from oricf.services.runtime.info import model_info_response
 from oricf.services.tts.model import SpokenSentence, SynthesisModel
 from oricf.v1 import common_pb2, speech_pb2, synthesis_pb2, synthesis_pb2_grpc
@@ -32,13 +32,6 @@ def audio_message(samples: np.ndarray, rate: int, encoding: str) -> speech_pb2.A
     return speech_pb2.Audio(data=data, encoding=encoding, sample_rate=rate, channels=1)
 
 
-def still_wanted(context: grpc.ServicerContext, when: str) -> None:
-    """Between sentences: stop when the deadline has passed or the caller went away."""
-    check_deadline(context, when)
-    if not context.is_active():
-        raise Cancelled("the caller went away")
-
-
 class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
     def __init__(self, slot: ModelSlot[SynthesisModel]) -> None:
         self.slot = slot
@@ -53,7 +46,7 @@ class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
         for sentence in model.speak(job):
             parts.append(sentence)
             if not sentence.last:
-                still_wanted(context, f"after sentence {sentence.index + 1} of "
+                check_wanted(context, f"after sentence {sentence.index + 1} of "
                                       f"{len(job.sentences)}")
         samples = np.concatenate([p.samples for p in parts])
         rate = job.voice.sample_rate
@@ -83,7 +76,7 @@ class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
                 timings=common_pb2.Timings(inference_ms=sentence.inference_ms,
                                            total_ms=(time.perf_counter() - started) * 1e3))
             if not sentence.last:
-                still_wanted(context, "before the next sentence")
+                check_wanted(context, "before the next sentence")
 
     def GetModelInfo(self, request: common_pb2.GetModelInfoRequest,
                      context: grpc.ServicerContext) -> common_pb2.GetModelInfoResponse:
