@@ -169,7 +169,8 @@ class ControlServer:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((host.strip("[]"), port))
         scheme = "https" if self.config.tls else "http"
-        self.address = f"{scheme}://{host}:{sock.getsockname()[1]}"
+        shown = f"[{host}]" if ":" in host else host  # an IPv6 address in a URL
+        self.address = f"{scheme}://{shown}:{sock.getsockname()[1]}"
         return sock
 
     def start(self) -> None:
