@@ -5,7 +5,6 @@ SDK's DNS-rebinding protection on loopback."""
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import logging
 from dataclasses import dataclass
 from typing import Any
@@ -14,6 +13,7 @@ from mcp.server.mcpserver import MCPServer
 
 from oricf.errors import ConfigError
 from oricf.gateway.control.server import BearerTokens
+from oricf.hosts import is_loopback
 from oricf.metrics import split_listen
 from oricf.tls import ServerTls, TokenSource
 
@@ -41,21 +41,12 @@ class HttpSettings:
         if (args.tls_cert is None) != (args.tls_key is None):
             raise ConfigError("--tls-cert and --tls-key go together")
         tls = ServerTls(cert=args.tls_cert, key=args.tls_key) if args.tls_cert else None
-        if not loopback(host) and not (tokens and tls):
+        if not is_loopback(host) and not (tokens and tls):
             raise ConfigError(f"--listen {args.listen}: beyond this machine, MCP needs "
                               f"--auth-token-file and --tls-cert/--tls-key")
         if not 1024 <= args.max_request_bytes <= 256 * 1024 * 1024:
             raise ConfigError("--max-request-bytes: from 1024 to 268435456")
         return cls(host, port, tokens, tls, args.max_request_bytes)
-
-
-def loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def http_app(app: MCPServer, settings: HttpSettings) -> Any:

@@ -16,7 +16,6 @@ an unregistered region, and the ring is registered again on the next call.
 from __future__ import annotations
 
 import contextlib
-import ipaddress
 import itertools
 import logging
 import os
@@ -27,6 +26,7 @@ from typing import Any, TypeVar
 
 import grpc
 
+from oricf.hosts import is_loopback_address
 from oricf.models.shared_memory import OwnedRegion, SharedMemoryRef, sweep_orphans
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
@@ -44,17 +44,6 @@ PASSING = frozenset({grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEE
                      grpc.StatusCode.RESOURCE_EXHAUSTED})
 _names = itertools.count()
 _swept = threading.Event()
-
-
-def on_this_host(address: str) -> bool:
-    """A loopback address (127.0.0.0/8, ::1, localhost)."""
-    host = address.rpartition(":")[0].strip("[]")
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 @dataclass
@@ -155,7 +144,7 @@ class SharedMemoryTransport:
         if ring is not None:  # frames grew: a bigger ring
             self._unregister(target, ring)
             self.forget(target)
-        if self.mode == "auto" and not on_this_host(target.address):
+        if self.mode == "auto" and not is_loopback_address(target.address):
             self._refuse(target, "it is not on this host (a loopback address)")
             return None
         try:

@@ -10,24 +10,12 @@
 
 from __future__ import annotations
 
-import ipaddress
-
 from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema
+from oricf.hosts import is_loopback
 from oricf.metrics import split_listen
 from oricf.tls import ServerTls, TokenSource
-
-LOOPBACK_NAMES = frozenset({"localhost", "ip6-localhost"})
-
-
-def is_loopback(host: str) -> bool:
-    if host in LOOPBACK_NAMES:
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:  # a host name: it may resolve anywhere
-        return False
 
 
 class LiveViewConfig(Schema):

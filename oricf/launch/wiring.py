@@ -19,12 +19,12 @@ their pipeline TLS.
 
 from __future__ import annotations
 
-import ipaddress
 import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from oricf.errors import ConfigError
+from oricf.hosts import host_of, is_loopback_address
 from oricf.launch.deployment import Deployment
 
 if TYPE_CHECKING:
@@ -42,20 +42,6 @@ class Wiring:
 
     endpoints: dict[str, dict[str, Any]]  # the overlay's endpoints: name -> {slot: address}
     remote: dict[str, EndpointConfig]  # endpoints to find SERVING before the gateway starts
-
-
-def host_of(address: str) -> str:
-    return address.rpartition(":")[0].strip("[]")
-
-
-def is_loopback(address: str) -> bool:
-    host = host_of(address)
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def gateway_pipeline(deployment: Deployment) -> tuple[PipelineConfig, str]:
@@ -107,7 +93,7 @@ def _slot(deployment: Deployment, sources: str, name: str, endpoint: EndpointCon
     if exact:
         return exact[0]
     here = [slot for slot, value in given.items()
-            if is_loopback(value) or host_of(value) == host_of(address)]
+            if is_loopback_address(value) or host_of(value) == host_of(address)]
     said = ", ".join(f"{slot} {value}" for slot, value in given.items())
     where = f"{deployment.source}: services.{name}: the gateway's endpoint '{name}' ({said}; " \
             f"{sources})"
@@ -129,6 +115,6 @@ def edge_host_endpoints(deployment: Deployment, host: str) -> dict[str, dict[str
     for name, endpoint in pipeline.endpoints.items():
         for slot, target in endpoint.targets.items():
             value = target.address
-            if target.protocol == "grpc" and not is_loopback(value):
+            if target.protocol == "grpc" and not is_loopback_address(value):
                 moved.setdefault(name, {})[slot] = f"{host}:{value.rpartition(':')[2]}"
     return moved

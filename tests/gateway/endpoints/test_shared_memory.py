@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from oricf.gateway.endpoints.shared_memory import on_this_host
 from oricf.models.shared_memory import OWN_PREFIX
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
@@ -74,10 +73,3 @@ def test_a_service_without_shared_memory_gets_the_wire_and_one_log_line(
                 "detector": {"image": {"transport": "auto"}}}}), FRAMES)
     assert counts(auto) == counts(wire)
     assert caplog.text.count("not possible (UNIMPLEMENTED") == 1
-
-
-def test_auto_means_loopback_addresses() -> None:
-    assert on_this_host("127.0.0.1:50051") and on_this_host("[::1]:50051")
-    assert on_this_host("localhost:50051") and on_this_host("127.0.0.2:1")
-    assert not on_this_host("10.0.0.5:50051") and not on_this_host("edge.local:50051")
-    assert not on_this_host("dns:///detector:50051")
