@@ -28,6 +28,7 @@ from typing import Any
 
 import grpc
 
+from oricf.bench.common import p90
 from oricf.bench.local import local_service, service_config
 from oricf.bench.protocols import parse_protocols
 from oricf.config import shipped_service_config
@@ -185,7 +186,7 @@ def run_setup(setup: Setup, args: argparse.Namespace) -> dict[str, Any]:
         "unknown_right": sum(a.right for a in unknown),
         "first": statistics.median(a.first_s for a in answers),
         "total": statistics.median(a.total_s for a in answers),
-        "p90": sorted(a.total_s for a in answers)[int(0.9 * (len(answers) - 1))],
+        "p90": p90([a.total_s for a in answers]),
         "cold_first": statistics.median(a.first_s for a in cold),
     }
 

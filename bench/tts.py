@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import grpc
 
 from oricf.bench.asr import word_errors
-from oricf.bench.common import median_ms, print_table, served
+from oricf.bench.common import median_ms, p90, print_table, served
 from oricf.services.tts.text import normalise
 from oricf.v1 import speech_pb2, speech_pb2_grpc, synthesis_pb2, synthesis_pb2_grpc
 
@@ -117,18 +117,13 @@ def run(tts: synthesis_pb2_grpc.SpeechSynthesizerStub,
     return list(results.values())
 
 
-def p90_ms(seconds: list[float]) -> float:
-    ordered = sorted(seconds)
-    return ordered[min(len(ordered) - 1, round(0.9 * (len(ordered) - 1)))] * 1e3
-
-
 def report(results: list[Results], with_wer: bool) -> None:
     base = {r.kind: r for r in results if r.voice == results[0].voice}
     rows = []
     for r in results:
         ratio = median_ms(r.first_audio_s) / median_ms(base[r.kind].first_audio_s)
         rows.append([r.voice, r.kind, str(len(r.first_audio_s)),
-                     f"{median_ms(r.first_audio_s):.0f}", f"{p90_ms(r.first_audio_s):.0f}",
+                     f"{median_ms(r.first_audio_s):.0f}", f"{p90(r.first_audio_s) * 1e3:.0f}",
                      f"{ratio:.2f}x", f"{r.rtf:.3f}", f"{r.audio_s / len(r.first_audio_s):.1f}",
                      f"{r.wer:.1%}" if with_wer else "-"])
     print_table("SynthesizeStream, voices interleaved answer by answer",
