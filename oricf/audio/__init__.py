@@ -46,6 +46,7 @@ from oricf.audio.wav import (
     decode_audio,
     encode_wav,
     parse_wav,
+    wav_header,
 )
 
 __all__ = [
@@ -53,5 +54,5 @@ __all__ = [
     "MODEL_RATE", "ROLLOFF", "STREAMED_DATA_SIZE", "WAVE_FORMAT_EXTENSIBLE", "WAVE_FORMAT_PCM",
     "ZERO_CROSSINGS", "EndpointingSettings", "PcmAudio", "Resampler", "VadSettings",
     "check_format", "decode_audio", "encode_wav", "mix_down", "parse_wav", "pcm_from_bytes",
-    "resample", "synthesize", "to_float32", "to_int16", "to_model_input",
+    "resample", "synthesize", "to_float32", "to_int16", "to_model_input", "wav_header",
 ]

@@ -86,13 +86,18 @@ def decode_audio(data: bytes, encoding: str, sample_rate: int = 0, channels: int
     return audio
 
 
+def wav_header(sample_rate: int, channels: int, data_bytes: int) -> bytes:
+    """The 44-byte header of a 16-bit PCM WAV file whose data chunk holds `data_bytes`
+    (STREAMED_DATA_SIZE for a stream whose length is not known yet)."""
+    fmt = struct.pack("<HHIIHH", WAVE_FORMAT_PCM, channels, sample_rate,
+                      sample_rate * 2 * channels, 2 * channels, 16)
+    return (b"RIFF" + struct.pack("<I", 4 + 8 + len(fmt) + 8 + data_bytes) + b"WAVE"
+            + b"fmt " + struct.pack("<I", len(fmt)) + fmt
+            + b"data" + struct.pack("<I", data_bytes))
+
+
 def encode_wav(samples: np.ndarray, sample_rate: int) -> bytes:
     """A 16-bit PCM WAV file from int16 samples shaped (frames,) or (frames, channels)."""
     frames = (samples[:, None] if samples.ndim == 1 else samples).astype("<i2")
-    channels = frames.shape[1]
     body = frames.tobytes()
-    fmt = struct.pack("<HHIIHH", WAVE_FORMAT_PCM, channels, sample_rate,
-                      sample_rate * 2 * channels, 2 * channels, 16)
-    return (b"RIFF" + struct.pack("<I", 4 + 8 + len(fmt) + 8 + len(body)) + b"WAVE"
-            + b"fmt " + struct.pack("<I", len(fmt)) + fmt
-            + b"data" + struct.pack("<I", len(body)) + body)
+    return wav_header(sample_rate, frames.shape[1], len(body)) + body

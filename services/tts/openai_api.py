@@ -11,7 +11,6 @@ writes), since its length is not known when the first sentence goes out.
 from __future__ import annotations
 
 import math
-import struct
 from collections.abc import AsyncGenerator, AsyncIterator
 from typing import Any
 
@@ -19,7 +18,7 @@ from starlette.requests import Request
 from starlette.responses import Response, StreamingResponse
 from starlette.routing import Route
 
-from oricf.audio import STREAMED_DATA_SIZE, WAVE_FORMAT_PCM
+from oricf.audio import STREAMED_DATA_SIZE, wav_header
 from oricf.errors import InvalidInput
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.http.app import check_model, models_route
@@ -32,14 +31,6 @@ FORMATS = {"wav": "audio/wav", "pcm": "audio/pcm"}
 PARAMS = {"text": "input", "voice": "voice", "speed": "speed"}  # the model's names -> the API's
 KNOWN_FIELDS = {"model", "input", "voice", "response_format", "speed", "instructions",
                 "stream_format"}
-
-
-def streamed_wav_header(sample_rate: int) -> bytes:
-    """A mono 16-bit WAV header whose sizes are the placeholder for a stream."""
-    fmt = struct.pack("<HHIIHH", WAVE_FORMAT_PCM, 1, sample_rate, sample_rate * 2, 2, 16)
-    return (b"RIFF" + struct.pack("<I", STREAMED_DATA_SIZE + 36) + b"WAVE"
-            + b"fmt " + struct.pack("<I", len(fmt)) + fmt
-            + b"data" + struct.pack("<I", STREAMED_DATA_SIZE))
 
 
 def _text(body: dict[str, Any], name: str, default: str = "") -> str:
@@ -115,7 +106,7 @@ class Speech:
             await sentences.aclose()
             raise
         rate = job.voice.sample_rate
-        head = streamed_wav_header(rate) if response_format == "wav" else b""
+        head = wav_header(rate, 1, STREAMED_DATA_SIZE) if response_format == "wav" else b""
         return StreamingResponse(_audio(head, first, sentences),
                                  media_type=FORMATS[response_format],
                                  headers={"x-sample-rate": str(rate)})
