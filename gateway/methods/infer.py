@@ -8,6 +8,7 @@ classification model gives Classes.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Literal
@@ -22,7 +23,7 @@ from oricf.gateway.endpoints import Endpoint, Metadata
 from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
 from oricf.gateway.methods.base import CallBase, Invoke, Method, input_frame
 from oricf.gateway.methods.detect import Detections
-from oricf.gateway.methods.infer_shared import output_bytes, placed_outputs
+from oricf.gateway.methods.infer_shared import NotNow, output_bytes, placed_outputs
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import Box, Detection, encoded_size
@@ -190,10 +191,11 @@ def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
         def on_target(target: Any, timeout: float) -> Detections | Classes:
             assert shared is not None
             if target.address not in output_sizes:
-                output_sizes[target.address] = (
-                    output_bytes(target, call.server_model, output)
-                    if output and not call.decoded else None)
-            room = output_sizes[target.address]
+                with contextlib.suppress(NotNow):  # unknown yet: the wire this time
+                    output_sizes[target.address] = (
+                        output_bytes(target, call.server_model, output)
+                        if output and not call.decoded else None)
+            room = output_sizes.get(target.address)
             data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
             return shared.call(target, "ModelInfer", timeout, [data, *([room] if room else [])],
                                build, lambda response, region: finish(

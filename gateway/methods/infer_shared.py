@@ -9,6 +9,7 @@ from typing import Any
 import grpc
 import numpy as np
 
+from oricf.gateway.endpoints.shared_memory import PASSING
 from oricf.models.shared_memory import OwnedRegion
 from oricf.models.tensors import DATATYPES
 from oricf.models.wire import shared_outputs
@@ -17,13 +18,20 @@ from oricf.oip import open_inference_grpc_pb2 as oip
 METADATA_TIMEOUT_S = 2.0
 
 
+class NotNow(Exception):
+    """The server could not answer ModelMetadata this time (starting, busy, gone): ask again
+    on a later call rather than take the output off shared memory for good."""
+
+
 def output_bytes(target: Any, model: str, output: str) -> int | None:
     """The bytes of one batch of the named output, None if the server cannot say (no
     metadata, a free dimension other than the batch, a BYTES output)."""
     try:
         meta = target.stub.ModelMetadata(oip.ModelMetadataRequest(name=model),
                                          timeout=METADATA_TIMEOUT_S, metadata=target.metadata)
-    except grpc.RpcError:
+    except grpc.RpcError as error:
+        if error.code() in PASSING:
+            raise NotNow from error
         return None
     for tensor in meta.outputs:
         if tensor.name != output or tensor.datatype not in DATATYPES \
