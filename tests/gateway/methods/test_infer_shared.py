@@ -37,6 +37,5 @@ def test_what_the_server_cannot_say_is_none(models: RunningService) -> None:
 
 
 def test_a_server_that_cannot_answer_now_is_asked_again_later() -> None:
-    with grpc.insecure_channel(f"127.0.0.1:{free_port()}") as nobody:
-        with pytest.raises(NotNow):
-            output_bytes(target(nobody), "yolox-nano", "output")
+    with grpc.insecure_channel(f"127.0.0.1:{free_port()}") as nobody, pytest.raises(NotNow):
+        output_bytes(target(nobody), "yolox-nano", "output")
