@@ -2,15 +2,17 @@
 (`oricf://products/NAME`, JSON) and the latest annotated frame of each camera route
 (`oricf://frames/ROUTE`, JPEG).
 
-A poller reads the gateway twice a second and announces a resource whose value changed, at
+While a client listens, a poller reads the gateway twice a second (two control calls: the
+products with their values, the routes) and announces a resource whose value changed, at
 most once a second each: to clients listening on `subscriptions/listen` (the SDK's bus) and
-to clients of older protocol versions that sent `resources/subscribe`.
+to clients of older protocol versions that sent `resources/subscribe`. With nobody
+listening it reads nothing, so an idle agent costs an attached gateway nothing.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from typing import Any
 
@@ -18,7 +20,7 @@ import anyio
 import mcp_types as types
 from mcp.server.mcpserver import MCPServer
 from mcp.server.mcpserver.resources import FunctionResource
-from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated
+from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated, ServerEvent
 
 from oricf.gateway.control.api import IMAGE_METHODS, Gateway
 
@@ -28,10 +30,32 @@ POLL_S = 0.5
 MIN_NOTIFY_INTERVAL_S = 1.0
 
 
+class ListenedBus(InMemorySubscriptionBus):
+    """The SDK's in-process bus, knowing whether anyone listens."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.listeners = 0
+
+    def subscribe(self, listener: Callable[[ServerEvent], None]) -> Callable[[], None]:
+        unsubscribe = super().subscribe(listener)
+        self.listeners += 1
+        done = False
+
+        def once() -> None:
+            nonlocal done
+            if not done:
+                done = True
+                self.listeners -= 1
+            unsubscribe()
+
+        return once
+
+
 class ResourceFeed:
     def __init__(self, gateway: Gateway) -> None:
         self.gateway = gateway
-        self.bus = InMemorySubscriptionBus()
+        self.bus = ListenedBus()
         self._legacy: dict[str, set[Any]] = {}  # uri -> sessions that subscribed
         self._seen: dict[str, Any] = {}
         self._notified: dict[str, float] = {}
@@ -80,9 +104,15 @@ class ResourceFeed:
             finally:
                 tasks.cancel_scope.cancel()
 
+    def _listened(self) -> bool:
+        return self.bus.listeners > 0 or any(self._legacy.values())
+
     async def _poll(self) -> None:
         while True:
             await anyio.sleep(POLL_S)
+            if not self._listened():
+                self._seen = {}  # the first poll with a listener announces each resource
+                continue
             try:
                 changed = await anyio.to_thread.run_sync(self._changes)
             except Exception as exc:  # a gateway that went away: try again later
@@ -96,9 +126,8 @@ class ResourceFeed:
         now: dict[str, Any] = {}
         for product in self.gateway.products():
             if product["written"]:
-                reading = self.gateway.read_product(product["name"])
-                now[f"oricf://products/{product['name']}"] = (reading["value"],
-                                                              reading["age_s"])
+                now[f"oricf://products/{product['name']}"] = (product["value"],
+                                                              product["age_s"])
         for name, route in self.gateway.status()["routes"].items():
             if route["method"] in IMAGE_METHODS:
                 now[f"oricf://frames/{name}"] = route["ok"]

@@ -21,7 +21,8 @@ Json = dict[str, Any]
 
 class Gateway(Protocol):
     def products(self) -> list[Json]:
-        """Every data product: name, max_age_s, the route that writes it, written or not."""
+        """Every data product: name, max_age_s, the route that writes it, written or not,
+        and once written its value and age_s."""
 
     def read_product(self, name: str) -> Json:
         """value, age_s, stale, route."""

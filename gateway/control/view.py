@@ -58,8 +58,11 @@ class PipelineView:
         out = []
         for name, route in sorted(self._writers.items()):
             reading = self.pipeline.products.read(name)
-            out.append({"name": name, "route": route, "written": reading is not None,
-                        "max_age_s": self._max_age(name)})
+            entry = {"name": name, "route": route, "written": reading is not None,
+                     "max_age_s": self._max_age(name)}
+            if reading is not None:
+                entry |= {"value": plain(reading.value), "age_s": round(reading.age_s, 3)}
+            out.append(entry)
         return out
 
     def read_product(self, name: str) -> Json:

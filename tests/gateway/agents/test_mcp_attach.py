@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,6 +20,7 @@ import yaml
 
 from oricf.errors import NotReady
 from oricf.gateway.agents.policy import Refused
+from oricf.gateway.agents.resources import POLL_S, ResourceFeed
 from oricf.gateway.control.client import ControlClient
 from tests.gateway.agents.scene import PEOPLE, RosListener
 from tests.gateway.agents.session import server_env, stdio_session, text_of, warm_up
@@ -144,3 +146,50 @@ def test_control_on_tcp_needs_tls_and_the_token(pipeline: Path, tmp_path: Path,
         status = ControlClient(address, tokens, certs / "ca.pem").status()
         assert "people" in status["routes"]
     assert "control-secret-9" not in log.read_text()
+
+
+class CountedCalls:
+    """The control client, counting the calls made through it."""
+
+    def __init__(self, inner: ControlClient) -> None:
+        self.inner = inner
+        self.calls: Counter[str] = Counter()
+
+    def __getattr__(self, name: str) -> Any:
+        method = getattr(self.inner, name)
+
+        def counted(*args: Any, **kwargs: Any) -> Any:
+            self.calls[name] += 1
+            return method(*args, **kwargs)
+        return counted
+
+
+def test_resources_are_polled_only_while_a_client_listens(socket_gateway: Path) -> None:
+    gateway = CountedCalls(ControlClient(f"unix:{socket_gateway}"))
+    feed = ResourceFeed(gateway)  # type: ignore[arg-type]
+    events: list[Any] = []
+    counts: dict[str, int] = {}
+
+    async def scenario() -> None:
+        async with feed.lifespan(None):  # type: ignore[arg-type]
+            await anyio.sleep(4 * POLL_S)
+            counts["idle"] = gateway.calls.total()
+            stop = feed.bus.subscribe(events.append)
+            deadline = time.monotonic() + 60
+            while not any(getattr(e, "uri", "") == "oricf://products/people_count"
+                          for e in events):
+                assert time.monotonic() < deadline, "no update of people_count"
+                await anyio.sleep(0.1)
+            stop()
+            await anyio.sleep(POLL_S)  # a poll under way when the listener left
+            counts["left"] = gateway.calls.total()
+            await anyio.sleep(4 * POLL_S)
+            counts["after"] = gateway.calls.total()
+
+    anyio.run(scenario)
+    gateway.inner.close()
+    assert counts["idle"] == 0
+    assert counts["after"] == counts["left"] > 0
+    # one poll = two control calls (the products with their values, the routes)
+    assert gateway.calls["read_product"] == 0
+    assert abs(gateway.calls["products"] - gateway.calls["status"]) <= 1
