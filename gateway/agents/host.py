@@ -105,16 +105,16 @@ class HostedPipeline:
     def _start_ros(self) -> tuple[Pipeline, Channels]:
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
 
         from oricf.gateway.ros.dds import use_dds_profile
+        from oricf.gateway.ros.executor import make_executor
         from oricf.gateway.ros.node import GatewayNode
 
         use_dds_profile()
         context = Context()
         rclpy.init(context=context)
         node = GatewayNode(self.config, context=context)
-        executor = SingleThreadedExecutor(context=context)
+        executor = make_executor(self.config.executor_threads, context)
         executor.add_node(node)
         thread = threading.Thread(target=self._spin, args=(executor, context), daemon=True,
                                   name="gateway-ros")
@@ -132,14 +132,12 @@ class HostedPipeline:
 
     @staticmethod
     def _spin(executor: Any, context: Any) -> None:
-        from rclpy.executors import ExternalShutdownException
+        from oricf.gateway.ros.executor import spin_until_shutdown
 
         try:
-            while context.ok():
-                executor.spin_once(timeout_sec=0.5)
-        except (ExternalShutdownException, Exception) as exc:
-            if context.ok():
-                log.error("gateway executor stopped: %s", exc)
+            spin_until_shutdown(executor, context.ok)
+        except Exception as exc:  # the tools keep answering; the log says why ROS stopped
+            log.error("gateway executor stopped: %s", exc)
 
     def stop(self) -> None:
         for stop in self._stops:

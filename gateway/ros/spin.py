@@ -10,13 +10,11 @@ from oricf.gateway.agents.host import serve_gateway_control
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros.dds import use_dds_profile
+from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.ros.params import Settings, declare_settings
 from oricf.gateway.ros.process import keep_freed_memory, poll_in_calling_thread
 
 log = logging.getLogger(__name__)
-
-STOP_CHECK_S = 0.5  # how late a stop may be noticed when rclpy does not wake the executor
-
 
 def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         settings: Settings | None = None) -> int:
@@ -24,17 +22,8 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
     poll_in_calling_thread()  # before the node's imports load grpc
     try:
         import rclpy
-        from rclpy.executors import (
-            Executor,
-            ExternalShutdownException,
-            MultiThreadedExecutor,
-            SingleThreadedExecutor,
-        )
-        from rclpy.impl.implementation_singleton import rclpy_implementation
 
         from oricf.gateway.ros.rosout import GatewayRosNode
-
-        RCLError = rclpy_implementation.RCLError
     except ImportError as exc:
         log.error("ROS 2 Python packages not found (%s): source /opt/ros/jazzy/setup.bash, "
                   "or pip install 'oricf[ros]' on x86-64", exc)
@@ -47,27 +36,11 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
     node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
     if settings is not None:
         declare_settings(node, settings)
-    # Camera frames never pass through the executor (oricf.gateway.ros.camera); the text and audio
-    # callbacks only hand messages to their routes' worker threads and never block, so one
-    # executor thread keeps up. executor_threads > 1 selects rclpy's MultiThreadedExecutor.
-    executor: Executor = (SingleThreadedExecutor() if config.executor_threads == 1
-                          else MultiThreadedExecutor(num_threads=config.executor_threads))
+    executor = make_executor(config.executor_threads)
     executor.add_node(node)
     stop_control = serve_gateway_control(node.pipeline, node.outlets.channels)
     try:
-        # Not executor.spin(): on SIGTERM or SIGINT rclpy's signal thread shuts the context
-        # down, but now and then (rclpy 7.1) the executor's wait is
-        # not woken, and spin() slept on until the next timer (stats_interval_s; forever
-        # without one). A bounded wait notices the shut-down context.
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=STOP_CHECK_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RCLError:
-        # SIGTERM shut the context down while the executor was building its next wait set;
-        # rclpy reports that race as an RCLError. Anything else is a real failure.
-        if rclpy.ok():
-            raise
+        spin_until_shutdown(executor, rclpy.ok)
     finally:
         log.info("gateway stopping")
         stop_control()

@@ -1,0 +1,42 @@
+"""The gateway node's executor and its spin loop, one way for `oricf gateway` (in the main
+thread until SIGINT/SIGTERM) and for a pipeline hosted by `oricf mcp --config` (on a thread
+of its own until its context is shut down)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+STOP_CHECK_S = 0.5  # how late a stop may be noticed when rclpy does not wake the executor
+
+
+def make_executor(threads: int, context: Any = None) -> Any:
+    """Camera frames never pass through the executor (oricf.gateway.ros.camera); the text
+    and audio callbacks only hand messages to their routes' worker threads and never block,
+    so one executor thread keeps up. threads > 1 selects rclpy's MultiThreadedExecutor."""
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+
+    if threads == 1:
+        return SingleThreadedExecutor(context=context)
+    return MultiThreadedExecutor(num_threads=threads, context=context)
+
+
+def spin_until_shutdown(executor: Any, ok: Callable[[], bool]) -> None:
+    """Spins until `ok()` turns false (the context shut down by a signal or by a stop).
+
+    Not executor.spin(): when rclpy's signal thread shuts the context down, now and then
+    (rclpy 7.1) the executor's wait is not woken, and spin() slept on until the next timer
+    (stats_interval_s; forever without one). A bounded wait notices the shut-down context."""
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    try:
+        while ok():
+            executor.spin_once(timeout_sec=STOP_CHECK_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except rclpy_implementation.RCLError:
+        # The context was shut down while the executor was building its next wait set;
+        # rclpy reports that race as an RCLError. Anything else is a real failure.
+        if ok():
+            raise
