@@ -25,6 +25,7 @@ from prometheus_client.registry import Collector
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.endpoints.placement import REASONS
 from oricf.gateway.route import Route
 from oricf.gateway.worker import RouteWorker
 from oricf.metrics import new_registry
@@ -116,7 +117,7 @@ class PipelineCollector(Collector):
             "as busy (RESOURCE_EXHAUSTED).", labels=ENDPOINT)
         placements = CounterMetricFamily(
             "oricf_gateway_endpoint_placements", "Moves between the primary and the fallback "
-            "by the latency budget (placement:), by reason: over_budget, back_within_budget.",
+            f"by the placement policy (placement:), by reason: {', '.join(REASONS)}.",
             labels=("endpoint", "reason"))
         active = GaugeMetricFamily(
             "oricf_gateway_endpoint_active", "1 for the address the endpoint calls now, 0 for "
@@ -126,7 +127,7 @@ class PipelineCollector(Collector):
             recoveries.add_metric((name,), endpoint.recoveries)
             retries.add_metric((name,), endpoint.retries)
             if endpoint.placement is not None:
-                for reason in ("over_budget", "back_within_budget"):
+                for reason in REASONS:
                     placements.add_metric((name, reason),
                                           endpoint.placement.decisions[reason])
             in_use = endpoint.active

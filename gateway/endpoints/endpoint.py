@@ -15,7 +15,7 @@ import grpc
 
 from oricf.gateway.endpoints.config import EndpointConfig, TargetConfig
 from oricf.gateway.endpoints.grpc import GrpcTarget, Service
-from oricf.gateway.endpoints.placement import Placement
+from oricf.gateway.endpoints.placement import Placement, RobotCpu
 
 log = logging.getLogger(__name__)
 
@@ -78,10 +78,21 @@ class Endpoint:
 
     @property
     def active(self) -> Any:
-        moved = self.placement is not None and self.placement.moved
+        """The target calls go to now: the fallback while the primary has failed, else where
+        the placement (if any) puts them."""
         with self._lock:
-            on_fallback = self._on_fallback or moved
-            return self.fallback if on_fallback and self.fallback else self.primary
+            if self._on_fallback and self.fallback is not None:
+                return self.fallback
+        return self.target(self.placement.place) if self.placement is not None else self.primary
+
+    def target(self, place: str) -> Any:
+        """The target of a place: address (the primary) or fallback."""
+        return self.fallback if place == "fallback" and self.fallback else self.primary
+
+    @property
+    def preferred(self) -> Any:
+        """Where the placement prefers calls to go (the primary without a placement)."""
+        return self.target(self.placement.config.prefer) if self.placement else self.primary
 
     def call(self, rpc: str, request: Any) -> Any:
         """Calls a gRPC rpc on the active target (a gRPC-only endpoint)."""
@@ -94,10 +105,16 @@ class Endpoint:
         try:
             return self._attempts(target, work)
         except grpc.RpcError as exc:
-            if self.fallback is None or target is self.fallback or exc.code() not in FAILOVER_CODES:
+            if self.fallback is None or exc.code() not in FAILOVER_CODES:
                 raise
-            self._fail_over(exc)
-            return self._attempts(self.fallback, work)
+            if target is self.primary:
+                self._fail_over(exc)
+                return self._attempts(self.fallback, work)
+            # The fallback failed: it was where the placement sent calls (preferred, or
+            # moved there), so the placement moves them to the primary.
+            if self.placement is None or not self.placement.failed("fallback", exc.code().name):
+                raise
+            return self._attempts(self.primary, work)
 
     def _attempts(self, target: Any, work: Mapping[str, Work[T]]) -> T:
         """One target, its deadline, and retries while it refuses the call as busy."""
@@ -115,7 +132,7 @@ class Endpoint:
                           target.address, attempt, wait * 1000)
                 time.sleep(wait)
                 continue
-            if self.placement is not None and target is self.primary:
+            if self.placement is not None and target is self.preferred:
                 self.placement.call_took(time.monotonic() - started)
             self.answered["primary" if target is self.primary else "fallback"] += 1
             return result
@@ -170,13 +187,18 @@ class Endpoint:
         self._closers.append(closer)
 
     def _probe_placement(self) -> None:
-        """Times the primary's readiness probe for the placement, all the time: its round
-        trip while within budget tells what a call costs beyond it."""
+        """Times the preferred target's readiness probe for the placement, all the time: its
+        round trip while within budget tells what a call costs beyond it. With a CPU
+        ceiling, reads the robot's CPU use over each interval too."""
         assert self.placement is not None
-        interval = self.placement.config.probe_interval_s
-        while not self._stop.wait(interval):
+        config = self.placement.config
+        cpu = RobotCpu() if config.onboard_cpu_ceiling is not None else None
+        preferred = self.preferred
+        while not self._stop.wait(config.probe_interval_s):
+            if cpu is not None:
+                self.placement.cpu_read(cpu.use())
             started = time.monotonic()
-            ok = self.primary.serving(min(self.deadline_s, PROBE_TIMEOUT_S * 5))
+            ok = preferred.serving(min(self.deadline_s, PROBE_TIMEOUT_S * 5))
             self.placement.probe_took(time.monotonic() - started if ok else None)
 
     def close(self) -> None:

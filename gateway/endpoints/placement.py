@@ -1,20 +1,25 @@
-"""Placement by latency budget: calls go to an endpoint's primary (the preferred place,
-e.g. the edge) while it answers within the budget, and to its fallback (e.g. onboard) while
-it does not, not only when it fails.
+"""Placement by latency budget: calls go to the preferred place (an endpoint's `address` or
+its `fallback`) while it answers within the budget, and to the other one while it does not,
+not only when it fails.
 
     endpoints:
       detector:
-        address: edge.local:50051              # preferred
+        address: edge.local:50051
         fallback: 127.0.0.1:50051
-        placement: {latency_budget_ms: 150, window: 20, hysteresis_s: 10}
+        placement: {latency_budget_ms: 150, prefer: address, window: 20, hysteresis_s: 10}
 
-The gateway keeps the latencies of the last `window` real calls to the primary; when their
-90th percentile passes the budget, calls move to the fallback. While there, a light probe
-(the readiness check) measures the primary's round trip every `probe_interval_s`; its
-estimate is the probes' 90th percentile plus what a call cost beyond a probe while the
-primary was within budget (the service's own time, the frame's upload). Calls return once
-that estimate has stayed within the budget for `hysteresis_s`. Every decision is logged
-with its reason and counted (oricf_gateway_endpoint_placements{reason}).
+The gateway keeps the latencies of the last `window` real calls to the preferred place; when
+their 90th percentile passes the budget, calls move to the other. While there, a light
+probe (the readiness check) measures the preferred place's round trip every
+`probe_interval_s`; its estimate is the probes' 90th percentile plus what a call cost beyond
+a probe while it was within budget (the service's own time, the frame's upload). Calls
+return once that estimate has stayed within the budget for `hysteresis_s`.
+
+With `onboard` (which of the two runs on the robot) and `onboard_cpu_ceiling`, the robot's
+CPU use (all cores, from /proc/stat, over each probe interval) also decides: above the
+ceiling calls leave the onboard place and do not move back to it, over budget or not; the
+robot's CPU comes first. Every decision is logged with its reason and counted
+(oricf_gateway_endpoint_placements{reason}).
 """
 
 from __future__ import annotations
@@ -24,8 +29,10 @@ import statistics
 import threading
 import time
 from collections import Counter, deque
+from pathlib import Path
+from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from oricf.config import Schema
 
@@ -33,18 +40,41 @@ log = logging.getLogger(__name__)
 
 PERCENTILE = 90
 MIN_SAMPLES = 5  # a decision needs at least this many latencies
+Place = Literal["address", "fallback"]
+PROC_STAT = Path("/proc/stat")
+# Why calls moved, as the metrics count it.
+REASONS = ("over_budget", "back_within_budget", "failed", "cpu_over_ceiling")
 
 
 class PlacementConfig(Schema):
     latency_budget_ms: float = Field(gt=0, le=600_000,
-                                     description="a call to the primary should take at most this")
+                                     description="a call to the preferred place should take "
+                                                 "at most this")
+    prefer: Place = Field("address", description="where calls go while it answers within the "
+                                                 "budget: address or fallback")
     window: int = Field(20, ge=MIN_SAMPLES, le=10_000,
                         description="latencies (real calls, probes) the percentile is taken over")
     hysteresis_s: float = Field(10.0, ge=0, le=3600,
-                                description="the primary must stay within budget this long "
-                                            "before calls return to it")
+                                description="the preferred place must stay within budget this "
+                                            "long before calls return to it")
     probe_interval_s: float = Field(1.0, gt=0, le=60,
-                                    description="how often the primary is probed")
+                                    description="how often the preferred place is probed")
+    onboard: Place | None = Field(None, description="which of address and fallback runs on "
+                                                    "the robot (for onboard_cpu_ceiling)")
+    onboard_cpu_ceiling: float | None = Field(
+        None, gt=0, lt=1, description="robot CPU use (0-1, all cores) above which calls "
+                                      "leave the onboard place and do not return to it")
+
+    @model_validator(mode="after")
+    def _ceiling_needs_onboard(self) -> PlacementConfig:
+        if self.onboard_cpu_ceiling is not None and self.onboard is None:
+            raise ValueError("onboard_cpu_ceiling: needs `onboard` (address or fallback: "
+                             "which of the two runs on the robot)")
+        return self
+
+    @property
+    def other(self) -> Place:
+        return "fallback" if self.prefer == "address" else "address"
 
 
 def p90(values: deque[float]) -> float:
@@ -52,22 +82,55 @@ def p90(values: deque[float]) -> float:
     return ordered[min(len(ordered) - 1, int(len(ordered) * PERCENTILE / 100))]
 
 
+class RobotCpu:
+    """The share of all cores' time spent busy between two readings of /proc/stat."""
+
+    def __init__(self) -> None:
+        self._last = self._ticks()
+
+    @staticmethod
+    def _ticks() -> tuple[int, int]:
+        """(busy, total) clock ticks since boot; idle and iowait count as not busy."""
+        # user nice system idle iowait irq softirq steal; guest time is already in user's
+        fields = [int(v) for v in PROC_STAT.read_text().split("\n", 1)[0].split()[1:9]]
+        idle = fields[3] + (fields[4] if len(fields) > 4 else 0)
+        return sum(fields) - idle, sum(fields)
+
+    def use(self) -> float:
+        (busy, total), (last_busy, last_total) = self._ticks(), self._last
+        self._last = busy, total
+        return (busy - last_busy) / (total - last_total) if total > last_total else 0.0
+
+
 class Placement:
-    """Where calls go (primary or fallback) by the primary's observed latency."""
+    """Where calls go (the preferred place or the other) by the preferred place's observed
+    latency and, with a ceiling, the robot's CPU use."""
 
     def __init__(self, endpoint: str, config: PlacementConfig) -> None:
         self.endpoint = endpoint
         self.config = config
-        self.moved = False
+        self.moved = False  # calls go to the other place
         self.decisions: Counter[str] = Counter()  # reason -> count
+        self.robot_cpu: float | None = None  # the last reading, with a ceiling
         self._calls: deque[float] = deque(maxlen=config.window)   # real calls, ms
         self._probes: deque[float] = deque(maxlen=config.window)  # probes, ms
         self._beyond_probe_ms = 0.0  # what a call cost beyond a probe, within budget
         self._within_since: float | None = None
         self._lock = threading.Lock()
 
+    @property
+    def place(self) -> Place:
+        """Where calls go now: address or fallback."""
+        return self.config.other if self.moved else self.config.prefer
+
+    def _cpu_bars(self, place: Place) -> bool:
+        """Whether the robot's CPU keeps calls from moving to `place` now."""
+        ceiling = self.config.onboard_cpu_ceiling
+        return (place == self.config.onboard and ceiling is not None
+                and self.robot_cpu is not None and self.robot_cpu > ceiling)
+
     def call_took(self, seconds: float) -> None:
-        """A real call to the primary answered after this long."""
+        """A real call to the preferred place answered after this long."""
         ms = seconds * 1e3
         with self._lock:
             self._calls.append(ms)
@@ -80,13 +143,23 @@ class Placement:
                     self._beyond_probe_ms = max(
                         0.0, statistics.median(self._calls) - statistics.median(self._probes))
                 return
-            if self.moved:
+            if self.moved or self._cpu_bars(self.config.other):
                 return
             self._move(True, f"p90 {observed:.0f} ms over the budget of {budget:.0f} ms",
                        "over_budget")
 
+    def failed(self, place: Place, code: str) -> bool:
+        """A call to `place` failed (unavailable, deadline): if calls go there, they move to
+        the other place at once (back to the preferred one later through the probes);
+        whether they moved."""
+        with self._lock:
+            if place != self.place:
+                return False
+            self._move(not self.moved, f"a call to its {place} failed ({code})", "failed")
+            return True
+
     def probe_took(self, seconds: float | None) -> None:
-        """A probe of the primary answered after this long (None: it did not)."""
+        """A probe of the preferred place answered after this long (None: it did not)."""
         with self._lock:
             if seconds is None:
                 self._probes.clear()
@@ -97,7 +170,7 @@ class Placement:
                 return
             estimate = p90(self._probes) + self._beyond_probe_ms
             now = time.monotonic()
-            if estimate > self.config.latency_budget_ms:
+            if estimate > self.config.latency_budget_ms or self._cpu_bars(self.config.prefer):
                 self._within_since = None
                 return
             self._within_since = self._within_since or now
@@ -105,11 +178,20 @@ class Placement:
                 self._move(False, f"estimated p90 {estimate:.0f} ms within the budget for "
                                   f"{now - self._within_since:.0f} s", "back_within_budget")
 
+    def cpu_read(self, use: float) -> None:
+        """The robot's CPU use over the last probe interval (0-1): above the ceiling, calls
+        leave the onboard place."""
+        with self._lock:
+            self.robot_cpu = use
+            if self._cpu_bars(self.place):
+                self._move(not self.moved, f"robot CPU {use:.0%} over the ceiling of "
+                                           f"{self.config.onboard_cpu_ceiling:.0%}",
+                           "cpu_over_ceiling")
+
     def _move(self, away: bool, why: str, reason: str) -> None:
         self.moved = away
         self.decisions[reason] += 1
         self._calls.clear()
         self._probes.clear()
         self._within_since = None
-        log.warning("endpoint %s: calls move to the %s: %s", self.endpoint,
-                    "fallback" if away else "primary", why)
+        log.warning("endpoint %s: calls move to its %s: %s", self.endpoint, self.place, why)

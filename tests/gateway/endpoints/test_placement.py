@@ -1,8 +1,9 @@
 """Placement by latency budget on a real slow path: the detector behind the project's delay
-relay as the preferred endpoint, the same detector directly as the fallback. Calls move to
-the fallback when the relay's delay pushes the primary's p90 over the budget (before any
-call fails), and come back once the probes say the primary is within budget again for the
-hysteresis time; each decision is counted by reason and in the metrics."""
+relay as the preferred place, the same detector directly as the other. Calls move when the
+relay's delay pushes the preferred place's p90 over the budget (before any call fails), and
+come back once the probes say it is within budget again for the hysteresis time; each
+decision is counted by reason and in the metrics. The preferred place is the address, or
+the fallback with `prefer: fallback`; a bad policy is refused naming the file and key."""
 
 from __future__ import annotations
 
@@ -14,6 +15,9 @@ import pytest
 from prometheus_client import generate_latest
 
 from oricf.bench.relay import DelayRelay
+from oricf.config import config_dir
+from oricf.errors import ConfigError
+from oricf.gateway.config import load_pipeline
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.pipeline import Pipeline
@@ -84,6 +88,82 @@ def test_calls_move_over_budget_and_return_once_back_within_it(
             relay.close()
 
 
+def send(pipeline: Pipeline, frame: Frame, count: int) -> None:
+    for _ in range(count):
+        pipeline.submit("people", lambda: {"image": frame})
+        assert pipeline.idle(30)
+
+
+def test_prefer_fallback_spills_to_the_address_and_returns(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """Onboard preferred (the fallback, slow behind the relay), the edge (the address) when
+    it is over budget or fails."""
+    frame = Frame.from_pixels(video_frames([0])[0])
+    with running_service("detector") as detector:
+        host, _, port = detector.address.rpartition(":")
+        relay = DelayRelay((host, int(port)), delay_s=0.0)
+        pipeline = Pipeline(pipeline_config(detector.address, {"endpoints": {"detector": {
+            "fallback": relay.address, "deadline_ms": 10_000,
+            "placement": {"latency_budget_ms": BUDGET_MS, "prefer": "fallback", "window": 5,
+                          "hysteresis_s": 1.0, "probe_interval_s": 0.2}}}}), Outputs())
+        endpoint = pipeline.endpoints["detector"]
+        placement = endpoint.placement
+        assert placement is not None
+        pipeline.start()
+        try:
+            send(pipeline, frame, 6)
+            assert endpoint.active is endpoint.fallback
+            assert endpoint.answered == {"primary": 0, "fallback": 6}
+            relay.delay_s = 0.6
+            with caplog.at_level(logging.WARNING, "oricf.gateway.endpoints.placement"):
+                send(pipeline, frame, 1)  # a window of 5: its p90 is its slowest call
+                assert endpoint.active is endpoint.primary
+                assert placement.decisions == {"over_budget": 1}
+                assert "calls move to its address: p90" in caplog.text
+                send(pipeline, frame, 2)
+                assert endpoint.answered == {"primary": 2, "fallback": 7}
+                relay.delay_s = 0.0
+                assert wait_for(lambda: endpoint.active is endpoint.fallback, 30)
+                assert "calls move to its fallback: estimated p90" in caplog.text
+                relay.close()  # the preferred place goes away: the call is answered anyway
+                send(pipeline, frame, 2)
+            assert endpoint.active is endpoint.primary
+            assert placement.decisions == {"over_budget": 1, "back_within_budget": 1,
+                                           "failed": 1}
+            assert "a call to its fallback failed (UNAVAILABLE)" in caplog.text
+            assert pipeline.routes["people"].stats.ok == 11 and endpoint.failovers == 0
+        finally:
+            pipeline.stop()
+            relay.close()
+
+
 def test_a_placement_needs_a_fallback() -> None:
     with pytest.raises(ValueError, match="needs a fallback"):
         EndpointConfig(address="127.0.0.1:1", placement={"latency_budget_ms": 100})
+
+
+@pytest.mark.parametrize(("policy", "error"), [
+    ({"prefer": "edge"}, "endpoints.detector.placement.prefer: Input should be 'address' or "
+                         "'fallback'"),
+    ({"onboard_cpu_ceiling": 0.8}, "endpoints.detector.placement: onboard_cpu_ceiling: "
+                                   "needs `onboard`"),
+    ({"onboard": "robot", "onboard_cpu_ceiling": 0.8},
+     "endpoints.detector.placement.onboard: Input should be 'address' or 'fallback'"),
+    ({"onboard": "fallback", "onboard_cpu_ceiling": 80},
+     "endpoints.detector.placement.onboard_cpu_ceiling: Input should be less than 1"),
+])
+def test_a_bad_policy_is_refused_naming_the_file_and_key(policy: dict[str, Any],
+                                                         error: str) -> None:
+    with pytest.raises(ConfigError) as refused:
+        pipeline_config("127.0.0.1:1", {"endpoints": {"detector": {
+            "fallback": "127.0.0.1:2", "placement": {"latency_budget_ms": 100, **policy}}}})
+    assert f"test pipeline: {error}" in str(refused.value)
+
+
+def test_the_onboard_first_overlay_prefers_the_onboard_fallback() -> None:
+    pipelines = config_dir() / "pipelines"
+    placed = [pipelines / "placement" / name for name in ("edge.yaml", "onboard_first.yaml")]
+    detector = load_pipeline(pipelines / "people_qa.yaml", placed).endpoints["detector"]
+    assert detector.placement is not None and detector.fallback == "127.0.0.1:50051"
+    assert detector.placement.prefer == detector.placement.onboard == "fallback"
+    assert detector.placement.onboard_cpu_ceiling == 0.8
