@@ -37,7 +37,9 @@ class Pipeline:
                  ) -> None:
         self.config = config
         self.products = products or ProductStore()
-        self.speaking = speaking or Speaking()
+        # Outlets that play speech hold the speaking state; routes that mute or barge in
+        # must see that one, so it is taken from them unless given.
+        self.speaking = speaking or getattr(emit, "speaking", None) or Speaking()
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
         self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)])

@@ -25,7 +25,7 @@ def run(config: PipelineConfig, replay: Replay | None = None) -> int:
     come from a recording and topic outputs go to its recorder or standard output; the exit
     code is then the replay's."""
     outlets = Outlets(config, None if replay is None else TopicOutputs(replay.recorder))
-    pipeline = Pipeline(config, outlets, speaking=outlets.speaking)
+    pipeline = Pipeline(config, outlets)
     ended: set[str] = set()
     lock = threading.Lock()
     with stop_on_signals() as stop:

@@ -86,7 +86,7 @@ class HostedPipeline:
 
     def _start_plain(self) -> tuple[Pipeline, Channels]:
         outlets = Outlets(self.config)
-        pipeline = Pipeline(self.config, outlets, speaking=outlets.speaking)
+        pipeline = Pipeline(self.config, outlets)
         sources = pipeline_sources(pipeline, outlets.channels, lambda route: None)
         outlets.start()
         pipeline.start()

@@ -50,7 +50,7 @@ class GatewayNode(Node):
         self._recorder = recorder  # --record: every topic input and output into a file
         self._cameras: list[CameraReceiver] = []
         self._outlets = Outlets(config, TopicPublishers(self, config, recorder))
-        self.pipeline = Pipeline(config, self._outlets, speaking=self._outlets.speaking)
+        self.pipeline = Pipeline(config, self._outlets)
         self._sources = pipeline_sources(self.pipeline, self._outlets.channels,
                                          lambda route: None)
         for name, route in config.routes.items():

@@ -11,6 +11,7 @@ import pytest
 from oricf.config import deep_merge
 from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.sinks import Outlets
 from oricf.gateway.values import Frame, Record
 from tests.support.data import video_frames
 from tests.support.processes import free_port
@@ -53,6 +54,18 @@ def run_frames(config: PipelineConfig, indices: list[int]) -> tuple[Pipeline, Ou
         assert pipeline.idle(10)
     pipeline.stop()
     return pipeline, outputs
+
+
+def test_the_routes_see_the_speaking_state_of_the_outlets_that_play_speech() -> None:
+    """Muting and barge-in read the state the speakers write: every way of starting a
+    pipeline from its outlets shares it (oricf mcp --config once made a second one)."""
+    config = pipeline_config("127.0.0.1:1")
+    outlets = Outlets(config)
+    try:
+        assert Pipeline(config, outlets).speaking is outlets.speaking
+        assert Pipeline(config, lambda *a: None).speaking is not outlets.speaking
+    finally:
+        outlets.close()
 
 
 def test_route_calls_post_processes_and_sends() -> None:
