@@ -20,9 +20,11 @@ from tests.support.data import image
 from tests.support.processes import free_port, oricf_process, wait_serving
 
 
-def run_client(script: str, tmp_path: Path) -> dict[str, Any]:
-    """The script's JSON summary, after checking that the output it received equals
-    onnxruntime's in this process on the same input; the input tensor is `input`."""
+def run_client(script: str, tmp_path: Path, *args: str,
+               outputs: tuple[str, ...] = ("output.npy",)) -> dict[str, Any]:
+    """The script's JSON summary, after checking that each output it saved in tmp_path
+    (`outputs`) equals onnxruntime's in this process on the same input; the input tensor is
+    `input`. The script's arguments: the server's address, input.npy, output.npy, `args`."""
     import onnxruntime as ort
 
     head = declared_head(load_declaration(REPO_ROOT / "configs/models/yolox-nano.yaml"))
@@ -33,13 +35,14 @@ def run_client(script: str, tmp_path: Path) -> dict[str, Any]:
         wait_serving(address, process=server)
         result = subprocess.run(
             [sys.executable, str(Path(__file__).with_name(script)), address,
-             str(tmp_path / "input.npy"), str(tmp_path / "output.npy")],
+             str(tmp_path / "input.npy"), str(tmp_path / "output.npy"), *args],
             capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr
-    served = np.load(tmp_path / "output.npy")
     local = ort.InferenceSession(str(ModelStore().path("yolox-nano"))).run(
         None, {"images": tensor})[0]
-    np.testing.assert_allclose(served, local, rtol=1e-5, atol=1e-5)
+    for name in outputs:
+        np.testing.assert_allclose(np.load(tmp_path / name), local, rtol=1e-5, atol=1e-5,
+                                   err_msg=name)
     summary: dict[str, Any] = json.loads(result.stdout)
     summary["input"] = tensor
     return summary
