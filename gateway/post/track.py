@@ -1,8 +1,9 @@
-"""track: {labels: [person], min_hits: 3, max_age_s: 1.0, ...} follows objects from frame to
+"""track: {labels: [person], min_hits: 2, max_age_s: 1.0, ...} follows objects from frame to
 frame (ByteTrack, oricf.gateway.tracking.bytetrack). `detections` becomes the detections of
-confirmed tracks, each with its track_id and velocity; `into` (default `tracks`) gets every
-confirmed track still kept, seen this frame or not, with the frame's time, for the steps
-that measure over tracks (count_tracks, seen_tracks, zone, line).
+reported tracks (confirmed, and not a still thing that scores weakly), each with its
+track_id and velocity; `into` (default `tracks`) gets every reported track still kept, seen
+this frame or not, with the frame's time, for the steps that measure over tracks
+(count_tracks, seen_tracks, zone, line).
 
 The tracker's state lives as long as the route. Times are the gateway's monotonic clock
 when the frame is post-processed.

@@ -4,10 +4,12 @@ Each frame: every track's box is moved on by its Kalman filter; detections at or
 `high_score` are matched to all tracks by IoU (an optimal assignment); then the tracks that
 were seen in the previous frame and are still unmatched get a second chance with the
 low-score detections (`low_score` up to `high_score`), which are often the same object
-half hidden. A high-score detection left over starts a tentative track (at `new_score`);
-a tentative track is confirmed after `min_hits` matches and dropped at its first miss; a
-confirmed track that goes unseen for more than `max_age_s` is dropped. Only detections of
-the same label are matched to a track.
+half hidden. A high-score detection left over starts a tentative track, confirmed once the
+mean score of its last `min_hits` matches reaches `new_score` and dropped at its first
+miss; a confirmed track that goes unseen for more than `max_age_s` is dropped. A confirmed
+track that has stayed still for `still_s` is reported only while it scores at least
+`still_score` (oricf.gateway.tracking.track says why). Only detections of the same label
+are matched to a track.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from oricf.config import Schema
-from oricf.gateway.tracking.kalman import BoxFilter
+from oricf.gateway.tracking.track import Rules, Track, box_now
 from oricf.imaging import Box, Detection
 
 
@@ -27,12 +29,20 @@ class TrackerConfig(Schema):
     labels: list[str] = Field(default_factory=list, description="labels to track; empty: all")
     high_score: float = Field(0.5, gt=0, le=1, description="first-stage detections")
     low_score: float = Field(0.1, gt=0, le=1, description="second-stage detections from here")
-    new_score: float = Field(0.7, gt=0, le=1, description="a detection that starts a track")
+    new_score: float = Field(0.6, gt=0, le=1, description="mean score of a new track's "
+                                                          "last min_hits matches that "
+                                                          "confirms it")
     match_iou: float = Field(0.2, gt=0, le=1, description="least IoU of a first-stage match")
     low_match_iou: float = Field(0.3, gt=0, le=1, description="least IoU of a second-stage "
                                                               "match")
-    min_hits: int = Field(3, ge=1, le=100, description="matches before a track is confirmed")
+    min_hits: int = Field(2, ge=1, le=100, description="matches before a track is confirmed")
     max_age_s: float = Field(1.0, gt=0, le=3600, description="unseen this long: dropped")
+    still_s: float | None = Field(5.0, gt=0, le=3600, description="a track still this long "
+                                                                  "is judged by still_score")
+    still_motion: float = Field(0.1, ge=0, le=10, description="most a still track's centre "
+                                                              "moves, in box heights")
+    still_score: float = Field(0.7, gt=0, le=1, description="least mean score of a still "
+                                                            "track that is reported")
 
     @model_validator(mode="after")
     def _ordered(self) -> TrackerConfig:
@@ -54,34 +64,6 @@ class TrackView:
     last_seen: float
     hits: int
     age_s: float                   # since the track started
-
-
-class _Track:
-    def __init__(self, track_id: int, detection: Detection, now: float) -> None:
-        self.track_id = track_id
-        self.label = detection.label
-        self.motion = BoxFilter(detection.box)
-        self.first_seen = self.last_seen = self.predicted_at = now
-        self.hits = 1
-        self.seen_last_frame = True
-        self.box = detection.box
-
-    def predict(self, now: float) -> None:
-        self.motion.predict(now - self.predicted_at)
-        self.predicted_at = max(now, self.predicted_at)
-
-    def hit(self, detection: Detection, now: float) -> Detection:
-        self.motion.update(detection.box)
-        self.box = detection.box
-        self.hits += 1
-        self.last_seen = now
-        return replace(detection, track_id=self.track_id, velocity=self.motion.velocity)
-
-    def view(self) -> TrackView:
-        box = self.box if self.last_seen == self.predicted_at else self.motion.box
-        return TrackView(self.track_id, self.label, box, self.motion.velocity,
-                         self.first_seen, self.last_seen, self.hits,
-                         self.predicted_at - self.first_seen)
 
 
 # Farther out than any image's pixels (oricf.imaging.MAX_PIXELS), or smaller than a
@@ -113,7 +95,7 @@ def iou_matrix(a: list[Box], b: list[Box]) -> np.ndarray:
     return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
 
 
-def match(tracks: list[_Track], detections: list[Detection], least_iou: float
+def match(tracks: list[Track], detections: list[Detection], least_iou: float
           ) -> list[tuple[int, int]]:
     """(track index, detection index) pairs of the optimal assignment by IoU, each pair of
     one label and at least `least_iou`."""
@@ -135,12 +117,15 @@ class ByteTracker:
     def __init__(self, config: TrackerConfig) -> None:
         self.config = config
         self._labels = set(config.labels)
-        self._tracks: list[_Track] = []
+        self._rules = Rules(config.min_hits, config.new_score, config.still_s,
+                            config.still_motion, config.still_score)
+        self._tracks: list[Track] = []
         self._next_id = 1
+        self._now = 0.0
 
     def update(self, detections: list[Detection], now: float) -> list[Detection]:
-        """This frame's detections that belong to confirmed tracks, each with its track id
-        and velocity."""
+        """This frame's detections that belong to reported tracks (confirmed, and not a
+        still thing that scores weakly), each with its track id and velocity."""
         c = self.config
         wanted = [d for d in detections
                   if (not self._labels or d.label in self._labels) and usable(d)]
@@ -157,31 +142,42 @@ class ByteTracker:
                   if t not in matched and self._tracks[t].seen_last_frame]
         for t, d in match([self._tracks[t] for t in second], low, c.low_match_iou):
             matched[second[t]] = self._tracks[second[t]].hit(low[d], now)
-        out = [det for t, det in matched.items() if self._tracks[t].hits >= c.min_hits]
+        out = [det for t, det in matched.items() if self._tracks[t].reported(now)]
         self._forget(matched, now)
-        # As in ByteTrack, the first frame's tracks are confirmed at once: with no earlier
-        # frame, there is nothing to wait for.
+        out += self._start([d for i, d in enumerate(high) if i not in used_high], now)
+        self._now = now
+        return out
+
+    def _start(self, leftovers: list[Detection], now: float) -> list[Detection]:
+        """A tentative track for each high-score detection left over. As in ByteTrack,
+        the first frame's confident ones are confirmed at once: with no earlier frame,
+        there is nothing to wait for."""
         first_frame = self._next_id == 1 and not self._tracks
-        for i, new in enumerate(high):
-            if i not in used_high and new.score >= c.new_score:
-                track = _Track(self._next_id, new, now)
-                self._tracks.append(track)
-                self._next_id += 1
-                if first_frame:
-                    track.hits = c.min_hits
-                    out.append(replace(new, track_id=track.track_id, velocity=(0.0, 0.0)))
+        out = []
+        for new in leftovers:
+            track = Track(self._next_id, new, now, self._rules)
+            self._tracks.append(track)
+            self._next_id += 1
+            if first_frame and new.score >= self.config.new_score:
+                track.confirmed = True
+                out.append(replace(new, track_id=track.track_id, velocity=(0.0, 0.0)))
         return out
 
     def _forget(self, matched: dict[int, Detection], now: float) -> None:
         keep = []
         for i, track in enumerate(self._tracks):
             track.seen_last_frame = i in matched
-            confirmed = track.hits >= self.config.min_hits
-            if track.seen_last_frame or (confirmed and
+            if track.seen_last_frame or (track.confirmed and
                                          now - track.last_seen <= self.config.max_age_s):
                 keep.append(track)
         self._tracks = keep
 
     def confirmed(self) -> list[TrackView]:
-        """Every confirmed track still kept, seen this frame or not."""
-        return [t.view() for t in self._tracks if t.hits >= self.config.min_hits]
+        """Every reported track still kept, seen this frame or not."""
+        return [view(t) for t in self._tracks if t.reported(self._now)]
+
+
+def view(track: Track) -> TrackView:
+    return TrackView(track.track_id, track.label, box_now(track), track.motion.velocity,
+                     track.first_seen, track.last_seen, track.hits,
+                     track.predicted_at - track.first_seen)

@@ -59,6 +59,24 @@ def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> N
     assert line[0]["track_id"] == 1 and line[0]["velocity"] == pytest.approx([100, 0], abs=5)
 
 
+@pytest.mark.parametrize(("settings", "counted"), [({}, 1), ({"still_s": None}, 2)])
+def test_a_still_weak_post_leaves_the_tracked_count_after_still_s(
+        settings: dict[str, object], counted: int) -> None:
+    now = [0.0]
+    track = step(track={"labels": ["person"], **settings}).track
+    assert track is not None
+    tracking = track_step.build(track, clock=lambda: now[0])
+    count = post.chain([step(count_tracks={"label": "person", "into": "now"})])
+    post_box = Detection("person", 0, 0.62, Box(30, 110, 48, 142))
+    for i in range(80):  # 8 s: a post that never moves, and a person walking
+        now[0] = i / 10
+        record: Record = {"detections": [post_box, walker(100 + 3 * i)]}
+        tracking.run(record)
+        count(record)
+    assert record["now"] == counted
+    assert len(record["detections"]) == counted
+
+
 @pytest.mark.parametrize(("steps", "message"), [
     ({"zone": {"polygon": [[0, 0], [1, 1]], "measure": "inside", "into": "z"}},
      "polygon"),
@@ -71,6 +89,8 @@ def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> N
     ({"line": {"start": [5, 5], "end": [5, 5], "measure": "in", "into": "c"}},
      "start and end are the same point"),
     ({"track": {"low_score": 0.9}}, "low_score 0.9 is above high_score"),
+    ({"track": {"still_s": 0}}, "still_s"),
+    ({"track": {"still_score": 1.5}}, "still_score"),
     ({"seen_tracks": {"window_s": 0, "into": "s"}}, "window_s"),
 ])
 def test_bad_steps_are_refused_naming_the_key(steps: dict[str, object], message: str) -> None:
