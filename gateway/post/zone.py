@@ -11,13 +11,13 @@ from pydantic import Field, field_validator
 
 from oricf.gateway.post.base import Step
 from oricf.gateway.post.over_tracks import Placed
-from oricf.gateway.tracking.bytetrack import MAX_COORDINATE
+from oricf.gateway.tracking.bytetrack import MAX_COORDINATE, in_range
 from oricf.gateway.tracking.measures import Zone, ZoneMeasure
 from oricf.gateway.values import Record
 
 
 def finite_point(point: tuple[float, float]) -> tuple[float, float]:
-    if not all(abs(v) <= MAX_COORDINATE for v in point):  # False for NaN
+    if not in_range(point):
         raise ValueError(f"point {list(point)} is not two finite numbers of pixels "
                          f"(at most {MAX_COORDINATE:g})")
     return point

@@ -72,13 +72,18 @@ MAX_COORDINATE = 1e8
 MIN_SIZE = 0.01
 
 
+def in_range(values: tuple[float, ...]) -> bool:
+    """Every value a finite number of pixels within MAX_COORDINATE."""
+    return all(abs(v) <= MAX_COORDINATE for v in values)  # False for NaN
+
+
 def usable(detection: Detection) -> bool:
     """A finite score and a box of at least MIN_SIZE within MAX_COORDINATE: anything else
     (a model behind the Open Inference Protocol may send it) would poison a track's filter."""
     b = detection.box
     coordinates = (b.x_min, b.y_min, b.x_max, b.y_max)
     return (math.isfinite(detection.score)
-            and all(abs(v) <= MAX_COORDINATE for v in coordinates)  # False for NaN
+            and in_range(coordinates)
             and b.x_max - b.x_min >= MIN_SIZE and b.y_max - b.y_min >= MIN_SIZE)
 
 
