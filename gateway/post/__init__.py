@@ -5,7 +5,7 @@
     count: {label: person, into: count}
     annotate: {into: annotated}        draw the detections on the input image
     template: {text: "I see {count} people.", into: text}
-    track: {labels: [person], min_hits: 3, max_age_s: 1}   follow objects: track ids, tracks
+    track: {labels: [person], min_hits: 2, max_age_s: 1}   follow objects: track ids, tracks
     count_tracks: {label: person, hold_s: 0.3, into: people_now}
     seen_tracks: {label: person, window_s: 60, into: people_last_minute}
     zone: {polygon: [[x, y], ...], measure: entries, into: door_entries}
