@@ -162,8 +162,12 @@ def test_a_bad_policy_is_refused_naming_the_file_and_key(policy: dict[str, Any],
 
 def test_the_onboard_first_overlay_prefers_the_onboard_fallback() -> None:
     pipelines = config_dir() / "pipelines"
-    placed = [pipelines / "placement" / name for name in ("edge.yaml", "onboard_first.yaml")]
-    detector = load_pipeline(pipelines / "people_qa.yaml", placed).endpoints["detector"]
+    placed = load_pipeline(pipelines / "people_qa.yaml",
+                           [pipelines / "placement" / "onboard_first.yaml"])
+    detector = placed.endpoints["detector"]
     assert detector.placement is not None and detector.fallback == "127.0.0.1:50051"
     assert detector.placement.prefer == detector.placement.onboard == "fallback"
     assert detector.placement.onboard_cpu_ceiling == 0.8
+    edge = load_pipeline(pipelines / "people_qa.yaml", [pipelines / "placement" / "edge.yaml"])
+    assert placed.endpoints["detector"].model_copy(update={"placement": None}) \
+        == edge.endpoints["detector"]  # the same places as edge.yaml, the other way round
