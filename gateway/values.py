@@ -6,6 +6,11 @@ fields of the method's typed result (oricf.gateway.methods: `detections`, `trans
 `answer`, ...), and what post steps write. Which fields a route has is known when the
 pipeline loads, so steps and outputs that name a missing one are refused then. Outputs pick
 one field each (`from:`). Checks on incoming data raise InvalidInput naming the problem.
+
+A camera frame's record also carries FRAME_TIME: when the frame was taken, in seconds on
+its source's clock (a recording's recorded time, a video file's position in the file, a
+live camera's stamp or time of arrival), so that steps that measure time (track) see the
+time the frames show, not the pace at which they happen to be processed.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ from oricf.logs import quoted
 from oricf.v1 import common_pb2, speech_pb2
 
 Record = dict[str, Any]
+# Record key: when a camera frame was taken (seconds; only differences within a route count).
+FRAME_TIME = "frame_time"
 
 
 def template_fields(template: str) -> set[str]:

@@ -9,6 +9,11 @@ rest are skipped. Camera frames are read by oricf.gateway.recording.cdr as the R
 text, numbers and audio are decoded by mcap-ros2-support from the definition in the file
 (or the gateway's own, msgdefs.py, if the file has none).
 
+A camera frame's time (values.FRAME_TIME, what the track step measures time by) is its
+header's stamp, when the camera took it, or the log time, when it was recorded, for a
+camera that leaves the stamp zero: the recorded time, whatever the rate, so tracks, their
+ages and "seen in the last minute" come out as they did live.
+
 `rate` 1 plays at the recorded pace, 2 twice as fast (0.01 to 1000); a camera route then
 keeps only the newest frame, as it would live. A gap of more than a minute of recorded time
 between messages is skipped with a warning (pace.py). `rate` 0 plays as fast as the
@@ -42,7 +47,7 @@ from oricf.gateway.recording import definitions as msgdefs
 from oricf.gateway.recording.mcap_reader import McapFile
 from oricf.gateway.recording.pace import Pace
 from oricf.gateway.recording.recorder import Recorder, RecordingError, linked, ros_name
-from oricf.gateway.recording.topic_values import data_record, image_record
+from oricf.gateway.recording.topic_values import data_record, image_record, timed
 from oricf.gateway.route import Loader
 from oricf.gateway.sources.base import OnEnd, Source
 from oricf.gateway.throttle import ThrottledLog
@@ -249,8 +254,9 @@ class Replay:
     def _loaders(self, feed: Feed, message: Message) -> dict[str, Loader] | None:
         """A loader per route for one message, None if it cannot be decoded (logged)."""
         data = message.data
-        if feed.decode is None:
-            return {route: _image_loader(feed.type, data) for route in feed.routes}
+        if feed.decode is None:  # frames taken when stamped, else when recorded
+            return {route: timed(_image_loader(feed.type, data), message.log_time)
+                    for route in feed.routes}
         try:
             decoded = feed.decode(data).data
         except Exception as exc:  # mcap-ros2-support raises whatever its reader meets

@@ -20,7 +20,9 @@ import numpy as np
 from oricf.errors import InvalidInput
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording import cdr
+from oricf.gateway.route import Loader
 from oricf.gateway.values import (
+    FRAME_TIME,
     AudioClip,
     Frame,
     Record,
@@ -32,14 +34,32 @@ from oricf.imaging import RAW_CHANNELS, Detection
 
 
 def image_record(type_: str, serialized: bytes) -> Record:
-    """One serialized camera message -> the route's input record (raises InvalidInput)."""
+    """One serialized camera message -> the route's input record (raises InvalidInput);
+    FRAME_TIME is the header's stamp, unless the camera left it zero."""
     if type_ == "sensor_msgs/Image":
         image = cdr.image(serialized)
         frame = raw_frame(image.data, image.encoding, image.width, image.height, image.step)
-        return {"image": frame, "header": image.header}
-    compressed = cdr.compressed_image(serialized)
-    return {"image": compressed_frame(compressed.data, compressed.format),
-            "header": compressed.header}
+        record: Record = {"image": frame, "header": image.header}
+    else:
+        compressed = cdr.compressed_image(serialized)
+        record = {"image": compressed_frame(compressed.data, compressed.format),
+                  "header": compressed.header}
+    stamp = record["header"]
+    if stamp.sec or stamp.nanosec:
+        record[FRAME_TIME] = stamp.sec + stamp.nanosec / 1e9
+    return record
+
+
+def timed(load: Loader, fallback_ns: int) -> Loader:
+    """A camera frame's loader whose record has FRAME_TIME: its stamp, or `fallback_ns` (when
+    it arrived, or was recorded) for a camera that does not stamp its frames."""
+
+    def load_timed() -> Record:
+        record = load()
+        record.setdefault(FRAME_TIME, fallback_ns / 1e9)
+        return record
+
+    return load_timed
 
 
 def data_record(config: InputConfig, data: Any) -> Record:

@@ -42,6 +42,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording.recorder import Recorder, message_times
+from oricf.gateway.recording.topic_values import timed
 from oricf.gateway.ros.frame_loss import FrameLoss, camera_side_fix, replaceable
 from oricf.gateway.ros.messages import MESSAGE_TYPES, image_loader
 from oricf.gateway.route import Loader
@@ -137,7 +138,8 @@ class CameraReceiver:
                 log.debug("camera receiver %s: %s while stopping", self._thread.name, exc)
 
     def _receive(self, serialized: bytes, missed: int, info: dict[str, Any]) -> None:
-        load = image_loader(self._type, serialized)
+        # Taken when stamped, or else when it arrived (as a recording logs it).
+        load = timed(image_loader(self._type, serialized), message_times(info)[0])
         if self._recorder is not None:
             load = self._recorder.input(self._name, self._type, serialized,
                                         *message_times(info), load)

@@ -60,6 +60,8 @@ def without_credentials(url: str) -> str:
 class MjpegStream:
     """One connection to an MJPEG URL; read() returns the next JPEG frame, None at the end."""
 
+    position_s: float | None = None  # a stream: frames are timed when they arrive
+
     def __init__(self, url: str, timeout_s: float,
                  stopped: threading.Event | None = None) -> None:
         parts = urllib.parse.urlsplit(url)

@@ -13,6 +13,11 @@ OPENCV_FFMPEG_CAPTURE_OPTIONS says otherwise (e.g. "rtsp_transport;udp"). An HTT
 serves Motion JPEG is read without FFmpeg and its frames are handed on as the JPEG bytes
 that came (mjpeg.py); any other URL, FFmpeg decodes.
 URLs are logged without their user and password.
+
+Each frame carries the time it was taken (values.FRAME_TIME): a file's frame, its position
+in the file (the container's timestamps), so that tracking measures the video's time
+however fast the file is read, each pass of a looping file following the last; a stream's
+or device's frame, when it arrived.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.base import Submit
 from oricf.gateway.sources.mjpeg import BadStream, MjpegStream, NotMjpeg, without_credentials
 from oricf.gateway.throttle import ThrottledLog
-from oricf.gateway.values import Frame
+from oricf.gateway.values import FRAME_TIME, Frame
 from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
@@ -46,6 +51,9 @@ STREAM_ERRORS = (OSError, http.client.HTTPException, BadStream, InvalidInput)
 
 
 class Capture(Protocol):
+    # Where the frame just read lies in a file (s); None for a stream or device.
+    position_s: float | None
+
     def read(self) -> Frame | None: ...   # None: the source ended
 
     def release(self) -> None: ...
@@ -54,12 +62,28 @@ class Capture(Protocol):
 class FfmpegCapture:
     """OpenCV's VideoCapture (FFmpeg, V4L2) as frames of decoded pixels."""
 
-    def __init__(self, capture: Any) -> None:
+    def __init__(self, capture: Any, file: bool = False) -> None:
+        import cv2
+
         self._capture = capture
+        self._file = file
+        self._fps = capture.get(cv2.CAP_PROP_FPS) if file else 0.0
+        self._msec = cv2.CAP_PROP_POS_MSEC
+        self.position_s: float | None = None
 
     def read(self) -> Frame | None:
         ok, pixels = self._capture.read()
+        if ok and self._file:
+            self.position_s = self._position(self.position_s)
         return Frame.from_pixels(pixels) if ok else None
+
+    def _position(self, previous: float | None) -> float | None:
+        """The container's timestamp of the frame just read; for a container without them
+        (each the same), one frame period on from the previous frame."""
+        seconds = self._capture.get(self._msec) / 1e3
+        if previous is None or seconds > previous:
+            return seconds
+        return previous + 1 / self._fps if self._fps > 0 else None
 
     def release(self) -> None:
         self._capture.release()
@@ -85,6 +109,10 @@ class VideoSource:
         self._on_end = on_end
         self._stop = threading.Event()
         self._throttle = ThrottledLog(log)
+        # A file's frame times: passes of a looping file follow each other in time.
+        self._pass_start = True
+        self._offset = 0.0
+        self._last_time: tuple[float | None, float] = (None, 0.0)  # (last frame, its step)
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"video-{route}")
 
     def start(self) -> None:
@@ -120,7 +148,7 @@ class VideoSource:
                 cv2.CAP_PROP_N_THREADS, 1])
         else:
             capture = cv2.VideoCapture(os.path.expanduser(self.url))
-        return FfmpegCapture(capture) if capture.isOpened() else None
+        return FfmpegCapture(capture, not is_live(self.url)) if capture.isOpened() else None
 
     def _run(self) -> None:
         backoff = RECONNECT_MIN_S
@@ -170,6 +198,7 @@ class VideoSource:
 
     def _read(self, capture: Capture) -> bool:
         """Hands frames over until the source ends (True) or the source is stopped (False)."""
+        self._pass_start = True
         period = 1.0 / self.config.fps if self.config.fps else 0.0
         next_at = time.monotonic()
         while not self._stop.is_set():
@@ -184,5 +213,20 @@ class VideoSource:
                 now = time.monotonic()
             next_at = max(next_at + period, now) if period else now
             self.frames += 1
-            self._submit(lambda f=frame: {"image": f})
+            taken = self._frame_time(capture.position_s)
+            self._submit(lambda f=frame, t=taken: {"image": f, FRAME_TIME: t})
         return False
+
+    def _frame_time(self, position: float | None) -> float:
+        """When a frame was taken: its position in a file (each pass of a looping file
+        following the last one), or when it arrived from a stream or device."""
+        if position is None:
+            return time.monotonic()
+        if self._pass_start:  # the file starts (again)
+            self._pass_start = False
+            last, step = self._last_time
+            self._offset = (last + step - position) if last is not None else 0.0
+        taken = self._offset + position
+        last, step = self._last_time
+        self._last_time = (taken, taken - last if last is not None and taken > last else step)
+        return taken
