@@ -23,7 +23,7 @@ LENGTH = 12
 def short_video(path: Path) -> Path:
     """LENGTH frames of vtest.avi, small, at FPS."""
     frames = video_frames(list(range(LENGTH)), (160, 120))
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), FPS, (160, 120))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), FPS, (160, 120))
     for frame in frames:
         writer.write(frame)
     writer.release()
