@@ -204,9 +204,12 @@ class PipelineConfig(Schema):
 
     @property
     def uses_ros(self) -> bool:
-        """Whether any route reads or writes a ROS topic (else the gateway runs without ROS)."""
+        """Whether any route reads or writes a ROS topic, or a placement reads the battery
+        from one (else the gateway runs without ROS)."""
         return any(r.input.topic is not None or any(o.topic for o in r.outputs)
-                   for r in self.routes.values())
+                   for r in self.routes.values()) or any(
+            e.placement is not None and e.placement.battery_topic is not None
+            for e in self.endpoints.values())
 
     def method_of(self, endpoint: str) -> str:
         """The method the routes call on an endpoint (one gRPC service per endpoint)."""

@@ -15,16 +15,18 @@ probe (the readiness check) measures the preferred place's round trip every
 a probe while it was within budget (the service's own time, the frame's upload). Calls
 return once that estimate has stayed within the budget for `hysteresis_s`.
 
-With `onboard` (which of the two runs on the robot) and `onboard_cpu_ceiling`, the robot's
-CPU use (all cores, from /proc/stat, over each probe interval) also decides: above the
-ceiling calls leave the onboard place and do not move back to it, over budget or not; the
-robot's CPU comes first. Every decision is logged with its reason and counted
+With `onboard` (which of the two runs on the robot), the robot has a say too: while its CPU
+use (all cores, from /proc/stat, over each probe interval) is over `onboard_cpu_ceiling`,
+or its battery (sensor_msgs/BatteryState on `battery_topic`, read by the ROS node) is under
+`battery_low`, calls leave the onboard place and do not move back to it, over budget or
+not; the robot comes first. Every decision is logged with its reason and counted
 (oricf_gateway_endpoint_placements{reason}).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import statistics
 import threading
 import time
@@ -43,7 +45,7 @@ MIN_SAMPLES = 5  # a decision needs at least this many latencies
 Place = Literal["address", "fallback"]
 PROC_STAT = Path("/proc/stat")
 # Why calls moved, as the metrics count it.
-REASONS = ("over_budget", "back_within_budget", "failed", "cpu_over_ceiling")
+REASONS = ("over_budget", "back_within_budget", "failed", "cpu_over_ceiling", "battery_low")
 
 
 class PlacementConfig(Schema):
@@ -60,16 +62,23 @@ class PlacementConfig(Schema):
     probe_interval_s: float = Field(1.0, gt=0, le=60,
                                     description="how often the preferred place is probed")
     onboard: Place | None = Field(None, description="which of address and fallback runs on "
-                                                    "the robot (for onboard_cpu_ceiling)")
+                                                    "the robot (for onboard_cpu_ceiling, "
+                                                    "battery_topic)")
     onboard_cpu_ceiling: float | None = Field(
         None, gt=0, lt=1, description="robot CPU use (0-1, all cores) above which calls "
                                       "leave the onboard place and do not return to it")
+    battery_topic: str | None = Field(
+        None, min_length=1, description="a sensor_msgs/BatteryState topic: under battery_low "
+                                        "calls leave the onboard place (needs ROS)")
+    battery_low: float = Field(0.2, gt=0, lt=1, description="battery_topic: the charge "
+                                                            "(its percentage, 0-1) under which")
 
     @model_validator(mode="after")
-    def _ceiling_needs_onboard(self) -> PlacementConfig:
-        if self.onboard_cpu_ceiling is not None and self.onboard is None:
-            raise ValueError("onboard_cpu_ceiling: needs `onboard` (address or fallback: "
-                             "which of the two runs on the robot)")
+    def _robot_inputs_need_onboard(self) -> PlacementConfig:
+        for key in ("onboard_cpu_ceiling", "battery_topic"):
+            if getattr(self, key) is not None and self.onboard is None:
+                raise ValueError(f"{key}: needs `onboard` (address or fallback: which of the "
+                                 f"two runs on the robot)")
         return self
 
     @property
@@ -112,6 +121,7 @@ class Placement:
         self.moved = False  # calls go to the other place
         self.decisions: Counter[str] = Counter()  # reason -> count
         self.robot_cpu: float | None = None  # the last reading, with a ceiling
+        self.battery: float | None = None  # the last charge read, 0-1, with a battery topic
         self._calls: deque[float] = deque(maxlen=config.window)   # real calls, ms
         self._probes: deque[float] = deque(maxlen=config.window)  # probes, ms
         self._beyond_probe_ms = 0.0  # what a call cost beyond a probe, within budget
@@ -123,11 +133,26 @@ class Placement:
         """Where calls go now: address or fallback."""
         return self.config.other if self.moved else self.config.prefer
 
-    def _cpu_bars(self, place: Place) -> bool:
-        """Whether the robot's CPU keeps calls from moving to `place` now."""
-        ceiling = self.config.onboard_cpu_ceiling
-        return (place == self.config.onboard and ceiling is not None
-                and self.robot_cpu is not None and self.robot_cpu > ceiling)
+    def _robot_bars(self) -> tuple[str, str] | None:
+        """(reason, why) while the robot keeps calls off its onboard place."""
+        config = self.config
+        ceiling, low = config.onboard_cpu_ceiling, config.battery_low
+        if ceiling is not None and self.robot_cpu is not None and self.robot_cpu > ceiling:
+            return "cpu_over_ceiling", (f"robot CPU {self.robot_cpu:.0%} over the ceiling of "
+                                        f"{ceiling:.0%}")
+        if self.battery is not None and self.battery < low:
+            return "battery_low", f"battery at {self.battery:.0%}, under {low:.0%}"
+        return None
+
+    def _bars(self, place: Place) -> bool:
+        """Whether the robot keeps calls from moving to `place` now."""
+        return place == self.config.onboard and self._robot_bars() is not None
+
+    def _leave_onboard(self) -> None:
+        """Moves calls off the onboard place while the robot bars it."""
+        barred = self._robot_bars()
+        if barred is not None and self.place == self.config.onboard:
+            self._move(not self.moved, barred[1], barred[0])
 
     def call_took(self, seconds: float) -> None:
         """A real call to the preferred place answered after this long."""
@@ -143,7 +168,7 @@ class Placement:
                     self._beyond_probe_ms = max(
                         0.0, statistics.median(self._calls) - statistics.median(self._probes))
                 return
-            if self.moved or self._cpu_bars(self.config.other):
+            if self.moved or self._bars(self.config.other):
                 return
             self._move(True, f"p90 {observed:.0f} ms over the budget of {budget:.0f} ms",
                        "over_budget")
@@ -170,7 +195,7 @@ class Placement:
                 return
             estimate = p90(self._probes) + self._beyond_probe_ms
             now = time.monotonic()
-            if estimate > self.config.latency_budget_ms or self._cpu_bars(self.config.prefer):
+            if estimate > self.config.latency_budget_ms or self._bars(self.config.prefer):
                 self._within_since = None
                 return
             self._within_since = self._within_since or now
@@ -183,10 +208,16 @@ class Placement:
         leave the onboard place."""
         with self._lock:
             self.robot_cpu = use
-            if self._cpu_bars(self.place):
-                self._move(not self.moved, f"robot CPU {use:.0%} over the ceiling of "
-                                           f"{self.config.onboard_cpu_ceiling:.0%}",
-                           "cpu_over_ceiling")
+            self._leave_onboard()
+
+    def battery_read(self, charge: float) -> None:
+        """The robot's battery charge (0-1; NaN, unknown, is ignored): under battery_low,
+        calls leave the onboard place."""
+        if math.isnan(charge):
+            return
+        with self._lock:
+            self.battery = charge
+            self._leave_onboard()
 
     def _move(self, away: bool, why: str, reason: str) -> None:
         self.moved = away

@@ -5,7 +5,9 @@ inputs have a receive thread of their own (oricf.gateway.ros.camera) that also r
 route, at depth 1 (newest frame only), best effort like sensor_data until the topic's
 publishers are found, then reliable if every one of them is (camera drivers we did not
 write); text and audio inputs run on the executor, one callback group per route, reliable,
-queued up to the route's queue_size, and are handed to the route's worker thread. Outputs
+queued up to the route's queue_size, and are handed to the route's worker thread. A
+placement's `battery_topic` (sensor_msgs/BatteryState) is read on the executor, newest
+message only, best effort so that reliable and best-effort publishers both match. Outputs
 go through the pipeline's outlets; topic outputs to this node's publishers
 (oricf.gateway.ros.publishers).
 """
@@ -13,6 +15,7 @@ go through the pipeline's outlets; topic outputs to this node's publishers
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -22,6 +25,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import serialize_message
 
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
+from oricf.gateway.endpoints.placement import Placement
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import Recorder, message_times
 from oricf.gateway.ros import messages
@@ -43,6 +47,11 @@ def input_qos(config: InputConfig) -> QoSProfile:
     return QoSProfile(depth=config.queue_size, reliability=ReliabilityPolicy.RELIABLE)
 
 
+def battery_reader(placement: Placement) -> Callable[[Any], None]:
+    """A BatteryState callback that gives the charge to the placement."""
+    return lambda msg: placement.battery_read(float(msg.percentage))
+
+
 class GatewayNode(Node):
     def __init__(self, config: PipelineConfig, context: Context | None = None,
                  recorder: Recorder | None = None) -> None:
@@ -56,6 +65,7 @@ class GatewayNode(Node):
         for name, route in config.routes.items():
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
+        self._subscribe_batteries()
         self.pipeline.start(inline=[camera.route for camera in self._cameras])
         for camera in self._cameras:
             camera.start()
@@ -94,6 +104,19 @@ class GatewayNode(Node):
                                  on_message,  # type: ignore[arg-type]
                                  input_qos(config),
                                  callback_group=MutuallyExclusiveCallbackGroup())
+
+    def _subscribe_batteries(self) -> None:
+        """Each placement's battery topic, into its placement."""
+        from sensor_msgs.msg import BatteryState
+
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+        for name, endpoint in self.pipeline.endpoints.items():
+            placement = endpoint.placement
+            if placement is None or placement.config.battery_topic is None:
+                continue
+            topic = placement.config.battery_topic
+            self.create_subscription(BatteryState, topic, battery_reader(placement), qos)
+            log.info("endpoint %s: battery from %s", name, topic)
 
     @property
     def outlets(self) -> Outlets:

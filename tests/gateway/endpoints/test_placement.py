@@ -151,6 +151,10 @@ def test_a_placement_needs_a_fallback() -> None:
      "endpoints.detector.placement.onboard: Input should be 'address' or 'fallback'"),
     ({"onboard": "fallback", "onboard_cpu_ceiling": 80},
      "endpoints.detector.placement.onboard_cpu_ceiling: Input should be less than 1"),
+    ({"battery_topic": "/battery_state"},
+     "endpoints.detector.placement: battery_topic: needs `onboard`"),
+    ({"onboard": "address", "battery_topic": "/battery", "battery_low": 20},
+     "endpoints.detector.placement.battery_low: Input should be less than 1"),
 ])
 def test_a_bad_policy_is_refused_naming_the_file_and_key(policy: dict[str, Any],
                                                          error: str) -> None:

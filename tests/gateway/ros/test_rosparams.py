@@ -89,7 +89,8 @@ def test_a_parameter_of_the_wrong_type_is_refused_by_name(
 
 def test_unknown_names_and_malformed_arguments_are_refused(ros_env: dict[str, str]) -> None:
     with pytest.raises(ConfigError, match=r"placement 'edgy': no such file in .*placement "
-                                          r"\(shipped: edge, ollama, onboard, tls\)"):
+                                          r"\(shipped: edge, ollama, onboard, onboard_first, "
+                                          r"tls\)"):
         read_parameters(ros("-p", "placement:=edgy"), FLAGS).files()
     with pytest.raises(ConfigError, match="config: empty"):
         read_parameters(ros("-p", "config:=''"), FLAGS).files()
