@@ -28,13 +28,14 @@ from oricf.gateway.live_view import messages
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.live_view.front import Front
 from oricf.gateway.live_view.sdk_logs import make_sdk_logs_safe
+from oricf.gateway.recording.recorder import INPUT_TIME
 from oricf.gateway.throttle import ThrottledLog
-from oricf.gateway.values import Frame, Record
+from oricf.gateway.values import FRAME_TIME, Frame, Record
 
 log = logging.getLogger(__name__)
 
 # Record fields that are plumbing, not results: never shown.
-HIDDEN_FIELDS = frozenset({"route", "reply_to", "header"})
+HIDDEN_FIELDS = frozenset({"route", "reply_to", "header", FRAME_TIME, INPUT_TIME})
 STATE_INTERVAL_S = 1.0
 ERROR_LOG_INTERVAL_S = 30.0
 States = Callable[[], Iterable[tuple[str, dict[str, Any]]]]
