@@ -122,8 +122,9 @@ class EndpointConfig(TargetConfig):
     image: ImageTransport = ImageTransport()
     retry: RetryConfig = RetryConfig()
     placement: PlacementConfig | None = Field(
-        None, description="move calls to the fallback while the primary's latency is over a "
-                          "budget, not only when it fails (gateway/endpoints/placement.py)")
+        None, description="move calls between the address and the fallback by the preferred "
+                          "one's latency against a budget, and the robot's CPU and battery, "
+                          "not only when one fails (gateway/endpoints/placement.py)")
 
     @field_validator("fallback", mode="before")
     @classmethod
