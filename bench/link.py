@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from oricf.bench.common import load_frames, print_table, stop
+from oricf.bench.common import load_frames, p90, print_table, stop
 from oricf.bench.gateway import cpu_seconds
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.config import deep_merge
@@ -196,15 +196,15 @@ def onboard_only(onboard: Onboard, frames: list[Frame], seconds: float) -> Count
 def row(link: str, mode: str, counts: Counts, seconds: float, budget_ms: float,
         pipeline: Pipeline | None) -> list[Any]:
     lat = sorted(counts.latencies) or [float("nan")]
-    p90 = lat[int(0.9 * (len(lat) - 1))] * 1e3
+    p90_ms = p90(lat) * 1e3
     endpoint = pipeline.endpoints["detector"] if pipeline is not None else None
     answered = endpoint.answered if endpoint is not None else {"primary": 0, "fallback": 1}
     share = answered["primary"] / max(1, sum(answered.values()))
     moves = endpoint.placement.decisions["over_budget"] \
         if endpoint is not None and endpoint.placement is not None else "-"
     return [link, mode, f"{len(counts.times) / seconds:.1f}",
-            f"{statistics.median(lat) * 1e3:.0f}", f"{p90:.0f}",
-            "yes" if p90 <= budget_ms else "no", f"{share:.0%}",
+            f"{statistics.median(lat) * 1e3:.0f}", f"{p90_ms:.0f}",
+            "yes" if p90_ms <= budget_ms else "no", f"{share:.0%}",
             f"{counts.robot_cpu_s * 1e3 / max(1, counts.frames):.1f}",
             endpoint.failovers if endpoint is not None else "-", moves]
 

@@ -127,14 +127,16 @@ class Endpoint:
                 wait = self._retry_wait(exc, attempt, deadline - time.monotonic())
                 if wait is None:
                     raise
-                self.retries += 1
+                with self._lock:  # routes call from threads of their own
+                    self.retries += 1
                 log.debug("endpoint %s: %s busy, retry %d in %.0f ms", self.name,
                           target.address, attempt, wait * 1000)
                 time.sleep(wait)
                 continue
             if self.placement is not None and target is self.preferred:
                 self.placement.call_took(time.monotonic() - started)
-            self.answered["primary" if target is self.primary else "fallback"] += 1
+            with self._lock:
+                self.answered["primary" if target is self.primary else "fallback"] += 1
             return result
         raise AssertionError("unreachable")
 
