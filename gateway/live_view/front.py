@@ -50,6 +50,8 @@ UPSTREAM_MAX_BYTES = 256 << 20
 # Bytes written to a viewer before the relay waits for it: a slow viewer stalls only its own
 # relay, and the SDK drops that viewer's oldest frames.
 WRITE_LIMIT_BYTES = 256 << 10
+# Messages the relay reads ahead from the SDK for a viewer before it stops reading.
+RELAY_QUEUE = 4
 
 
 class Front:
@@ -120,7 +122,7 @@ class Front:
         log.info("live view: viewer %s connected (%d now)", _peer(viewer), len(self._viewers))
         try:
             async with connect(self._sdk_url, subprotocols=[SDK_SUBPROTOCOL],
-                               max_size=UPSTREAM_MAX_BYTES, max_queue=4,
+                               max_size=UPSTREAM_MAX_BYTES, max_queue=RELAY_QUEUE,
                                ping_interval=None, close_timeout=CLOSE_TIMEOUT_S) as sdk:
                 await _first_to_end(_pipe(viewer, sdk), _pipe(sdk, viewer))
         except (OSError, ConnectionClosed) as exc:

@@ -4,7 +4,6 @@ by viewers that stop reading."""
 
 from __future__ import annotations
 
-import json
 import re
 import time
 from collections.abc import Iterator
@@ -12,18 +11,14 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 import pytest
-from websockets.sync.client import connect
 
 from oricf.imaging import Detection
 from tests.gateway.live_view.support import (
-    Decoder,
     Running,
-    message_data,
     running,
-    subscribe_all,
     video_pipeline,
 )
-from tests.gateway.live_view.viewers import official_client
+from tests.gateway.live_view.viewers import official_client, stalled_viewer, watch
 from tests.support.services import RunningService, running_service
 
 MAX_FPS = 4.0
@@ -109,16 +104,9 @@ def test_tracked_people_carry_their_track_ids_and_the_tracking_measures_are_plot
 
 def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -> None:
     """One viewer subscribes to the frames and never reads again; the route goes on and a
-    second viewer still gets frames. (What the stalled viewer may hold is bounded by
-    construction, `backlog` messages and the front's write limit; the test process's own
-    peak memory, shared with the whole test run, is too noisy to show it.)"""
-    decoder = Decoder()
-    with connect(gateway.url, subprotocols=["foxglove.sdk.v1"],  # type: ignore[list-item]
-                 max_queue=1) as stalled:
-        stalled.recv(timeout=5)  # serverInfo
-        while not any(c["topic"] == "/people/image" for c in decoder.channels.values()):
-            decoder.advertise(json.loads(stalled.recv(timeout=10))["channels"])
-        stalled.send(subscribe_all(decoder))
+    second viewer still gets frames. (What the stalled viewer costs the gateway's memory is
+    measured on a gateway process of its own: test_stalled_viewer.py.)"""
+    with stalled_viewer(gateway.url, "/people/image"):
         time.sleep(2)  # the stalled viewer's buffers fill
         before_ok = gateway.pipeline.routes["people"].stats.ok
         images = watch(gateway.url, seconds=8)
@@ -127,26 +115,3 @@ def test_a_viewer_that_stops_reading_costs_the_robot_nothing(gateway: Running) -
         assert images >= 10, images
     # The gateway still takes viewers afterwards.
     assert watch(gateway.url, seconds=3) >= 2
-
-
-def watch(url: str, seconds: float) -> int:
-    """A Python viewer that reads everything for `seconds`: the images it got."""
-    decoder, images = Decoder(), 0
-    with connect(url, subprotocols=["foxglove.sdk.v1"]) as viewer:  # type: ignore[list-item]
-        deadline = time.monotonic() + seconds
-        subscribed = 0
-        while time.monotonic() < deadline:
-            try:
-                frame = viewer.recv(timeout=0.5)
-            except TimeoutError:
-                continue
-            if isinstance(frame, str):
-                message = json.loads(frame)
-                if message["op"] == "advertise":
-                    decoder.advertise(message["channels"])
-                    viewer.send(subscribe_all(decoder, {"/people/image"}))
-                    subscribed += 1
-                continue
-            channel, _, _ = message_data(frame)
-            images += decoder.channels[channel]["topic"] == "/people/image"
-    return images

@@ -9,13 +9,17 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tests.gateway.live_view.support import Decoder
+from websockets.sync.client import connect
+from websockets.typing import Subprotocol
+
+from tests.gateway.live_view.support import Decoder, message_data, subscribe_all
 
 CLIENT = Path(__file__).with_name("foxglove_client.js")
 
@@ -93,3 +97,45 @@ def watching(url: str) -> Iterator[list[Received]]:
         out.seek(0)
         lines = out.read().splitlines()
     got.append(Received([json.loads(line) for line in lines]))
+
+
+@contextmanager
+def stalled_viewer(url: str, topic: str) -> Iterator[None]:
+    """A Python viewer that subscribes to every channel once `topic` is advertised, then
+    never reads again until the block ends (its client holds one message, then stops reading
+    the socket)."""
+    decoder = Decoder()
+    with connect(url, subprotocols=[Subprotocol("foxglove.sdk.v1")], max_queue=1) as stalled:
+        stalled.recv(timeout=5)  # serverInfo
+        while not any(c["topic"] == topic for c in decoder.channels.values()):
+            decoder.advertise(json.loads(stalled.recv(timeout=10))["channels"])
+        stalled.send(subscribe_all(decoder))
+        yield
+
+
+def watch_images(url: str, seconds: float, topic: str = "/people/image") -> list[int]:
+    """A Python viewer that reads everything for `seconds`, subscribed to `topic`: the size
+    of each message it got there."""
+    decoder, sizes = Decoder(), []
+    with connect(url, subprotocols=[Subprotocol("foxglove.sdk.v1")]) as viewer:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            try:
+                frame = viewer.recv(timeout=0.5)
+            except TimeoutError:
+                continue
+            if isinstance(frame, str):
+                message = json.loads(frame)
+                if message["op"] == "advertise":
+                    decoder.advertise(message["channels"])
+                    viewer.send(subscribe_all(decoder, {topic}))
+                continue
+            channel, _, payload = message_data(frame)
+            if decoder.channels[channel]["topic"] == topic:
+                sizes.append(len(payload))
+    return sizes
+
+
+def watch(url: str, seconds: float) -> int:
+    """The images of /people/image a viewer that reads everything gets in `seconds`."""
+    return len(watch_images(url, seconds))
