@@ -38,9 +38,11 @@ class Pipeline(Protocol):
     routes: Mapping[str, Route]
     workers: Mapping[str, RouteWorker[Any]]
     endpoints: Mapping[str, Endpoint]
+    speakers: Mapping[str, Any]  # device -> oricf.gateway.sinks.speaker.Speaker
 
 ROUTE = ("route",)
 ENDPOINT = ("endpoint",)
+DEVICE = ("device",)
 CALL_CODES = frozenset(grpc.StatusCode.__members__)
 
 
@@ -52,6 +54,7 @@ class PipelineCollector(Collector):
         yield from self._inputs()
         yield from self._outcomes()
         yield from self._endpoints()
+        yield from self._speakers()
 
     def _inputs(self) -> Iterable[Metric]:
         received = CounterMetricFamily(
@@ -137,6 +140,28 @@ class PipelineCollector(Collector):
             for role, target in targets:
                 active.add_metric((name, role, target.address), 1 if target is in_use else 0)
         yield from (failovers, recoveries, retries, placements, active)
+
+
+    def _speakers(self) -> Iterable[Metric]:
+        played = CounterMetricFamily(
+            "oricf_gateway_speaker_pieces_played", "Pieces of speech (a sentence or an "
+            "answer) played to the end on the device.", labels=DEVICE)
+        dropped = CounterMetricFamily(
+            "oricf_gateway_speaker_pieces_dropped", "Pieces of speech never played: queued "
+            "when a barge-in came, asked before it, or left when the device was lost.",
+            labels=DEVICE)
+        cut = CounterMetricFamily(
+            "oricf_gateway_speaker_answers_cut", "Answers cut while playing by a barge-in "
+            "(a new utterance on a `barge_in` microphone).", labels=DEVICE)
+        playing = GaugeMetricFamily("oricf_gateway_speaker_playing",
+                                    "1 while the device plays speech.", labels=DEVICE)
+        for device, speaker in self._pipeline.speakers.items():
+            stats = speaker.stats
+            played.add_metric((device,), stats.played)
+            dropped.add_metric((device,), stats.dropped)
+            cut.add_metric((device,), stats.cut)
+            playing.add_metric((device,), 1 if speaker.playing else 0)
+        yield from (played, dropped, cut, playing)
 
 
 def pipeline_registry(pipeline: Pipeline) -> CollectorRegistry:

@@ -40,6 +40,8 @@ class Pipeline:
         # Outlets that play speech hold the speaking state; routes that mute or barge in
         # must see that one, so it is taken from them unless given.
         self.speaking = speaking or getattr(emit, "speaking", None) or Speaking()
+        # The speakers those outlets play on, for /metrics (device -> Speaker).
+        self.speakers: dict[str, Any] = getattr(emit, "speakers", {})
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
         self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)])

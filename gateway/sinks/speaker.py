@@ -190,6 +190,11 @@ class Speaker:
         if sinks is not None and self.device.pulse_sink not in sinks:
             raise audio_device.DeviceLost(f"{self.device.describe()} is gone")
 
+    @property
+    def playing(self) -> bool:
+        """True from taking a piece off the queue until its stream is closed."""
+        return self._busy
+
     def idle(self, timeout: float) -> bool:
         """Waits until nothing is queued or playing (for tests and benchmarks)."""
         deadline = time.monotonic() + timeout

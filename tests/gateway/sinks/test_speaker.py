@@ -28,6 +28,7 @@ from tests.gateway.sinks.voice import (
     word_errors,
 )
 from tests.gateway.sources.audio import PulseServer
+from tests.support.metrics import scrape
 from tests.support.services import RunningService, running_service
 from tests.support.speech import QUESTION, speech
 from tests.support.tts import VOICES, stub, tts_service  # noqa: F401 (a fixture)
@@ -96,16 +97,7 @@ def mic_route(pipeline: dict[str, object], asr: str, mic: str, while_speaking: s
     return {"endpoints": endpoints, "routes": routes}
 
 
-# espeak-ng's formant voice sits at the bound played back through a sink: 6.8% and 10.2%
-# (6 of 59 words, all but two in "The battery is at 80 percent") in runs of the same test.
-# Reported as XFAIL or XPASS in every run's summary until the voice is understood reliably.
-ESPEAK_AT_THE_BOUND = pytest.mark.xfail(
-    reason="espeak-ng's voice is at the 10% word error bound through Whisper tiny.en "
-           "(6.8-10.2% measured)", strict=False)
-
-
-@pytest.mark.parametrize("voice", [pytest.param(v, marks=ESPEAK_AT_THE_BOUND)
-                                   if v == "espeak" else v for v in VOICES])
+@pytest.mark.parametrize("voice", VOICES)
 def test_played_answers_are_heard_back_word_for_word(
         voice: str, pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
         asr: RunningService, tmp_path: Path) -> None:
@@ -147,6 +139,7 @@ def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
         asr: RunningService, tmp_path: Path) -> None:
     pipeline = mic_route(say_route(tts_service.address, "espeak", SPEAKER), asr.address, MIC,
                          "barge_in", tmp_path / "heard.jsonl")
+    pipeline["metrics"] = {"listen": "127.0.0.1:0"}
     question = np.concatenate([speech(QUESTION), np.zeros(RATE, np.int16)])
     onset = voiced(question)[0] / RATE
     with local_gateway(tmp_path, pipeline) as gateway:
@@ -164,6 +157,13 @@ def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
         assert speaker.stats.cut == 1, speaker.stats
         stopped_after = speaker.stats.cuts[0] - spoken_at
         heard = json.loads((tmp_path / "heard.jsonl").read_text().splitlines()[0])
+        assert gateway.pipeline.metrics_server is not None
+        metrics = scrape(gateway.pipeline.metrics_server.url)
+    device = {"device": SPEAKER}
+    assert metrics.value("oricf_gateway_speaker_answers_cut_total", **device) == 1
+    assert metrics.value("oricf_gateway_speaker_playing", **device) == 0
+    assert metrics.value("oricf_gateway_speaker_pieces_dropped_total", **device) \
+        == speaker.stats.dropped
     played = voiced(recording)
     played_s = (played[-1] - played[0]) / RATE
     whole_s = stub(tts_service).Synthesize(synthesis_pb2.SynthesizeRequest(
