@@ -24,14 +24,16 @@ import json
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from oricf.config import config_dir
 from oricf.errors import ConfigError
-from oricf.gateway.config import PipelineConfig, load_pipeline
-from oricf.gateway.recording.pace import check_rate
-from oricf.gateway.recording.recorder import Recorder, RecordingError
 from oricf.gateway.ros.params import Settings, read_parameters
+from oricf.gateway.ros.process import poll_in_calling_thread
 from oricf.logs import setup_logging
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import PipelineConfig
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def replay_rate(text: str) -> float:
+    from oricf.gateway.recording.pace import check_rate
+
     try:
         rate = float(text)
     except ValueError:
@@ -85,6 +89,7 @@ def replay_rate(text: str) -> float:
 def replay(config: PipelineConfig, args: argparse.Namespace) -> int:
     """--replay: the pipeline without ROS, its topic inputs from the recording."""
     from oricf.gateway import without_ros as standalone
+    from oricf.gateway.recording.recorder import Recorder, RecordingError
     from oricf.gateway.recording.replay import Replay
 
     player = Replay(args.replay, config, 1.0 if args.rate is None else args.rate)
@@ -106,6 +111,11 @@ def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # First: grpc reads its settings when it loads, and this module's imports do not load it.
+    poll_in_calling_thread()
+    from oricf.gateway.config import load_pipeline
+    from oricf.gateway.recording.recorder import RecordingError
+
     ours, ros_args = split_ros_args(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(ours)
     settings = Settings(config=str(args.config), overlays=tuple(map(str, args.overlay)),
@@ -135,6 +145,8 @@ def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
     """With ROS if the pipeline has topics, unless they are replayed from a recording."""
     if args.replay is not None:
         return replay(config, args)
+    from oricf.gateway.recording.recorder import RecordingError
+
     if args.rate is not None:
         raise RecordingError("--rate: only with --replay")
     if not config.uses_ros:

@@ -12,14 +12,13 @@ from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros.dds import use_dds_profile
 from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.ros.params import Settings, declare_settings
-from oricf.gateway.ros.process import keep_freed_memory, poll_in_calling_thread
+from oricf.gateway.ros.process import keep_freed_memory
 
 log = logging.getLogger(__name__)
 
 def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         settings: Settings | None = None) -> int:
     """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
-    poll_in_calling_thread()  # before the node's imports load grpc
     try:
         import rclpy
 

@@ -28,3 +28,19 @@ def test_ros_arguments_go_to_rclpy() -> None:
     assert ours == ["--config", "p.yaml"]
     assert ros == ["oricf_gateway", "--ros-args", "-r", "__node:=gw"]
     assert split_ros_args(["--check"]) == (["--check"], [])
+
+
+def test_the_gateway_sets_grpc_polling_before_grpc_loads() -> None:
+    """grpcio reads GRPC_EXPERIMENTS once, when it loads: `oricf gateway` (through the CLI
+    or as a ROS node) must not load it before main() has turned the EventEngine client off
+    (oricf.gateway.ros.process), or every reply wakes the EventEngine's threads."""
+    script = (
+        "import os, sys\n"
+        "os.environ.pop('GRPC_EXPERIMENTS', None)\n"
+        "import oricf.cli, oricf.gateway.main as gateway\n"
+        "assert 'grpc' not in sys.modules, 'grpc loaded on import'\n"
+        "assert gateway.main(['--check']) == 0\n"
+        "assert 'grpc' in sys.modules\n"
+        "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
