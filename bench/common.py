@@ -20,11 +20,14 @@ import numpy as np
 import yaml
 
 from oricf.config import deep_merge, read_yaml, shipped_service_config
+from oricf.gateway.endpoints.config import ImageTransport
 from oricf.launch.health import free_port, wait_serving
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.store import ModelStore
 
 FRAME_SIZE = (640, 480)
+# The quality the gateway encodes frames for a link with (`image.jpeg_quality`'s default).
+JPEG_QUALITY: int = ImageTransport.model_fields["jpeg_quality"].default
 
 
 def median_ms(seconds: Sequence[float]) -> float:

@@ -13,8 +13,8 @@ from typing import Any
 import cv2
 import grpc
 
-from oricf.bench.common import load_frames
-from oricf.bench.edge_robot import FPS, JPEG_QUALITY
+from oricf.bench.common import JPEG_QUALITY, load_frames
+from oricf.bench.edge_robot import FPS
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 STARTUP_S = 8.0       # from spawning the robots to the window: imports, frames, channels

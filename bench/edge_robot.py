@@ -14,13 +14,12 @@ import threading
 import time
 from typing import Any
 
-from oricf.bench.common import load_frames
+from oricf.bench.common import JPEG_QUALITY, load_frames
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
 
 FPS = 10
-JPEG_QUALITY = 80
 
 
 def route(detector: str, deadline_ms: int) -> dict[str, Any]:

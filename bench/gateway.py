@@ -55,6 +55,7 @@ import yaml
 
 from oricf.bench.common import (
     FRAME_SIZE,
+    JPEG_QUALITY,
     detector_with_threads,
     load_frames,
     median_ms,
@@ -73,7 +74,7 @@ from oricf.bench.gateway_report import (
 )
 from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
 from oricf.bench.gateway_view import view_overlay, view_table, watching
-from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups
+from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups_by_thread
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import load_pipeline
 from oricf.gateway.endpoints import EndpointConfig
@@ -84,7 +85,6 @@ from oricf.launch.health import free_port
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 
 COMPRESSED_TOPIC = "camera/compressed"
-JPEG_QUALITY = 80
 CHUNKS = 5  # the CPU phase's frames are measured in this many parts; the median is kept
 _libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
 
@@ -350,9 +350,11 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
                                                               [shm.pid, detector.pid])
             with gateway(address, "edge", folder, compressed) as jpeg:
                 camera.warm_up(messages[0], jpeg)
-                woken = wakeups(jpeg.pid)
+                woken = wakeups_by_thread(jpeg.pid)
                 (cpu["gw jpeg"],) = cpu_per_frame(camera, messages, args.fps, [jpeg.pid])
-                result.edge_wakeups = (wakeups(jpeg.pid) - woken) / len(messages)
+                woken = wakeups_by_thread(jpeg.pid) - woken
+                result.edge_wakeups = {name: count / len(messages)
+                                       for name, count in woken.most_common()}
             with served("models") as (models, _), \
                     gateway(address, "edge", folder, compressed, infer=models) as decoded:
                 camera.warm_up(messages[0], decoded)

@@ -6,9 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from oricf.bench.common import JPEG_QUALITY
 from oricf.config import config_dir, deep_merge
-
-JPEG_QUALITY = 80  # as the edge placement's
 
 
 def infer_overlay(counting: dict[str, Any], models: str) -> dict[str, Any]:

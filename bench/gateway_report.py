@@ -39,7 +39,8 @@ class InputResult:
     cpu: dict[str, float] = field(default_factory=dict)  # phase -> CPU s per frame
     request_bytes: dict[str, float] = field(default_factory=dict)  # transport -> median
     response_bytes: float = 0.0
-    edge_wakeups: float = 0.0  # the offloaded (edge) gateway's thread wake-ups per frame
+    # The offloaded (edge) gateway's thread wake-ups per frame, by thread name, most first.
+    edge_wakeups: dict[str, float] = field(default_factory=dict)
     post_us: dict[str, float] = field(default_factory=dict)  # post steps -> median us/frame
     view_images_per_s: float = 0.0  # images the live view's viewer received, its CPU phase
 
@@ -91,10 +92,14 @@ def cost_table(result: InputResult, power: PowerModel, fps: float, frames: tuple
 
 def wakeup_note(result: InputResult, wakeup_s: float) -> None:
     """How much of the offloaded gateway's CPU is the price of waking its threads."""
-    share = result.edge_wakeups * wakeup_s / result.cpu["gw jpeg"]
-    print(f"Offloaded gateway (transport jpeg): {result.edge_wakeups:.1f} thread wake-ups per "
-          f"frame; one costs {wakeup_s * 1e6:.0f} us of CPU on this machine (a thread blocked "
-          f"on a socket, woken at the camera rate), about {share:.0%} of its CPU per frame.")
+    total = sum(result.edge_wakeups.values())
+    share = total * wakeup_s / result.cpu["gw jpeg"]
+    threads = ", ".join(f"{name or '?'} {count:.1f}"
+                        for name, count in result.edge_wakeups.items() if count >= 0.1)
+    print(f"Offloaded gateway (transport jpeg): {total:.1f} thread wake-ups per frame "
+          f"({threads}); one costs {wakeup_s * 1e6:.0f} us of CPU on this machine (a thread "
+          f"blocked on a socket, woken at the camera rate), about {share:.0%} of its CPU per "
+          f"frame.")
 
 
 def idle_note(burst: BurstTimes, period_s: float) -> None:

@@ -9,7 +9,8 @@ On 640x480 frames of the pedestrian video, everything interleaved frame by frame
    with raw UINT8 pixels or JPEG in and decoded detections back (bench/models_edge.py); and
    through the typed Detect of `oricf serve detector`, its frame on the wire or in shared
    memory. Goals: shared memory adds at most 1 ms median over in process; JPEG with
-   decoded detections at most 2 ms.
+   decoded detections at most 2 ms. Beside them, a call that carries no tensor and runs no
+   model (ModelMetadata): the floor that any call through a service pays.
 2. The same model on onnxruntime and on OpenVINO (f32), each at 1 and 2 threads: median
    latency of the network alone, and how far the outputs differ from onnxruntime's.
 """
@@ -26,14 +27,15 @@ import grpc
 import numpy as np
 import yaml
 
-from oricf.bench.common import load_frames, median_ms, print_table, served
+from oricf.bench.common import JPEG_QUALITY, load_frames, median_ms, print_table, served
 from oricf.bench.models_edge import edge_ways
 from oricf.config import config_dir
 from oricf.gateway.endpoints import CHANNEL_OPTIONS  # as the gateway's calls are made
-from oricf.imaging import encode_image
+from oricf.imaging import decode_image, encode_image
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.models.heads import DetectionHead
 from oricf.models.wire import infer_request, response_outputs
+from oricf.oip import open_inference_grpc_pb2 as oip_pb2
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services.models.model import DeclaredModel
 from oricf.store import ModelStore
@@ -42,6 +44,12 @@ from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 # Outputs of two back ends agree when no element differs by more than this (FP32 networks
 # reorder sums differently; class scores and box offsets are of order 1).
 AGREEMENT = 1e-3
+# Parts of the paths timed on their own, interleaved with them: a call to the same server
+# that carries no tensor and runs no model (the part of every path through a service that is
+# the call itself: gRPC, HTTP/2, the server's thread hand-off), and the JPEG path's
+# encoding (client) and decoding (server) of the frame.
+CALL_ALONE = "a call alone (ModelMetadata)"
+CODEC_ALONE = "JPEG encode + decode alone"
 
 
 def timed(call: Callable[[], object]) -> float:
@@ -52,7 +60,7 @@ def timed(call: Callable[[], object]) -> float:
 
 def encoded(frame: np.ndarray) -> np.ndarray:
     tensor = np.empty(1, dtype=object)
-    tensor[0] = encode_image(frame, "jpeg", 90)
+    tensor[0] = encode_image(frame, "jpeg", JPEG_QUALITY)
     return tensor
 
 
@@ -107,8 +115,12 @@ def protocol_overhead(declaration: ModelDeclaration, path: Path, frames: list[np
             for frame in frames[:10]:
                 for way in ways.values():
                     way(frame)
+            metadata = oip_pb2.ModelMetadataRequest(name=declaration.name)
+            parts = {CALL_ALONE: lambda _: oip.ModelMetadata(metadata, timeout=10),
+                     CODEC_ALONE: lambda f: decode_image(encoded(f)[0], "jpeg")}
+            latency.update({name: [] for name in parts})
             for frame in frames:
-                for name, way in ways.items():
+                for name, way in [*ways.items(), *parts.items()]:
                     latency[name].append(timed(lambda w=way, f=frame: w(f)))  # type: ignore[misc]
     model.close()
     return latency
@@ -154,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     frames = load_frames(args.frames)
     with tempfile.TemporaryDirectory(prefix="oricf-bench-") as folder:
         latency = protocol_overhead(declaration, args.model.resolve(), frames, Path(folder))
+    call_alone, codec_alone = latency.pop(CALL_ALONE), latency.pop(CODEC_ALONE)
     base = median_ms(latency["in-process"])
     print_table(f"{declaration.name}: one detection per 640x480 frame "
                 f"(median of {len(frames)}, interleaved)",
@@ -167,6 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     edge = median_ms(latency["ModelInfer jpeg, decoded"]) - base
     print(f"ModelInfer with JPEG in and decoded detections back adds {edge:.2f} ms "
           f"(goal <= 2 ms)")
+    print(f"of which: a call that carries no tensor and runs no model takes "
+          f"{median_ms(call_alone):.2f} ms (the floor of every path through a service); "
+          f"encoding the frame as JPEG (q{JPEG_QUALITY}) and decoding it, "
+          f"{median_ms(codec_alone):.2f} ms")
 
     timings, difference = backends(declaration, frames)
     first = median_ms(next(iter(timings.values())))

@@ -10,6 +10,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from oricf.bench.common import JPEG_QUALITY
 from oricf.gateway.methods.infer_shared import placed_outputs
 from oricf.imaging import encode_image
 from oricf.models.declaration import ModelDeclaration
@@ -74,7 +75,7 @@ def edge_ways(declaration: ModelDeclaration, head: DetectionHead,
 
         def over_jpeg(frame: np.ndarray) -> object:
             tensor = np.empty(1, dtype=object)
-            tensor[0] = encode_image(frame, "jpeg", 90)
+            tensor[0] = encode_image(frame, "jpeg", JPEG_QUALITY)
             response = models.ModelInfer(infer_request(
                 declaration.name, {head.input_name: tensor}, decoded), timeout=10)
             return response_outputs(response)[output]

@@ -22,6 +22,7 @@ import statistics
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import NamedTuple
 
@@ -41,16 +42,23 @@ def wakeups(pid: int, threads: str = "") -> int:
     """Times the threads of a process have blocked so far (each block ends in a wake-up):
     the sum of their voluntary context switches. `threads`: only those whose name starts
     so (e.g. "dds.ev." for Fast DDS's event threads)."""
-    total = 0
+    return sum(count for name, count in wakeups_by_thread(pid).items()
+               if name.startswith(threads))
+
+
+def wakeups_by_thread(pid: int) -> Counter[str]:
+    """wakeups() of each kind of thread, by name with its number dropped ("dds.ev.3" and
+    "dds.ev.7" are both "dds.ev."), so that two counts of the same process subtract."""
+    counts: Counter[str] = Counter()
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
-            if not (task / "comm").read_text().startswith(threads):
-                continue
+            name = (task / "comm").read_text().strip()
             status = (task / "status").read_text()
         except OSError:  # the thread ended meanwhile
             continue
-        total += int(status.split("voluntary_ctxt_switches:")[1].split()[0])
-    return total
+        counts[name.rstrip("0123456789")] += int(
+            status.split("voluntary_ctxt_switches:")[1].split()[0])
+    return counts
 
 
 def wakeup_cost(rate_hz: float, count: int = 50) -> float:
