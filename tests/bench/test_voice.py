@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from oricf.bench.voice import STAGES, Turn, summary
+from oricf.bench.voice import STAGES, Turn, main, summary
 
 
 def turn(ended: float, *marks: tuple[str, float]) -> Turn:
@@ -36,3 +36,21 @@ def test_medians_and_p90_over_the_answered_questions() -> None:
     assert table["LLM 1st sentence"][1] == pytest.approx(460)
     assert table["total"][0] == pytest.approx(900)
     assert "device" not in table
+
+
+def test_a_question_cut_in_two_is_left_out_of_the_timings() -> None:
+    split = turn(10.0, ("utterance", 9.8), ("transcript", 9.9), ("sentence", 10.2),
+                 ("audio", 10.3))
+    split.utterances = 2
+    assert split.stages() is None
+    whole = turn(10.0, ("utterance", 10.5), ("transcript", 10.6), ("sentence", 11.0),
+                 ("audio", 11.1))
+    whole.utterances = 1
+    assert whole.stages() is not None
+
+
+@pytest.mark.parametrize("silences", ["abc", "400,16"])
+def test_end_silences_that_cannot_be_used_are_refused_before_anything_starts(
+        silences: str) -> None:
+    with pytest.raises(SystemExit, match="--min-silence-ms"):
+        main(["--min-silence-ms", silences])
