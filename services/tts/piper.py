@@ -73,6 +73,11 @@ class PiperVoice:
         # Without the arena each run's activations (hundreds of MB for a long sentence) go
         # back when it ends; with it the process kept its largest run's memory for good.
         options.enable_cpu_mem_arena = False
+        # Idle intra-op threads sleep instead of spinning between the decoder's many small
+        # operators: on a robot's few cores a spinning thread takes the core that the
+        # language model (still finishing the answer) or the other services need, and the
+        # sentence then waits for it.
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         self._session = ort.InferenceSession(str(self.weights), options,
                                              providers=["CPUExecutionProvider"])
         self.runtime = f"onnxruntime {ort.__version__} + {espeak.version()}"
