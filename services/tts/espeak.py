@@ -29,6 +29,7 @@ PROGRAM = "espeak-ng"
 TIMEOUT_S = 30.0
 DEFAULT_WPM = 175  # espeak-ng's own default speaking rate
 MIN_WPM, MAX_WPM = 80, 450  # espeak-ng's range; a speed beyond it is clamped to it
+WORD_GAP_UNIT_MS = 10  # espeak-ng's -g counts pauses between words in 10 ms steps
 VOICE_NAME = r"^[A-Za-z0-9][A-Za-z0-9_+-]{0,63}$"
 # A switch to another language's phonemes inside --ipa output, e.g. "(fr)".
 LANGUAGE_SWITCH = re.compile(r"\([a-z]{2,3}(?:-[a-z0-9]+)*\)")
@@ -70,10 +71,12 @@ def phonemes(text: str, voice: str) -> list[str]:
     return [clause for clause in clauses if clause]
 
 
-def speak(text: str, voice: str, words_per_minute: int, pitch: int) -> tuple[np.ndarray, int]:
+def speak(text: str, voice: str, words_per_minute: int, pitch: int, word_gap_ms: int = 0
+          ) -> tuple[np.ndarray, int]:
     """Mono int16 samples of the text in an espeak-ng voice, and their sample rate."""
+    gap = round(word_gap_ms / WORD_GAP_UNIT_MS)
     wav = _run(["-b", "1", "-v", voice, "-s", str(words_per_minute), "-p", str(pitch),
-                "--stdout", "--stdin"], text)
+                "-g", str(gap), "--stdout", "--stdin"], text)
     pcm = parse_wav(wav)
     return pcm.samples.reshape(-1), pcm.sample_rate
 
@@ -91,6 +94,10 @@ class EspeakVoiceConfig(Schema):
     words_per_minute: int = Field(DEFAULT_WPM, ge=MIN_WPM, le=MAX_WPM,
                                   description="at speed 1.0")
     pitch: int = Field(50, ge=0, le=99)
+    word_gap_ms: int = Field(0, ge=0, le=500, multiple_of=WORD_GAP_UNIT_MS,
+                             description="a pause between words; a speech recogniser (or a "
+                                         "listener) tells the formant voice's words apart "
+                                         "better with one (docs/speech-out.md)")
 
 
 class EspeakVoice:
@@ -109,7 +116,8 @@ class EspeakVoice:
         self.runtime = version()
         c = self.config  # the voice exists and speaks; its sample rate is the program's
         try:
-            _, self.sample_rate = speak("ready", c.voice, c.words_per_minute, c.pitch)
+            _, self.sample_rate = speak("ready", c.voice, c.words_per_minute, c.pitch,
+                                        c.word_gap_ms)
         except RuntimeError as exc:
             raise ConfigError(f"voices.{self.name}: espeak-ng cannot speak with voice "
                               f"'{c.voice}' (see `espeak-ng --voices`): {exc}") from None
@@ -121,11 +129,12 @@ class EspeakVoice:
         c = self.config
         return {"engine": c.engine, "espeak_voice": c.voice,
                 "words_per_minute": str(c.words_per_minute), "pitch": str(c.pitch),
-                "sample_rate": str(self.sample_rate)}
+                "word_gap_ms": str(c.word_gap_ms), "sample_rate": str(self.sample_rate)}
 
     def speak(self, sentence: str, speed: float) -> np.ndarray:
         c = self.config
-        samples, rate = speak(sentence, c.voice, wpm_for(c.words_per_minute, speed), c.pitch)
+        samples, rate = speak(sentence, c.voice, wpm_for(c.words_per_minute, speed), c.pitch,
+                              c.word_gap_ms)
         if rate != self.sample_rate:
             raise RuntimeError(f"{PROGRAM} changed its sample rate to {rate} Hz")
         return samples

@@ -29,6 +29,8 @@ def test_the_shipped_config_declares_both_engines() -> None:
     ({"voices": {"x": {"engine": "espeak-ng", "voice": "--rm -rf"}}}, "voices.x.espeak-ng.voice"),
     ({"voices": {"x": {"engine": "espeak-ng", "words_per_minute": 1000}}},
      "voices.x.espeak-ng.words_per_minute"),
+    ({"voices": {"x": {"engine": "espeak-ng", "word_gap_ms": 15}}},
+     "voices.x.espeak-ng.word_gap_ms"),
     ({"default_voice": "nobody"}, "default_voice: 'nobody' is not one of the voices"),
     ({"voices": {"bad name!": {"engine": "espeak-ng"}}}, "is not a voice name"),
     ({"text": {"max_chars": 0}}, "text.max_chars"),
