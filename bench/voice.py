@@ -69,6 +69,7 @@ class Turn:
 
     ended: float = 0.0
     utterances: int = 0         # more than one: the cutter split the question
+    sound_before: float | None = None  # the speaker's last stream start before the answer
     marks: dict[str, float] = field(default_factory=dict)
     done: threading.Event = field(default_factory=threading.Event)
 
@@ -115,21 +116,28 @@ class Voice:
     def _emit(self, output: Any, value: Any, record: Any) -> None:
         if output.source == "speech" and "audio" not in self.turn.marks:
             self.turn.mark("audio")
+            # Read before the audio is handed over: the speaker's thread may start it at once.
+            self.turn.sound_before = _last_start(self._speaker())
             self.outlets(output, value, record)
-            if self.outlets.speakers:
-                self._await_sound()
-            self.turn.done.set()
+            self.turn.done.set()  # the route goes on at once, as it does in the gateway
         else:
             self.outlets(output, value, record)
 
-    def _await_sound(self) -> None:
-        speaker = next(iter(self.outlets.speakers.values()))
-        seen = len(speaker.stats.starts)
+    def _speaker(self) -> Any:
+        return next(iter(self.outlets.speakers.values()), None)
+
+    def _await_sound(self, turn: Turn) -> None:
+        """The time the answer's first sample reached the device (the speaker's stream
+        began to sound), if it did within 5 s."""
+        speaker = self._speaker()
+        if speaker is None or "audio" not in turn.marks:
+            return
         deadline = time.monotonic() + 5
-        while len(speaker.stats.starts) == seen and time.monotonic() < deadline:
+        while _last_start(speaker) == turn.sound_before and time.monotonic() < deadline:
             time.sleep(0.005)
-        if len(speaker.stats.starts) > seen:
-            self.turn.marks.setdefault("sound", speaker.stats.starts[-1])
+        started = _last_start(speaker)
+        if started != turn.sound_before and started is not None:
+            turn.marks.setdefault("sound", started)
 
     def start(self) -> None:
         self.pipeline.start()
@@ -150,6 +158,7 @@ class Voice:
                 turn.utterances += 1
                 self.pipeline.submit("speech", lambda c=clip: {"audio": c})
         turn.done.wait(TURN_TIMEOUT_S)
+        self._await_sound(turn)
         self.pipeline.idle(TURN_TIMEOUT_S)
         for speaker in self.outlets.speakers.values():
             speaker.idle(TURN_TIMEOUT_S)
@@ -159,6 +168,12 @@ class Voice:
         self.camera.stop()
         self.pipeline.stop()
         self.outlets.close()
+
+
+def _last_start(speaker: Any) -> float | None:
+    """When the speaker's latest stream began to sound (None: none yet, or no speaker)."""
+    starts = speaker.stats.starts if speaker is not None else ()
+    return starts[-1] if starts else None
 
 
 def spoken_questions() -> list[tuple[np.ndarray, int]]:
