@@ -116,12 +116,14 @@ def protocol_overhead(declaration: ModelDeclaration, path: Path, frames: list[np
                 for way in ways.values():
                     way(frame)
             metadata = oip_pb2.ModelMetadataRequest(name=declaration.name)
-            parts = {CALL_ALONE: lambda _: oip.ModelMetadata(metadata, timeout=10),
-                     CODEC_ALONE: lambda f: decode_image(encoded(f)[0], "jpeg")}
+            parts: dict[str, Callable[[np.ndarray], object]] = {
+                CALL_ALONE: lambda _: oip.ModelMetadata(metadata, timeout=10),
+                CODEC_ALONE: lambda f: decode_image(encoded(f)[0], "jpeg")}
             latency.update({name: [] for name in parts})
+            timed_ways: dict[str, Callable[[np.ndarray], object]] = {**ways, **parts}
             for frame in frames:
-                for name, way in [*ways.items(), *parts.items()]:
-                    latency[name].append(timed(lambda w=way, f=frame: w(f)))  # type: ignore[misc]
+                for name, measured in timed_ways.items():
+                    latency[name].append(timed(lambda w=measured, f=frame: w(f)))  # type: ignore[misc]
     model.close()
     return latency
 
