@@ -141,7 +141,6 @@ class PipelineCollector(Collector):
                 active.add_metric((name, role, target.address), 1 if target is in_use else 0)
         yield from (failovers, recoveries, retries, placements, active)
 
-
     def _speakers(self) -> Iterable[Metric]:
         played = CounterMetricFamily(
             "oricf_gateway_speaker_pieces_played", "Pieces of speech (a sentence or an "
