@@ -50,9 +50,10 @@ def http_service(name: str, *args: str, scheme: str = "http",
 
 
 def client(service: HttpService, api_key: str = "unused", **options: Any) -> openai.OpenAI:
-    """The OpenAI client, retries off (a refusal must reach the test as it was sent)."""
-    return openai.OpenAI(base_url=f"{service.base_url}/v1", api_key=api_key, max_retries=0,
-                         timeout=60, **options)
+    """The OpenAI client, retries off unless asked (a refusal must reach the test as it was
+    sent)."""
+    options = {"max_retries": 0, "timeout": 60, **options}
+    return openai.OpenAI(base_url=f"{service.base_url}/v1", api_key=api_key, **options)
 
 
 def overlay(folder: Path, data: dict[str, Any], name: str = "overlay.yaml") -> str:
