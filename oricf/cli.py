@@ -36,6 +36,8 @@ DELEGATED = {
     "up": "oricf.launch.up",
     "demo": "oricf.demo.main",
 }
+# Modules that run a pipeline in this process: grpc's client polls in the calling thread.
+RUN_PIPELINES = {"oricf.gateway.main", "oricf.gateway.agents.main"}
 BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
               "offload", "edge", "tracking")
 
@@ -158,6 +160,10 @@ def _delegator(module: str) -> Callable[[argparse.Namespace], int]:
 
 
 def _delegate(module: str, argv: list[str]) -> int:
+    if module in RUN_PIPELINES:
+        from oricf.gateway.ros.process import poll_in_calling_thread
+
+        poll_in_calling_thread()  # before the module's imports load grpc, which reads it once
     main: Callable[[list[str]], int] = importlib.import_module(module).main
     return main(argv)
 

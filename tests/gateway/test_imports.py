@@ -44,3 +44,20 @@ def test_the_gateway_sets_grpc_polling_before_grpc_loads() -> None:
         "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
+
+
+def test_oricf_mcp_sets_grpc_polling_before_grpc_loads() -> None:
+    """`oricf mcp --config` runs the pipeline in its own process like `oricf gateway`, but its
+    module loads grpc on import: the CLI turns the EventEngine client off before that."""
+    script = (
+        "import os, sys\n"
+        "os.environ.pop('GRPC_EXPERIMENTS', None)\n"
+        "import oricf.cli\n"
+        "try:\n"
+        "    oricf.cli.main(['mcp', '--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "assert 'grpc' in sys.modules\n"
+        "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
