@@ -17,6 +17,10 @@ import numpy as np
 import pytest
 
 from oricf.errors import ConfigError
+from oricf.gateway.config import SpeakerConfig
+from oricf.gateway.sinks.speaker import Speaker
+from oricf.gateway.speaking import Speaking
+from oricf.gateway.values import AudioClip
 from oricf.v1 import synthesis_pb2
 from tests.gateway.sinks.voice import (
     RATE,
@@ -132,6 +136,25 @@ def test_the_first_sentence_plays_while_the_rest_is_synthesized(
     log.info("first sound %.2f s before the whole answer was synthesized",
              synthesized - first_sound)
     assert first_sound < synthesized
+
+
+def test_every_stream_sounds_from_its_first_sample(pulse_env: PulseServer,
+                                                  tmp_path: Path) -> None:
+    """PortAudio's ALSA plugin into PulseAudio loses the start of a new stream (most of all
+    the first one): the speaker's lead-in of silence keeps every onset. A one-second tone,
+    played three times in new streams, is heard whole each time."""
+    tone = (8000 * np.sin(2 * np.pi * 1000 * np.arange(RATE) / RATE)).astype("<i2")
+    speaker = Speaker(SpeakerConfig(device=SPEAKER), Speaking())
+    try:
+        for index in range(3):
+            recorder = Recorder(pulse_env, SPEAKER, tmp_path / f"tone-{index}.raw")
+            speaker.play(AudioClip(tone.tobytes(), RATE, 1))
+            assert speaker.idle(30)
+            heard = voiced(recorder.samples())
+            assert len(heard), "nothing played"
+            assert (heard[-1] - heard[0] + 1) / RATE > 0.99, f"tone {index}: the start is lost"
+    finally:
+        speaker.close()
 
 
 def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
