@@ -165,9 +165,9 @@ class Endpoint:
             self._probe = threading.Thread(target=self._probe_primary, daemon=True,
                                            name=f"probe-{self.name}")
             self._probe.start()
-        log.warning("endpoint %s: primary %s failed (%s); using fallback %s until it is "
+        log.warning("endpoint %s: primary %s failed (%s: %s); using fallback %s until it is "
                     "ready again", self.name, self.primary.address, exc.code().name,
-                    self.fallback.address)
+                    exc.details(), self.fallback.address)
 
     def _probe_primary(self) -> None:
         while not self._stop.wait(self.config.probe_interval_s):

@@ -13,8 +13,11 @@ from oricf.gateway.endpoints.replicas import channel_options
 from oricf.tls import open_channel
 
 # Short reconnect backoff: a restarted service is found within about a second, not the
-# default of up to two minutes. gRPC also uses the minimum as the connect timeout, so a host
-# that accepts connections but never completes the handshake fails within a second too.
+# default of up to two minutes. gRPC uses the minimum as the time a connection attempt has
+# to complete (the default is 20 s): 3 s, because Linux resends a lost SYN after 1 s, and
+# with 1 s one lost packet of the handshake on a lossy link failed the attempt, and the
+# endpoint failed over. A host that never completes the handshake is bounded by each call's
+# deadline (the endpoint fails over on DEADLINE_EXCEEDED).
 #
 # No BDP probing: gRPC pings the server after every response it reads to size its receive
 # window, which woke about two of grpcio's threads per call. Replies are small (detections,
@@ -24,7 +27,7 @@ CHANNEL_OPTIONS = [
     ("grpc.max_send_message_length", 64 * 1024 * 1024),
     ("grpc.max_receive_message_length", 64 * 1024 * 1024),
     ("grpc.initial_reconnect_backoff_ms", 250),
-    ("grpc.min_reconnect_backoff_ms", 1000),
+    ("grpc.min_reconnect_backoff_ms", 3000),
     ("grpc.max_reconnect_backoff_ms", 1000),
     ("grpc.http2.bdp_probe", 0),
     ("grpc.http2.lookahead_bytes", 8 * 1024 * 1024),

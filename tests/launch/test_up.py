@@ -232,7 +232,7 @@ def test_gateway_uses_the_onboard_fallback_started_here_while_the_edge_is_down(
         "stop_grace_s": 5})
     with oricf_up(path) as up:
         up.wait_for(RUNNING, timeout=120)
-        up.wait_for(rf"endpoint detector: primary {edge} failed \(\w+\); using fallback "
+        up.wait_for(rf"endpoint detector: primary {edge} failed \(\w+: .*\); using fallback "
                     rf"127.0.0.1:{port} until", timeout=60)
         up.wait_for(r'gateway +\| \{"route": "people".*"count": [1-9]', timeout=60)
         up.process.send_signal(signal.SIGTERM)

@@ -148,7 +148,7 @@ def test_deadline_exceeded_fails_over(hung_address: str, request_0: detector_pb2
         # failover takes is `oricf bench link`'s figure (the longest gap between counts).
         assert time.monotonic() - started >= 0.3
         assert ep.active is ep.fallback
-        assert "failed (DEADLINE_EXCEEDED); using fallback" in caplog.text
+        assert "failed (DEADLINE_EXCEEDED: Deadline Exceeded); using fallback" in caplog.text
         ep.close()
 
 
