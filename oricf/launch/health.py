@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import random
 import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import grpc
@@ -26,6 +28,7 @@ from oricf.tls import ClientTls, open_channel
 
 SERVING = health_pb2.HealthCheckResponse.SERVING
 DEFAULT_ADDRESS = "127.0.0.1:50051"
+FREE_PORTS_FROM = 20000  # free_port's lowest: above the ports services are usually given
 
 
 def status(address: str, service: str = "", timeout: float = 2.0,
@@ -55,10 +58,30 @@ def wait_serving(address: str, timeout: float = 300.0,
 
 
 def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
+    """A TCP port on 127.0.0.1 that nothing uses right now, for a process about to listen on
+    it. Taken below the kernel's ephemeral range where there is room: a port from that range
+    (what binding to port 0 gives) can be taken as the source port of any outgoing
+    connection on the machine before the process binds it, which then fails to start."""
+    low = ephemeral_ports()[0]
+    for _ in range(100):
+        port = random.randrange(FREE_PORTS_FROM, low) if low > FREE_PORTS_FROM else 0
+        with socket.socket() as sock:
+            try:
+                sock.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return int(sock.getsockname()[1])
+    raise OSError(f"no free TCP port on 127.0.0.1 between {FREE_PORTS_FROM} and {low}")
+
+
+def ephemeral_ports() -> tuple[int, int]:
+    """The range the kernel takes outgoing connections' source ports from (Linux; else
+    IANA's)."""
+    try:
+        low, high = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
+        return int(low), int(high)
+    except (OSError, ValueError):
+        return 49152, 65535
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import socket
+
 import pytest
 
 from oricf.launch import health
@@ -28,3 +30,16 @@ def test_probe_fails_when_nothing_answers(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setenv("ORICF_HEALTH_ADDRESS", address)  # the container's default address
     assert health.main(["--timeout", "0.5"]) == 1
     assert f"{address}: UNREACHABLE" in capsys.readouterr().out
+
+
+def test_free_ports_are_outside_the_range_outgoing_connections_take() -> None:
+    """A connection's source port comes from the kernel's ephemeral range, so a port from
+    there could be taken between free_port() and the service's bind."""
+    low, high = health.ephemeral_ports()
+    with socket.create_server(("127.0.0.1", 0)) as server, \
+            socket.create_connection(server.getsockname()) as client:
+        assert low <= client.getsockname()[1] <= high
+    ports = [free_port() for _ in range(200)]
+    assert all(health.FREE_PORTS_FROM <= port < low for port in ports)
+    with socket.create_server(("127.0.0.1", ports[-1])):  # and free to listen on
+        pass

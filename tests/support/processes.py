@@ -22,6 +22,12 @@ def oricf_process(*args: str, env: dict[str, str] | None = None
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         yield process
+    except BaseException:
+        # A service that exited on its own said why: its output goes with the failure.
+        if process.poll() is not None and process.stdout:
+            print(f"`oricf {' '.join(args)}` exited with {process.returncode}:\n"
+                  f"{process.stdout.read()}", file=sys.stderr)
+        raise
     finally:
         if process.poll() is None:
             os.killpg(process.pid, 9)
