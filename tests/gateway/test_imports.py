@@ -34,30 +34,31 @@ def test_the_gateway_sets_grpc_polling_before_grpc_loads() -> None:
     """grpcio reads GRPC_EXPERIMENTS once, when it loads: `oricf gateway` (through the CLI
     or as a ROS node) must not load it before main() has turned the EventEngine client off
     (oricf.gateway.ros.process), or every reply wakes the EventEngine's threads."""
-    script = (
-        "import os, sys\n"
-        "os.environ.pop('GRPC_EXPERIMENTS', None)\n"
+    assert_grpc_polls_in_calling_thread(
         "import oricf.cli, oricf.gateway.main as gateway\n"
         "assert 'grpc' not in sys.modules, 'grpc loaded on import'\n"
-        "assert gateway.main(['--check']) == 0\n"
-        "assert 'grpc' in sys.modules\n"
-        "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+        "assert gateway.main(['--check']) == 0\n")
 
 
 def test_oricf_mcp_sets_grpc_polling_before_grpc_loads() -> None:
     """`oricf mcp --config` runs the pipeline in its own process like `oricf gateway`, but its
     module loads grpc on import: the CLI turns the EventEngine client off before that."""
-    script = (
-        "import os, sys\n"
-        "os.environ.pop('GRPC_EXPERIMENTS', None)\n"
+    assert_grpc_polls_in_calling_thread(
         "import oricf.cli\n"
         "try:\n"
         "    oricf.cli.main(['mcp', '--help'])\n"
         "except SystemExit:\n"
-        "    pass\n"
-        "assert 'grpc' in sys.modules\n"
-        "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
+        "    pass\n")
+
+
+def assert_grpc_polls_in_calling_thread(steps: str) -> None:
+    """Runs `steps` in a fresh interpreter without GRPC_EXPERIMENTS; afterwards grpc must
+    be loaded with the EventEngine client off (set before it loaded: once grpc is loaded,
+    poll_in_calling_thread leaves the variable unset)."""
+    script = ("import os, sys\n"
+              "os.environ.pop('GRPC_EXPERIMENTS', None)\n"
+              f"{steps}"
+              "assert 'grpc' in sys.modules\n"
+              "assert os.environ['GRPC_EXPERIMENTS'] == '-event_engine_client'\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
