@@ -122,8 +122,8 @@ class CameraReceiver:
             raw=True)
 
     def _run(self) -> None:
-        wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self._context.handle)
         try:
+            wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self._context.handle)
             while not self._stopping.is_set() and self._context.ok():
                 if time.monotonic() >= self._next_check:
                     self._match_publishers()

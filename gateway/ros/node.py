@@ -66,14 +66,16 @@ class GatewayNode(Node):
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
         self._subscribe_batteries()
+        if config.stats_interval_s > 0:
+            self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
+        # Every ROS entity exists before any thread starts: a SIGTERM during start-up makes
+        # creating one fail (the context is shut down), and then nothing is left running.
         self.pipeline.start(inline=[camera.route for camera in self._cameras])
         for camera in self._cameras:
             camera.start()
         self._outlets.start()
         for source in self._sources:
             source.start()
-        if config.stats_interval_s > 0:
-            self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
         log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
 
     def _subscribe(self, route: str, config: InputConfig) -> None:

@@ -32,7 +32,18 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         log.info("mallopt not available: large frame buffers come from fresh pages")
     recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
     rclpy.init(args=ros_args)
-    node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
+    try:
+        node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
+    except Exception:
+        if rclpy.ok():
+            raise
+        # SIGINT/SIGTERM shut the context down while the node was being built: a stop
+        # asked for during start-up, not a failure.
+        log.info("gateway stopped while starting")
+        if recorder is not None:
+            recorder.close()
+        rclpy.try_shutdown()
+        return 0
     if settings is not None:
         declare_settings(node, settings)
     executor = make_executor(config.executor_threads)
@@ -45,8 +56,8 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         stop_control()
         node.shutdown()
         executor.shutdown()
+        if recorder is not None:  # complete on disk before DDS is torn down
+            recorder.close()
         node.destroy_node()
         rclpy.try_shutdown()
-        if recorder is not None:
-            recorder.close()
     return 0

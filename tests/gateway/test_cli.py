@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import re
 import signal
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -66,16 +69,47 @@ def test_gateway_process_stops_cleanly_while_frames_stream(
                     publisher = threading.Thread(target=stream, args=(stop_publishing,),
                                                  daemon=True)
                     publisher.start()
-                    wait_for(lambda: probe.next("/human_counter", timeout=5).data == 4)
-                    gateway.send_signal(signal.SIGTERM)
-                    code = gateway.wait(timeout=15)
-                    stop_publishing.set()
-                    publisher.join()
+                    try:
+                        wait_for(lambda: probe.next("/human_counter", timeout=5).data == 4)
+                        gateway.send_signal(signal.SIGTERM)
+                        code = gateway.wait(timeout=15)
+                    finally:
+                        stop_publishing.set()
+                        publisher.join()
                     assert gateway.stdout is not None
                     log = gateway.stdout.read()
                 assert code == 0, log
                 assert "Traceback" not in log
                 assert re.search(r"route people: \d+ received, \d+ dropped as stale", log)
+
+
+# `oricf gateway`, with a SIGTERM sent to itself while its node is being built (once the node
+# has its subscriptions, before it starts anything), and a moment for rclpy's signal thread
+# to shut the context down.
+SIGTERM_WHILE_STARTING = """
+import os, signal, sys, time
+from oricf.gateway.ros.node import GatewayNode
+subscribe = GatewayNode._subscribe_batteries
+def stop_now(self):
+    subscribe(self)
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(1.0)
+GatewayNode._subscribe_batteries = stop_now
+from oricf.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_sigterm_while_the_gateway_starts_stops_it_cleanly(
+        ros_env: dict[str, str]) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", SIGTERM_WHILE_STARTING, "gateway", "--config", str(PEOPLE_QA),
+         "--set", 'endpoints.detector.address="127.0.0.1:1"'],
+        env={**os.environ, **ros_env}, capture_output=True, text=True, timeout=60)
+    log = done.stdout + done.stderr
+    assert done.returncode == 0, log
+    assert "gateway stopped while starting" in log
+    assert "Traceback" not in log and "Exception in thread" not in log, log
 
 
 def test_gateway_process_refuses_a_bad_config(tmp_path: Path) -> None:
