@@ -120,11 +120,14 @@ def test_oricf_and_its_configs_come_from_the_installed_package(installed: Instal
     assert Path(configs) == installed.package / "configs"
 
 
-def test_the_fast_dds_profile_is_the_installed_one(installed: Installed) -> None:
-    done = installed.run("python", "-m", "oricf.gateway.ros.dds")
+@pytest.mark.parametrize(("flags", "name"), [((), "fastdds.xml"),
+                                             (("--tcp",), "fastdds-tcp.xml")])
+def test_the_fast_dds_profiles_are_the_installed_ones(installed: Installed,
+                                                       flags: tuple[str, ...], name: str) -> None:
+    done = installed.run("python", "-m", "oricf.gateway.ros.dds", *flags)
     assert done.returncode == 0, done.stderr
     profile = Path(done.stdout.strip())
-    assert profile == installed.package / "configs" / "pipelines" / "dds" / "fastdds.xml"
+    assert profile == installed.package / "configs" / "pipelines" / "dds" / name
     assert profile.is_file()
 
 

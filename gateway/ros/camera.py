@@ -221,9 +221,10 @@ class CameraReceiver:
             "route %s: %s has %d publisher(s) (%s) but the gateway's subscription (%s) matched "
             "%d in %.0f s: frames from the others never arrive. Check the message type; a "
             "camera driver started with FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA talks only to "
-            "participants with a TCP transport, as in ORICF's Fast DDS profile (a "
-            "FASTRTPS_DEFAULT_PROFILES_FILE of your own needs one too). See docs/ros.md, "
-            "Camera drivers", self.route, self.subscription.topic_name, len(publishers),
+            "participants with a TCP transport: start the gateway with "
+            "FASTRTPS_DEFAULT_PROFILES_FILE=$(python -m oricf.gateway.ros.dds --tcp) (a "
+            "profile of your own needs one too). See docs/ros.md, Camera drivers",
+            self.route, self.subscription.topic_name, len(publishers),
             ", ".join(f"{p.node_namespace.rstrip('/')}/{p.node_name}: {p.topic_type}, "
                       f"{_name(p.qos_profile.reliability)}" for p in publishers),
             _type_name(self._msg_type), self.subscription.get_publisher_count(),

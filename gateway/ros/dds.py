@@ -18,11 +18,17 @@ oricf.config.config_dir) does two things, both explained in the file:
   would add a UDP transport of its own on every interface, so with this profile the range is
   left to the profile (SYSTEM_DEFAULT). docs/security.md says how to open DDS to a network.
 
+fastdds-tcp.xml beside it adds a TCP transport, for camera drivers on Fast DDS's LARGE_DATA
+transports; it is chosen by hand (`python -m oricf.gateway.ros.dds --tcp` prints its path)
+and treated as shipped. It is not the default: Fast DDS 2.14's TCP transport now and then
+hangs or aborts the process while a participant is deleted (docs/ros.md, Camera drivers).
+
 No ROS import here: call use_dds_profile() before rclpy.init().
 """
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 import sys
@@ -40,14 +46,17 @@ log = logging.getLogger(__name__)
 RANGES_LEFT_TO_THE_PROFILE = ("", "OFF", "SUBNET", "SYSTEM_DEFAULT")
 
 
-def shipped_profile_path() -> Path:
-    return config_dir() / "pipelines" / "dds" / "fastdds.xml"
+PROFILE, TCP_PROFILE = "fastdds.xml", "fastdds-tcp.xml"
 
 
-def dds_profile() -> Path:
-    """The shipped profile (in the checkout's or the installed package's configs); a missing
+def shipped_profile_path(tcp: bool = False) -> Path:
+    return config_dir() / "pipelines" / "dds" / (TCP_PROFILE if tcp else PROFILE)
+
+
+def dds_profile(tcp: bool = False) -> Path:
+    """A shipped profile (in the checkout's or the installed package's configs); a missing
     one is a ConfigError, never skipped: without it raw frames are silently lost."""
-    path = shipped_profile_path()
+    path = shipped_profile_path(tcp)
     if not path.is_file():
         raise ConfigError(f"{path}: the Fast DDS profile is missing (reinstall ORICF, or set "
                           f"FASTRTPS_DEFAULT_PROFILES_FILE to a profile of your own)")
@@ -64,7 +73,8 @@ def use_dds_profile() -> None:
         profile = dds_profile()
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
         log.info("Fast DDS profile: %s (DDS on 127.0.0.1 only)", profile)
-    elif Path(chosen).resolve() != shipped_profile_path().resolve():
+    elif Path(chosen).resolve() not in {shipped_profile_path(tcp).resolve()
+                                         for tcp in (False, True)}:
         return
     leave_discovery_range_to_the_profile()
 
@@ -85,10 +95,16 @@ def leave_discovery_range_to_the_profile() -> None:
              else f"ROS_AUTOMATIC_DISCOVERY_RANGE={quoted(requested, 40)}")
 
 
-def main() -> int:
-    """Prints the profile's path, for camera nodes started by hand (see the top)."""
+def main(argv: list[str] | None = None) -> int:
+    """Prints the profile's path, for camera nodes started by hand (see the top); with
+    --tcp, the TCP profile's."""
+    parser = argparse.ArgumentParser(prog="python -m oricf.gateway.ros.dds",
+                                     description=main.__doc__)
+    parser.add_argument("--tcp", action="store_true",
+                        help="the profile with a TCP transport, for LARGE_DATA cameras")
+    args = parser.parse_args(argv)
     try:
-        print(dds_profile())
+        print(dds_profile(args.tcp))
     except ConfigError as exc:
         print(exc, file=sys.stderr)
         return 2

@@ -75,5 +75,6 @@ def camera_side_fix(frame_bytes: int) -> str:
             "Fast DDS profile (python -m oricf.gateway.ros.dds prints its path), or "
             f"FASTDDS_BUILTIN_TRANSPORTS='{LARGE_DATA.format(mb=megabytes)}' (not with "
             "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, where ROS replaces Fast DDS's builtin "
-            "transports); or publish reliable, or publish sensor_msgs/CompressedImage. See "
-            "docs/ros.md, Camera drivers")
+            "transports; the gateway then needs the TCP profile, python -m "
+            "oricf.gateway.ros.dds --tcp); or publish reliable, or publish "
+            "sensor_msgs/CompressedImage. See docs/ros.md, Camera drivers")

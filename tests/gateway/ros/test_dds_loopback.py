@@ -21,6 +21,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pytest
+
+from oricf.gateway.ros.dds import dds_profile
+
 REPOSITORY = Path(__file__).resolve().parents[3]
 DISCOVERY_TIMEOUT_S = 120.0  # 16 processes starting rclpy on two shared cores
 
@@ -120,30 +124,40 @@ def missing(members: list[Member], kind: str | None = None) -> dict[int, list[in
     return result
 
 
-def test_sixteen_processes_meet_with_every_dds_socket_on_loopback() -> None:
+@pytest.mark.parametrize("tcp", [False, True], ids=["default profile", "tcp profile"])
+def test_sixteen_processes_meet_with_every_dds_socket_on_loopback(tcp: bool) -> None:
     """ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as users set it: without the profile's
     loopback settings, or with rmw_fastrtps's own LOCALHOST transports added to them, each
-    process holds UDP and TCP sockets on 0.0.0.0 and on the machine's addresses."""
-    kinds = [("oricf", {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})] * 16
-    with mesh(kinds, domain=random.randint(1, 100)) as members:
+    process holds UDP and TCP sockets on 0.0.0.0 and on the machine's addresses. The TCP
+    profile's TCP sockets are on 127.0.0.1 too; the default profile has none."""
+    env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    if tcp:
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(dds_profile(tcp=True))
+    with mesh([("oricf", env)] * 16, domain=random.randint(1, 100)) as members:
         assert missing(members) == {}
         for member in members:
             assert any(s.startswith("udp 127.0.0.1:") for s in member.sockets), member.sockets
-            assert any(s.startswith("tcp 127.0.0.1:") for s in member.sockets), member.sockets
+            assert any(s.startswith("tcp 127.0.0.1:") for s in member.sockets) == tcp, \
+                member.sockets
             assert member.off_loopback() == [], f"member {member.index}: {member.sockets}"
 
 
-def test_nodes_without_the_profile_meet_the_nodes_with_it() -> None:
+@pytest.mark.parametrize("tcp", [False, True], ids=["default profile", "tcp profile"])
+def test_nodes_without_the_profile_meet_the_nodes_with_it(tcp: bool) -> None:
     """Camera drivers and other nodes ORICF did not write: Fast DDS's defaults (multicast
-    discovery), ROS's LOCALHOST range, and Fast DDS's LARGE_DATA transports (multicast
-    discovery, then TCP and shared memory only). Multicast reaches every test run on this
-    machine, so the mesh takes a domain outside the range the other tests draw from.
-    (LARGE_DATA nodes and nodes without TCP never meet each other: Fast DDS's own limit.)"""
+    discovery), ROS's LOCALHOST range, and, meeting ORICF's TCP profile, Fast DDS's
+    LARGE_DATA transports (multicast discovery, then TCP and shared memory only). Multicast
+    reaches every test run on this machine, so the mesh takes a domain outside the range the
+    other tests draw from. (LARGE_DATA nodes and nodes without TCP never meet each other:
+    Fast DDS's own limit, tests/gateway/ros/test_foreign_camera.py.)"""
     plain = [{"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"},
-             {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
-             {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "FASTDDS_BUILTIN_TRANSPORTS":
-              "LARGE_DATA?max_msg_size=1MB&sockets_size=1MB"}]
-    kinds = [("oricf", {})] * 6 + [("plain", extra) for extra in plain for _ in range(2)]
+             {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}]
+    oricf = {}
+    if tcp:
+        plain.append({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "FASTDDS_BUILTIN_TRANSPORTS":
+                      "LARGE_DATA?max_msg_size=1MB&sockets_size=1MB"})
+        oricf = {"FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile(tcp=True))}
+    kinds = [("oricf", oricf)] * 6 + [("plain", extra) for extra in plain for _ in range(2)]
     with mesh(kinds, domain=random.randint(101, 200), meeting="oricf") as members:
         assert missing(members, "oricf") == {}
         for member in members:

@@ -48,6 +48,7 @@ def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
     (None, "localhost", None, "SYSTEM_DEFAULT"),  # rcl reads a value it does not know so
     (None, "SUBNET", "1", "SYSTEM_DEFAULT"),  # the deprecated setting overrides the range
     ("shipped", "LOCALHOST", None, "SYSTEM_DEFAULT"),  # the shipped file, named by hand
+    ("shipped tcp", "LOCALHOST", None, "SYSTEM_DEFAULT"),  # the TCP one, named by hand
     (None, "SUBNET", None, "SUBNET"),
     (None, "OFF", "0", "OFF"),
     (None, None, None, None),
@@ -59,8 +60,8 @@ def test_the_shipped_profile_decides_the_discovery_range_instead_of_localhost(
     """Under ROS's LOCALHOST range rmw_fastrtps adds a UDP transport on every interface to
     the profile's loopback-only ones (tests/gateway/ros/test_dds_loopback.py sees it)."""
     monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
-    for name, value in (("FASTRTPS_DEFAULT_PROFILES_FILE",
-                         str(dds_profile()) if profile == "shipped" else profile),
+    shipped = {"shipped": str(dds_profile()), "shipped tcp": str(dds_profile(tcp=True))}
+    for name, value in (("FASTRTPS_DEFAULT_PROFILES_FILE", shipped.get(profile or "", profile)),
                         ("ROS_AUTOMATIC_DISCOVERY_RANGE", requested),
                         ("ROS_LOCALHOST_ONLY", localhost_only)):
         if value is None:
@@ -131,10 +132,11 @@ def drain(received: queue.Queue[int]) -> list[int]:
             return values
 
 
-def test_fast_dds_accepts_the_shipped_profile_and_stays_reliable(
-        counts: tuple[str, queue.Queue[int]]) -> None:
+@pytest.mark.parametrize("tcp", [False, True], ids=["default profile", "tcp profile"])
+def test_fast_dds_accepts_the_shipped_profiles_and_stays_reliable(
+        counts: tuple[str, queue.Queue[int]], tcp: bool) -> None:
     topic, received = counts
-    _, log = publish_from_another_process(topic, dds_profile())
+    _, log = publish_from_another_process(topic, dds_profile(tcp))
     assert "XMLPARSER" not in log, log  # Fast DDS logs a profile it cannot parse, and goes on
     assert drain(received) == list(range(PUBLISHED))  # every sample, in order
 
@@ -157,3 +159,25 @@ def test_reliable_writers_do_not_wake_the_event_thread_for_every_sample(
     # The shipped profile: a few times over the whole run (its 500 ms window, 0.8 s here).
     assert default["wakeups"] >= PUBLISHED, default
     assert shipped["wakeups"] <= PUBLISHED // 4, shipped
+
+
+def test_the_tcp_profile_is_the_default_one_with_a_tcp_transport() -> None:
+    """Two files, one set of settings: without its TCP transport, its TCP discovery address
+    and its comment, the TCP profile is the default one (a setting changed in one file
+    only fails here)."""
+    root = ET.parse(dds_profile(tcp=True)).getroot()
+    removed = 0
+    for parent in root.iter():
+        for child in list(parent):
+            tcp_descriptor = child.findtext(f"{NAMESPACE}transport_id") == "tcp"
+            tcp_locator = child.find(f"{NAMESPACE}tcpv4") is not None
+            tcp_user = child.tag == f"{NAMESPACE}transport_id" and child.text == "tcp" \
+                and parent.tag == f"{NAMESPACE}userTransports"
+            if tcp_descriptor or tcp_locator or tcp_user:
+                parent.remove(child)
+                removed += 1
+    assert removed == 3
+    def canonical(element: ET.Element) -> str:
+        return ET.canonicalize(ET.tostring(element, encoding="unicode"), strip_text=True)
+
+    assert canonical(root) == canonical(ET.parse(dds_profile()).getroot())
