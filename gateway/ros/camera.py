@@ -219,11 +219,8 @@ class CameraReceiver:
         self._unmatched_warned = True
         log.warning(
             "route %s: %s has %d publisher(s) (%s) but the gateway's subscription (%s) matched "
-            "%d in %.0f s: frames from the others never arrive. Check the message type; a "
-            "camera driver started with FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA talks only to "
-            "participants with a TCP transport: start the gateway with "
-            "FASTRTPS_DEFAULT_PROFILES_FILE=$(python -m oricf.gateway.ros.dds --tcp) (a "
-            "profile of your own needs one too). See docs/ros.md, Camera drivers",
+            "%d in %.0f s: frames from the others never arrive. Check the message type. "
+            "See docs/ros.md, Camera drivers",
             self.route, self.subscription.topic_name, len(publishers),
             ", ".join(f"{p.node_namespace.rstrip('/')}/{p.node_name}: {p.topic_type}, "
                       f"{_name(p.qos_profile.reliability)}" for p in publishers),
