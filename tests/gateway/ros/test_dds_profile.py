@@ -95,7 +95,7 @@ def counts(ros_context: Context) -> Iterator[tuple[str, queue.Queue[int]]]:
     received: queue.Queue[int] = queue.Queue()
     node = Node("profile_test_subscriber", context=ros_context)
     node.create_subscription(Int32, topic, lambda msg: received.put(msg.data),
-                             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+                             QoSProfile(depth=PUBLISHED, reliability=ReliabilityPolicy.RELIABLE))
     try:
         with spinning(ros_context, node):
             yield topic, received
