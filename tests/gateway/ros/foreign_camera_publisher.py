@@ -1,11 +1,12 @@
 """A camera node ORICF did not write: plain rclpy, no ORICF import, no ORICF settings.
 
-Run as `python -m tests.gateway.ros.foreign_camera_publisher TOPIC VIDEO COUNT RELIABILITY` with
-no FASTRTPS_DEFAULT_PROFILES_FILE: publishes COUNT raw 640x480 bgr8 frames of VIDEO at 10 fps
-as sensor_msgs/Image, the way common drivers do (RELIABILITY reliable: image_transport's
-default, reliable with depth 10; best_effort: the sensor_data profile, best effort with depth
-5), once a subscriber has matched, cycling through the video's first 50 frames. Prints
-{"published": COUNT} as JSON.
+Run as `python -m tests.gateway.ros.foreign_camera_publisher TOPIC VIDEO COUNT RELIABILITY
+[MATCH_TIMEOUT_S]` with no FASTRTPS_DEFAULT_PROFILES_FILE: publishes COUNT raw 640x480 bgr8
+frames of VIDEO at 10 fps as sensor_msgs/Image, the way common drivers do (RELIABILITY
+reliable: image_transport's default, reliable with depth 10; best_effort: the sensor_data
+profile, best effort with depth 5), once a subscriber has matched, cycling through the
+video's first 50 frames. Prints {"published": COUNT} as JSON, or an error when no subscriber
+matched within MATCH_TIMEOUT_S (default 30).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from tests.gateway.ros.matching import wait_for_subscriber
+from tests.gateway.ros.matching import MATCH_TIMEOUT_S, wait_for_subscriber
 
 WIDTH, HEIGHT = 640, 480
 RATE_HZ = 10.0
@@ -50,12 +51,13 @@ def qos(reliability: str) -> QoSProfile:
     raise ValueError(f"reliability: reliable or best_effort, not {reliability!r}")
 
 
-def main(topic: str, video: str, count: int, reliability: str) -> int:
+def main(topic: str, video: str, count: int, reliability: str,
+         match_timeout_s: float = MATCH_TIMEOUT_S) -> int:
     pixels = frames(video, count)
     rclpy.init()
     node = Node("foreign_camera")
     publisher = node.create_publisher(Image, topic, qos(reliability))
-    if not wait_for_subscriber(publisher):
+    if not wait_for_subscriber(publisher, match_timeout_s):
         print(json.dumps({"error": "no subscriber matched"}))
         return 1
     time.sleep(SETTLE_S)
@@ -75,4 +77,5 @@ def main(topic: str, video: str, count: int, reliability: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]))
+    sys.exit(main(sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4],
+                  *map(float, sys.argv[5:6])))

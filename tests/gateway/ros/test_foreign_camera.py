@@ -55,12 +55,13 @@ def foreign_env(**extra: str) -> dict[str, str]:
 
 
 @contextmanager
-def camera(reliability: str, env: dict[str, str], frames: int = SENT
-           ) -> Iterator[subprocess.Popen[str]]:
-    """The foreign camera publishing `frames` frames, stopped when the block ends."""
+def camera(reliability: str, env: dict[str, str], frames: int = SENT,
+           match_timeout_s: float = 30.0) -> Iterator[subprocess.Popen[str]]:
+    """The foreign camera publishing `frames` frames once a subscriber matched (giving up
+    after `match_timeout_s`), stopped when the block ends."""
     process = subprocess.Popen(
         [sys.executable, "-m", "tests.gateway.ros.foreign_camera_publisher", CAMERA,
-         str(video_path()), str(frames), reliability],
+         str(video_path()), str(frames), reliability, str(match_timeout_s)],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPOSITORY)
     try:
         yield process
@@ -207,7 +208,8 @@ def test_a_camera_with_fast_dds_large_data_transports_reaches_the_gateway_on_tcp
             sent = run_camera("best_effort", foreign_env(**large_data))
             time.sleep(2.0)  # the last frames through the detector
         else:  # the camera waits for a subscriber that never matches, and gives up
-            with camera("best_effort", foreign_env(**large_data)) as process:
+            with camera("best_effort", foreign_env(**large_data),
+                        match_timeout_s=10.0) as process:
                 output = process.communicate(timeout=120)[0]
             assert "no subscriber matched" in output, output
         assert gateway.poll() is None
