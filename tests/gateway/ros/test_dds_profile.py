@@ -177,7 +177,9 @@ def test_the_tcp_profile_is_the_default_one_with_a_tcp_transport() -> None:
                 parent.remove(child)
                 removed += 1
     assert removed == 3
-    def canonical(element: ET.Element) -> str:
-        return ET.canonicalize(ET.tostring(element, encoding="unicode"), strip_text=True)
-
     assert canonical(root) == canonical(ET.parse(dds_profile()).getroot())
+
+
+def canonical(element: ET.Element) -> str:
+    """The element as canonical XML, whitespace between elements left out."""
+    return ET.canonicalize(ET.tostring(element, encoding="unicode"), strip_text=True)

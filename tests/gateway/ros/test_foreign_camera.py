@@ -35,6 +35,7 @@ from oricf.gateway.ros.dds import dds_profile
 from oricf.gateway.ros.node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
+from tests.gateway.ros.matching import MATCH_TIMEOUT_S
 from tests.support.data import video_path
 from tests.support.processes import oricf_process
 from tests.support.services import running_service
@@ -56,7 +57,7 @@ def foreign_env(**extra: str) -> dict[str, str]:
 
 @contextmanager
 def camera(reliability: str, env: dict[str, str], frames: int = SENT,
-           match_timeout_s: float = 30.0) -> Iterator[subprocess.Popen[str]]:
+           match_timeout_s: float = MATCH_TIMEOUT_S) -> Iterator[subprocess.Popen[str]]:
     """The foreign camera publishing `frames` frames once a subscriber matched (giving up
     after `match_timeout_s`), stopped when the block ends."""
     process = subprocess.Popen(
