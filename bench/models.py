@@ -12,7 +12,9 @@ On 640x480 frames of the pedestrian video, everything interleaved frame by frame
    decoded detections at most 2 ms. Beside them, a call that carries no tensor and runs no
    model (ModelMetadata): the floor that any call through a service pays.
 2. The same model on onnxruntime and on OpenVINO (f32), each at 1 and 2 threads: median
-   latency of the network alone, and how far the outputs differ from onnxruntime's.
+   latency of the network alone, and how far the outputs differ from onnxruntime's. A back
+   end whose package is not installed (OpenVINO: the `openvino` extra) is skipped, with a
+   line saying how to add it.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 import yaml
 
 from oricf.bench.common import JPEG_QUALITY, load_frames, median_ms, print_table, served
+from oricf.bench.entry import missing
 from oricf.bench.models_edge import edge_ways
 from oricf.config import config_dir
 from oricf.gateway.endpoints import CHANNEL_OPTIONS  # as the gateway's calls are made
@@ -50,6 +53,8 @@ AGREEMENT = 1e-3
 # encoding (client) and decoding (server) of the frame.
 CALL_ALONE = "a call alone (ModelMetadata)"
 CODEC_ALONE = "JPEG encode + decode alone"
+# The back ends compared, each with the extra of oricf that installs it (None: a dependency).
+ENGINES: dict[str, str | None] = {"onnxruntime": None, "openvino": "openvino"}
 
 
 def timed(call: Callable[[], object]) -> float:
@@ -128,11 +133,23 @@ def protocol_overhead(declaration: ModelDeclaration, path: Path, frames: list[np
     return latency
 
 
-def backends(declaration: ModelDeclaration, frames: list[np.ndarray]
+def installed_engines() -> list[str]:
+    """The back ends whose package imports; a line for each one skipped."""
+    engines = []
+    for engine, extra in ENGINES.items():
+        hint = missing(engine, extra)
+        if hint is None:
+            engines.append(engine)
+        else:
+            print(f"{engine}: not installed ({hint}); skipped", flush=True)
+    return engines
+
+
+def backends(declaration: ModelDeclaration, frames: list[np.ndarray], engines: list[str]
              ) -> tuple[dict[str, list[float]], dict[str, float]]:
     data = declaration.model_dump(mode="json", exclude_unset=True)
     loaded = {}
-    for engine in ("onnxruntime", "openvino"):
+    for engine in engines:
         for threads in (1, 2):
             variant = {**data, "backend": {"engine": engine, "threads": threads}}
             model = DeclaredModel(ModelDeclaration.model_validate(variant), ModelStore())
@@ -187,7 +204,8 @@ def main(argv: list[str] | None = None) -> int:
           f"encoding the frame as JPEG (q{JPEG_QUALITY}) and decoding it, "
           f"{median_ms(codec_alone):.2f} ms")
 
-    timings, difference = backends(declaration, frames)
+    print()
+    timings, difference = backends(declaration, frames, installed_engines())
     first = median_ms(next(iter(timings.values())))
     print_table(f"{declaration.name}: the network alone, per back end "
                 f"(median of {len(frames)}, interleaved)",

@@ -14,6 +14,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from oricf.bench.entry import need_tools
+from oricf.errors import ConfigError
+
+PURPOSE = "an edge host in a network namespace (oricf.bench.netns)"
+
 
 def _run(*argv: str) -> None:
     subprocess.run(argv, check=True, capture_output=True, timeout=30)
@@ -54,6 +59,10 @@ class EdgeHost:
 
 @contextmanager
 def edge_host() -> Iterator[EdgeHost]:
+    need_tools(("ip", "tc", "iptables"), "Debian: iproute2 iptables; scripts/setup.sh --dev "
+               "installs them", PURPOSE)
+    if os.geteuid() != 0:
+        raise ConfigError(f"{PURPOSE} needs root")
     tag = f"{os.getpid() % 100000}"
     namespace, local, remote = f"oricf-edge-{tag}", f"oe{tag}a", f"oe{tag}b"
     subnet = f"10.203.{os.getpid() % 250}"

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import importlib.util
 import logging
 import os
 import shlex
@@ -42,8 +41,10 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from oricf.bench.cpusets import BACKENDS, CpuSet, CpuSetError, busy_jiffies, cpu_sets
+from oricf.bench.entry import need
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.bench.offload_report import (
+    FIGURE,
     PAPER,
     PHASES,
     PLACEMENTS,
@@ -192,9 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     signal.signal(signal.SIGTERM, interrupt)
     args = parse_args(argv)
-    if importlib.util.find_spec("matplotlib") is None:  # before minutes of measuring
-        log.error("Figure 1 needs matplotlib: pip install matplotlib (in oricf's dev extra)")
-        return 2
+    need("matplotlib", "figures", FIGURE)  # before minutes of measuring
     args.out.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()[0]
     power = PowerModel(args.p_idle, args.p_max)

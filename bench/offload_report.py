@@ -19,8 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from oricf.bench.common import print_table
+from oricf.bench.entry import need
 
 PHASES = ("base", "CNN", "CNN+LLM")
+FIGURE = "Figure 1 of oricf bench offload"
 PLACEMENTS = ("onboard", "edge")
 SETS = ("robot", "edge")
 SOURCES = {"processes": "CPU time of the set's processes", "cpus": "busy share of the set's "
@@ -242,6 +244,7 @@ def write_figure(phases: list[Phase], merged: dict[tuple[str, str], Phase], sour
                  out: Path) -> Path:
     """Figure 1: each set's utilisation second by second through the phases, onboard and
     offloaded (the first round), and the robot's mean per phase with its std."""
+    need("matplotlib", "figures", FIGURE)
     import matplotlib
 
     matplotlib.use("Agg")

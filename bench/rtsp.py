@@ -21,7 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from oricf.bench.common import print_table, served
-from oricf.bench.rtsp_camera import RtspCamera
+from oricf.bench.entry import need_tools
+from oricf.bench.rtsp_camera import PACKAGES, SYSTEM_PYTHON, RtspCamera
 from oricf.bench.stamp import age_ms
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import OutputConfig, parse_pipeline
@@ -98,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fps", type=float, nargs="+", default=[10, 25],
                         help="camera frame rates")
     args = parser.parse_args(argv)
+    need_tools(("ffmpeg", SYSTEM_PYTHON), PACKAGES, "oricf bench rtsp")  # before any model loads
     with served("detector") as (detector, _):
         rows = [measure(detector, fps, args.seconds) for fps in args.fps]
     print_table(f"RTSP camera (H.264 768x576) -> people count -> JSON line, "

@@ -5,30 +5,35 @@ video file played in real time and looped, or stamped with the time each was sen
 (bench/stamp.py), so a benchmark can tell how old a frame is when its count comes out.
 
 The server can be stopped and started again while FFmpeg keeps sending, as when a camera's
-RTSP service restarts. Needs ffmpeg and the server's packages (scripts/setup.sh --dev).
+RTSP service restarts. Needs ffmpeg and the server's packages (scripts/setup.sh --dev); a
+camera without them raises MissingPackage, which names them.
 """
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import IO
 
+from oricf.bench.entry import MissingPackage, need_tools
 from oricf.launch.health import free_port
 
 SERVER = Path(__file__).with_name("rtsp_server.py")
 SYSTEM_PYTHON = "/usr/bin/python3"  # the one with GStreamer's gi bindings
 ENCODE = ["-an", "-c:v", "libx264", "-preset", "ultrafast", "-tune", "zerolatency",
           "-g", "10", "-pix_fmt", "yuv420p", "-f", "rtp"]
+# The server's GStreamer bindings, asked of the system Python when the server did not start.
+GI_PROBE = ("import gi; gi.require_version('Gst', '1.0'); "
+            "gi.require_version('GstRtspServer', '1.0')")
+PACKAGES = ("Debian: ffmpeg python3-gi gir1.2-gst-rtsp-server-1.0 gstreamer1.0-plugins-good "
+            "gstreamer1.0-plugins-bad; scripts/setup.sh --dev installs them")
+PURPOSE = "an RTSP camera (oricf.bench.rtsp_camera)"
 
 
 class RtspCamera:
     def __init__(self, port: int | None = None) -> None:
-        for tool in ("ffmpeg", SYSTEM_PYTHON):
-            if shutil.which(tool) is None:
-                raise RuntimeError(f"{tool} not found: run scripts/setup.sh --dev")
+        need_tools(("ffmpeg", SYSTEM_PYTHON), PACKAGES, PURPOSE)
         self.port = port or free_port()
         self.rtp_port = free_port()
         self.url = f"rtsp://127.0.0.1:{self.port}/cam"
@@ -43,6 +48,12 @@ class RtspCamera:
         assert self.server.stdout is not None
         if self.server.stdout.readline().strip() != "ready":
             _, err = self.server.communicate(timeout=10)
+            self.server = None
+            probe = subprocess.run([SYSTEM_PYTHON, "-c", GI_PROBE], capture_output=True,
+                                   timeout=30, check=False)
+            if probe.returncode != 0:
+                raise MissingPackage(f"{PURPOSE} needs GStreamer's RTSP server for "
+                                     f"{SYSTEM_PYTHON} ({PACKAGES})")
             raise RuntimeError(f"the RTSP server did not start: {err[-1000:]}")
 
     def stop_server(self) -> None:
