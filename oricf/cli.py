@@ -24,6 +24,7 @@ from pathlib import Path
 
 from oricf.config import deep_merge, read_with_overlays, shipped_service_config, validate
 from oricf.errors import ConfigError, ModelMissing
+from oricf.lifeline import follow_parent
 from oricf.logs import setup_logging
 
 log = logging.getLogger("oricf")
@@ -172,6 +173,7 @@ def _delegate(module: str, argv: list[str]) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     setup_logging(args.log_level)
+    follow_parent()  # started by a launcher (oricf up, oricf demo): stop when it is gone
     try:
         return int(args.run(args) or 0)
     except (ConfigError, ModelMissing) as exc:

@@ -27,3 +27,30 @@ def stop_on_signals() -> Iterator[threading.Event]:
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+
+
+@contextmanager
+def interrupt_on_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, the first time only:
+    the clean-up that follows is not cut short by a second Ctrl-C (it is logged). For
+    commands whose stages block in many places (`oricf demo`), where one exception unwinds
+    them all. The handlers are set whatever the process inherited: a shell starts a
+    background job with SIGINT ignored, and Python then never raises KeyboardInterrupt."""
+    stopping = False
+
+    def on_signal(signum: int, _frame: object) -> None:
+        nonlocal stopping
+        name = signal.Signals(signum).name
+        if stopping:
+            log.warning("received %s: already stopping", name)
+            return
+        stopping = True
+        log.info("received %s: stopping", name)
+        raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)

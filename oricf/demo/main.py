@@ -26,17 +26,20 @@ The services' and gateway's own output goes to a log file (--verbose: to the ter
 With --view the gateway also serves the live view (docs/live-view.md): the camera with the
 detector's boxes, the counts, transcripts and answers, for Foxglove or Lichtblick to open at
 the address printed; after the questions the camera and the view go on until Ctrl-C.
+
+Ctrl-C or SIGTERM stops the demo at any stage, and everything it started with it. Exit
+codes: 0 every question answered (Ctrl-C after them with --view included), 1 a question
+unanswered or a process that failed, 2 bad options, 130 stopped before the questions were
+done. The processes it starts stop by themselves if the demo is killed outright.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
 
 import yaml
 
@@ -46,6 +49,7 @@ from oricf.launch.deployment import Deployment, load_deployment
 from oricf.launch.launcher import LaunchFailed, Stopped
 from oricf.launch.progress import ProgressLine
 from oricf.launch.wiring import edge_host_endpoints
+from oricf.signals import interrupt_on_signals
 
 log = logging.getLogger(__name__)
 
@@ -124,10 +128,6 @@ def view_url(listen: str) -> str:
     return f"ws://{listen}"
 
 
-def raise_interrupt(_signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     if args.frames is not None and args.frames < 1:
@@ -141,11 +141,14 @@ def main(argv: list[str]) -> int:
 
         args.source = str(ModelStore().path("vtest-video", "vtest.avi"))
     log_path = args.log or Path(tempfile.mkstemp(prefix="oricf-demo-", suffix=".log")[1])
-    # SIGTERM ends the demo like Ctrl-C: everything it started is stopped.
-    previous = signal.signal(signal.SIGTERM, raise_interrupt)
-    scratch = tempfile.TemporaryDirectory(prefix="oricf-demo-")
+    # Ctrl-C and SIGTERM end the demo at any stage: everything it started is stopped.
+    with interrupt_on_signals(), tempfile.TemporaryDirectory(prefix="oricf-demo-") as scratch:
+        return _run(args, log_path, Path(scratch))
+
+
+def _run(args: argparse.Namespace, log_path: Path, scratch: Path) -> int:
     try:
-        path, deployment = pick_deployment(args, Path(scratch.name))
+        path, deployment = pick_deployment(args, scratch)
         options = DemoOptions(
             source=args.source, questions=args.questions or DEFAULT_QUESTIONS,
             max_frames=args.frames, voice=args.voice, stage_timeout_s=args.timeout,
@@ -164,6 +167,3 @@ def main(argv: list[str]) -> int:
     except (KeyboardInterrupt, Stopped):
         print("demo interrupted", file=sys.stderr)
         return 130
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        scratch.cleanup()

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import IO
 
 from oricf.launch.deployment import ProcessPlan
+from oricf.lifeline import child_options
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +42,8 @@ class PrefixedLines:
 
 class ManagedProcess:
     """Starts plan.argv in a new session, so signals to the launcher's terminal (Ctrl-C) do
-    not reach it directly and stop() can end every process it started (no orphans)."""
+    not reach it directly and stop() can end every process it started (no orphans); if the
+    launcher dies without stopping it, it stops by itself (oricf.lifeline)."""
 
     def __init__(self, plan: ProcessPlan, sink: LineSink) -> None:
         self.plan = plan
@@ -61,11 +63,12 @@ class ManagedProcess:
         return self._popen.pid if self._popen else None
 
     def start(self) -> None:
-        env = {**os.environ, **self.plan.env, "PYTHONUNBUFFERED": "1"}
+        lifeline, pass_fds = child_options()  # it stops if this process dies unannounced
+        env = {**os.environ, **self.plan.env, **lifeline, "PYTHONUNBUFFERED": "1"}
         self._terminated = False
         self._popen = subprocess.Popen(
             self.plan.argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True)
+            stderr=subprocess.STDOUT, start_new_session=True, pass_fds=pass_fds)
         self._pump = threading.Thread(target=self._read_output, args=(self._popen,),
                                       name=f"{self.name}-output", daemon=True)
         self._pump.start()

@@ -65,6 +65,23 @@ def test_up_reaches_serving_and_stops_cleanly(tmp_path: Path, signum: int) -> No
     assert "detector stopped (exit code 0)" in up.output
 
 
+def test_services_of_a_killed_launcher_stop_by_themselves(tmp_path: Path) -> None:
+    """SIGKILL leaves `oricf up` no chance to stop its services: they notice it is gone
+    (oricf.lifeline) and stop, so none keeps its port."""
+    port = free_port()
+    path = write_deployment(tmp_path, {"services": {"detector": service_entry(port)}})
+    with oricf_up(path) as up:
+        up.wait_for(RUNNING, timeout=120)
+        pids = up.started()["detector"]
+        up.process.kill()
+        up.finish(timeout=10)
+        deadline = time.monotonic() + 30
+        while any(alive(p) for p in pids) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert_all_gone(pids)  # before oricf_up's clean-up kills whatever is left
+        assert health.status(f"127.0.0.1:{port}", timeout=0.5) == "UNREACHABLE"
+
+
 def test_crashed_service_is_restarted_then_given_up(tmp_path: Path) -> None:
     port = free_port()
     entry = service_entry(port, restart={"policy": "on-failure", "max_restarts": 1,
