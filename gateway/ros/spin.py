@@ -13,14 +13,21 @@ from oricf.gateway.ros.dds import use_dds_profile
 from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.ros.params import Settings, declare_settings
 from oricf.gateway.ros.process import keep_freed_memory
+from oricf.signals import stop_on_signals
 
 log = logging.getLogger(__name__)
 
 def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         settings: Settings | None = None) -> int:
-    """Spins the node until SIGINT/SIGTERM (rclpy handles both and shuts the context down)."""
+    """Spins the node until SIGINT/SIGTERM, then stops in order: the control API and the
+    agent's actuation first (the zero command goes out while ROS still runs), the node's
+    sources and routes, the recording, and ROS last.
+
+    The signals are ORICF's, not rclpy's: rclpy's handlers shut every context down the
+    moment a signal arrives, before the actuation could publish its zero command."""
     try:
         import rclpy
+        from rclpy.signals import SignalHandlerOptions
 
         from oricf.gateway.ros.rosout import GatewayRosNode
     except ImportError as exc:
@@ -31,33 +38,38 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
     if not keep_freed_memory():
         log.info("mallopt not available: large frame buffers come from fresh pages")
     recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
-    rclpy.init(args=ros_args)
-    try:
-        node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
-    except Exception:
-        if rclpy.ok():
-            raise
-        # SIGINT/SIGTERM shut the context down while the node was being built: a stop
-        # asked for during start-up, not a failure.
-        log.info("gateway stopped while starting")
-        if recorder is not None:
-            recorder.close()
-        rclpy.try_shutdown()
-        return 0
-    if settings is not None:
-        declare_settings(node, settings)
-    executor = make_executor(config.executor_threads)
-    executor.add_node(node)
-    stop_control = serve_gateway_control(node.pipeline, node.outlets.channels)
-    try:
-        spin_until_shutdown(executor, rclpy.ok)
-    finally:
-        log.info("gateway stopping")
-        stop_control()
-        node.shutdown()
-        executor.shutdown()
-        if recorder is not None:  # complete on disk before DDS is torn down
-            recorder.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with stop_on_signals() as stop:
+        rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
+            if stop.is_set():
+                node.shutdown()  # its threads, started last in its constructor
+                node.destroy_node()
+                raise Stopping
+        except Stopping:
+            log.info("gateway stopped while starting")
+            if recorder is not None:
+                recorder.close()
+            rclpy.try_shutdown()
+            return 0
+        if settings is not None:
+            declare_settings(node, settings)
+        executor = make_executor(config.executor_threads)
+        executor.add_node(node)
+        stop_control = serve_gateway_control(node.pipeline, node.outlets.channels)
+        try:
+            spin_until_shutdown(executor, lambda: not stop.is_set() and rclpy.ok())
+        finally:
+            log.info("gateway stopping")
+            stop_control()
+            node.shutdown()
+            executor.shutdown()
+            if recorder is not None:  # complete on disk before DDS is torn down
+                recorder.close()
+            node.destroy_node()
+            rclpy.try_shutdown()
     return 0
+
+
+class Stopping(Exception):
+    """SIGINT or SIGTERM came while the node was being built."""

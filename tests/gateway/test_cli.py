@@ -2,21 +2,24 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
+import httpx
 import yaml
 from rclpy.context import Context
 
 from tests.gateway.pipelines import PEOPLE_QA
 from tests.gateway.ros.gateway_node import running_probe, wait_for
 from tests.support.data import video_frames
-from tests.support.processes import oricf_process
+from tests.support.processes import free_port, oricf_process
 from tests.support.services import running_service
 
 
@@ -84,8 +87,9 @@ def test_gateway_process_stops_cleanly_while_frames_stream(
 
 
 # `oricf gateway`, with a SIGTERM sent to itself while its node is being built (once the node
-# has its subscriptions, before it starts anything), and a moment for rclpy's signal thread
-# to shut the context down.
+# has its subscriptions, before it starts anything), and a moment for a signal thread to act
+# on it (rclpy's shut the context down under the node being built; the gateway's own only
+# asks it to stop once built).
 SIGTERM_WHILE_STARTING = """
 import os, signal, sys, time
 from oricf.gateway.ros.node import GatewayNode
@@ -121,3 +125,51 @@ def test_gateway_process_refuses_a_bad_config(tmp_path: Path) -> None:
         assert gateway.stdout is not None
         assert "endpoints.detector.deadline_ms: Input should be greater than 0" in \
             gateway.stdout.read()
+
+
+def test_a_stopped_gateway_sends_the_zero_command_before_ros_goes(
+        ros_env: dict[str, str], tmp_path: Path) -> None:
+    """A command of 0.2 m/s through the control API, then SIGTERM 100 ms later: the robot's
+    driver (a plain rclpy subscriber) hears the command, then the zero command, and the
+    gateway exits 0. The deadman (10 s) is far off: only the stop can send that zero."""
+    from tests.gateway.agents.scene import TWIST_TOPIC, ros_listener
+
+    port = free_port()
+    (tmp_path / "tokens").write_text("stop-test-token\n")
+    overlay = tmp_path / "agent.yaml"
+    overlay.write_text(yaml.safe_dump({
+        "endpoints": {"detector": {"address": "127.0.0.1:1"}},
+        "control": {"listen": f"127.0.0.1:{port}", "auth": {"file": str(tmp_path / "tokens")}},
+        "agent": {"audit": str(tmp_path / "audit.jsonl"), "targets": {"cmd_vel": {
+            "topic": TWIST_TOPIC, "type": "geometry_msgs/Twist",
+            "bounds": {"linear.x": [-0.3, 0.3]}, "deadman_ms": 10000}}}}))
+    headers = {"Authorization": "Bearer stop-test-token"}
+    url = f"http://127.0.0.1:{port}/v1/publish"
+    with ros_listener() as driver, oricf_process(
+            "gateway", "--config", str(PEOPLE_QA), "--overlay", str(overlay),
+            env=ros_env) as gateway:
+        # Zero commands until one arrives: the control API is up and discovery complete.
+        deadline = time.monotonic() + 60
+        while driver.twists.empty():
+            assert gateway.poll() is None and time.monotonic() < deadline
+            with contextlib.suppress(httpx.TransportError):  # not listening yet
+                httpx.post(url, json={"target": "cmd_vel", "message": {}}, headers=headers,
+                           timeout=5)
+            time.sleep(0.6)
+        time.sleep(0.6)  # the policy's rate
+        driver.drain()
+        answer = httpx.post(url, json={"target": "cmd_vel",
+                                       "message": {"linear": {"x": 0.2}}},
+                            headers=headers, timeout=5)
+        assert answer.status_code == 200, answer.text
+        time.sleep(0.1)
+        gateway.send_signal(signal.SIGTERM)
+        code = gateway.wait(timeout=30)
+        assert gateway.stdout is not None
+        log = gateway.stdout.read()
+        moving = driver.twists.get(timeout=10)
+        stopped = driver.twists.get(timeout=10)
+    assert code == 0, log
+    assert "Traceback" not in log, log
+    assert moving.linear.x == 0.2
+    assert (stopped.linear.x, stopped.angular.z) == (0.0, 0.0)
