@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import time
@@ -63,6 +64,21 @@ def test_up_reaches_serving_and_stops_cleanly(tmp_path: Path, signum: int) -> No
     # every line of the service comes with its name; the stop was a drain, not a kill
     assert "detector | " in up.output and "SERVING" in up.output
     assert "detector stopped (exit code 0)" in up.output
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_up_stops_while_the_models_load(tmp_path: Path, signum: int) -> None:
+    port = free_port()
+    path = write_deployment(tmp_path, {"services": {"detector": service_entry(port)},
+                                       "stop_grace_s": 5})
+    with oricf_up(path) as up:
+        up.wait_for(r"started detector \(pid", timeout=60)
+        pids = up.started()["detector"]
+        up.process.send_signal(signum)
+        assert up.finish(timeout=30) == 0
+        assert_all_gone(pids)  # before oricf_up's clean-up kills whatever is left
+    assert not re.search(RUNNING, up.output), up.output
+    assert "Traceback" not in up.output, up.output
 
 
 def test_services_of_a_killed_launcher_stop_by_themselves(tmp_path: Path) -> None:
