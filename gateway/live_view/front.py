@@ -7,7 +7,11 @@ offer. So the SDK listens on loopback at a port of its own, and this front, on t
 `websockets` library, is the address viewers use: it takes either subprotocol, checks the
 bearer token (`Authorization: Bearer TOKEN`, or `?token=TOKEN` for browsers, which cannot
 set headers) and TLS (wss://, client certificates with client_ca), refuses viewers beyond
-max_clients and messages beyond max_message_bytes, then relays each message unchanged.
+max_clients and messages beyond max_message_bytes, then relays each message unchanged,
+but for messages a viewer publishes on a channel of its own: the view takes no data from
+viewers (its server offers no client publishing), so those are dropped here and logged as a
+warning, at most once per viewer per REFUSAL_LOG_INTERVAL_S with how many came (the SDK
+would log each one as an error).
 The relay reads from the SDK only as fast as the viewer takes, so a slow viewer's backlog
 stays in the SDK's bounded per-client queue, where its oldest frames are dropped.
 """
@@ -18,6 +22,7 @@ import asyncio
 import contextlib
 import logging
 import threading
+import time
 from http import HTTPStatus
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -52,6 +57,8 @@ UPSTREAM_MAX_BYTES = 256 << 20
 WRITE_LIMIT_BYTES = 256 << 10
 # Messages the relay reads ahead from the SDK for a viewer before it stops reading.
 RELAY_QUEUE = 4
+# The binary op of Client Message Data: a message on a channel the viewer advertised.
+CLIENT_MESSAGE_DATA = 0x01
 
 
 class Front:
@@ -124,7 +131,7 @@ class Front:
             async with connect(self._sdk_url, subprotocols=[SDK_SUBPROTOCOL],
                                max_size=UPSTREAM_MAX_BYTES, max_queue=RELAY_QUEUE,
                                ping_interval=None, close_timeout=CLOSE_TIMEOUT_S) as sdk:
-                await _first_to_end(_pipe(viewer, sdk), _pipe(sdk, viewer))
+                await _first_to_end(_from_viewer(viewer, sdk), _pipe(sdk, viewer))
         except (OSError, ConnectionClosed) as exc:
             log.warning("live view: relay for %s ended: %s", _peer(viewer), exc)
         finally:
@@ -152,6 +159,53 @@ async def _pipe(source: Any, sink: Any) -> None:
     with contextlib.suppress(ConnectionClosed):
         async for message in source:
             await sink.send(message)
+
+
+class UnacceptedMessages:
+    """A viewer's messages on channels of its own, for the log: the first at once, then at
+    most one line per interval with how many came since, and the rest when it leaves."""
+
+    def __init__(self, peer: str, interval_s: float = REFUSAL_LOG_INTERVAL_S) -> None:
+        self.peer = peer
+        self.interval_s = interval_s
+        self.total = 0
+        self._unlogged = 0
+        self._latest = "?"
+        self._logged_at: float | None = None
+
+    def add(self, message: bytes) -> None:
+        self.total += 1
+        self._unlogged += 1
+        self._latest = str(int.from_bytes(message[1:5], "little")) if len(message) >= 5 \
+            else "?"
+        now = time.monotonic()
+        if self._logged_at is None or now - self._logged_at >= self.interval_s:
+            self._log()
+            self._logged_at = now
+
+    def _log(self) -> None:
+        log.warning("live view: viewer %s sent %d message(s) on channels of its own (the "
+                    "latest on channel %s); dropped: the view takes no data from viewers",
+                    self.peer, self._unlogged, self._latest)
+        self._unlogged = 0
+
+    def close(self) -> None:
+        if self._unlogged:
+            self._log()
+
+
+async def _from_viewer(viewer: ServerConnection, sdk: Any) -> None:
+    """What the viewer sends, to the SDK, less its messages on channels of its own."""
+    unaccepted = UnacceptedMessages(_peer(viewer))
+    try:
+        with contextlib.suppress(ConnectionClosed):
+            async for message in viewer:
+                if isinstance(message, bytes) and message[:1] == bytes([CLIENT_MESSAGE_DATA]):
+                    unaccepted.add(message)
+                    continue
+                await sdk.send(message)
+    finally:
+        unaccepted.close()
 
 
 async def _first_to_end(*pipes: Any) -> None:

@@ -22,6 +22,7 @@ from websockets.typing import Subprotocol
 from tests.gateway.live_view.support import Decoder, message_data, subscribe_all
 
 CLIENT = Path(__file__).with_name("foxglove_client.js")
+PUBLISHER = Path(__file__).with_name("foxglove_publisher.js")
 
 
 def node_modules() -> Path:
@@ -74,6 +75,17 @@ def official_client(url: str, seconds: float, token: str | None = None,
     command, env = client_command(url, seconds, token, ca)
     result = subprocess.run(command, capture_output=True, text=True, timeout=seconds + 60,
                             env=env, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return Received([json.loads(line) for line in result.stdout.splitlines()])
+
+
+def publishing_client(url: str, count: int, seconds: float) -> Received:
+    """Runs foxglove_publisher.js: `count` messages on channels of its own it never
+    advertised, then watching every channel until a message comes (`seconds` at most)."""
+    env = {**os.environ, "NODE_PATH": str(node_modules())}
+    result = subprocess.run(["node", str(PUBLISHER), url, str(count), str(seconds)],
+                            capture_output=True, text=True, timeout=seconds + 60, env=env,
+                            check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     return Received([json.loads(line) for line in result.stdout.splitlines()])
 
