@@ -82,19 +82,32 @@ class Viewer:
         self._stop.set()
 
 
+def start_viewer(url: str) -> subprocess.Popen[str]:
+    """A viewer process (this module's main) watching the live view at url."""
+    return subprocess.Popen([sys.executable, "-m", "oricf.bench.gateway_view", url],
+                            stdout=subprocess.PIPE, text=True)
+
+
+def stop_viewer(viewer: subprocess.Popen[str]) -> float:
+    """Stops a viewer process; the images per second it received (0 if it had ended)."""
+    viewer.send_signal(signal.SIGTERM)
+    out, _ = viewer.communicate(timeout=30)
+    try:
+        return float(out.split()[-1])
+    except (IndexError, ValueError):
+        return 0.0
+
+
 @contextmanager
 def watching(port: int) -> Iterator[list[float]]:
     """A viewer process watching until the block ends; then its images per second are in
     the list yielded."""
-    viewer = subprocess.Popen([sys.executable, "-m", "oricf.bench.gateway_view",
-                               f"ws://127.0.0.1:{port}"], stdout=subprocess.PIPE, text=True)
+    viewer = start_viewer(f"ws://127.0.0.1:{port}")
     rate: list[float] = []
     try:
         yield rate
     finally:
-        viewer.send_signal(signal.SIGTERM)
-        out, _ = viewer.communicate(timeout=30)
-    rate.append(float(out.split()[-1]) if out.strip() else 0.0)
+        rate.append(stop_viewer(viewer))
 
 
 def main() -> int:

@@ -8,7 +8,8 @@
     oricf up DEPLOYMENT.yaml
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
-    oricf bench detector|asr|llm|tts|voice|gateway|models|link|rtsp|offload|edge|tracking [...]
+    oricf bench detector|asr|llm|tts|voice|gateway|models|link|rtsp|offload|edge|tracking|soak
+                [...]
 
 Verbs with options of their own hand the rest of the command line to their module's main().
 """
@@ -40,7 +41,7 @@ DELEGATED = {
 # Modules that run a pipeline in this process: grpc's client polls in the calling thread.
 RUN_PIPELINES = {"oricf.gateway.main", "oricf.gateway.agents.main"}
 BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
-              "offload", "edge", "tracking")
+              "offload", "edge", "tracking", "soak")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:
