@@ -42,7 +42,7 @@ from oricf.bench.soak_report import (
     write_report,
 )
 from oricf.demo.main import DEFAULT_QUESTIONS, pick_deployment, view_url
-from oricf.demo.run import DemoOptions, Result, _wait_connected, ask, launched
+from oricf.demo.run import DemoOptions, Result, ask, launched, wait_connected
 from oricf.launch.health import free_port
 from oricf.launch.launcher import Launcher, LaunchFailed
 from oricf.launch.progress import ProgressLine
@@ -136,7 +136,7 @@ def with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
     player = AnswerPlayer(play=False, wav=None)  # the speech is received and timed, not played
     node.on_spoken = player.play
     try:
-        _wait_connected(node, launcher, progress)
+        wait_connected(node, launcher, progress)
         replay.start()
         if node.next(COUNT, options.stage_timeout_s) is None:
             raise LaunchFailed("no /human_counter message: the people route does not answer")

@@ -99,7 +99,7 @@ def _with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
         if player.note:
             print(f"speech: {player.note}", flush=True)
     try:
-        _wait_connected(node, launcher, progress)
+        wait_connected(node, launcher, progress)
         replay.start()
         rate = f"at {replay.fps:.0f} fps" if replay.fps else "as it sends"
         progress(f"camera {options.source} {rate}; "
@@ -135,7 +135,7 @@ def keep_viewing(url: str) -> None:
         pass
 
 
-def _wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> None:
+def wait_connected(node: Any, launcher: Launcher, progress: ProgressLine) -> None:
     start = time.monotonic()
     while not node.connected():
         gateway = launcher.gateway
