@@ -1,8 +1,9 @@
 """Hostile input on the services' HTTP side (the OpenAI-compatible API), against real
 `oricf serve llm|asr --http-listen` processes: fuzzed JSON bodies, bytes that are not JSON,
-10 MB bodies, uploads that are not audio, lying Content-Lengths, slow clients (slowloris)
-and 200 connections at once. Every answer is a client error in OpenAI's shape or a limit,
-never a 500; memory stays bounded; the service answers normally afterwards."""
+10 MB bodies, uploads that are not audio, lying Content-Lengths, slow clients (slowloris),
+half-sent bodies, lone UTF-16 surrogates and 200 connections at once. Every answer is a
+client error in OpenAI's shape or a limit, never a 500; memory stays bounded; the service
+answers normally afterwards."""
 
 from __future__ import annotations
 
@@ -13,22 +14,32 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+import grpc
 import httpx
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from oricf.audio import encode_wav
+from oricf.v1 import language_pb2, language_pb2_grpc
 from tests.support.openai_http import HttpService, health, http_service, overlay, rss_mb
 
 REQUEST_TIMEOUT_S = 2.0
+# The speech service's body deadline is long, so that an answer that waited for it could
+# not pass for one given at once.
+ASR_REQUEST_TIMEOUT_S = 30.0
+MAX_UPLOAD_BYTES = 25 * 1024 * 1024
 MAX_CONNECTIONS = 64
+MAX_CONCURRENT_RPCS = 4
 CLIENT_ERRORS = {400, 404, 408, 413, 429}
 MAX_GROWTH_MB = 300
 QUESTION = {"messages": [{"role": "user", "content": "How many people do you see?"}]}
 
-SERVER = {"max_concurrent_rpcs": 4,
+SERVER = {"max_concurrent_rpcs": MAX_CONCURRENT_RPCS,
           "http": {"request_timeout_s": REQUEST_TIMEOUT_S, "max_connections": MAX_CONNECTIONS,
                    "keep_alive_s": 2}}
+ASR_SERVER = {**SERVER, "http": {**SERVER["http"], "request_timeout_s": ASR_REQUEST_TIMEOUT_S}}
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +54,7 @@ def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
 @pytest.fixture(scope="module")
 def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("asr")
-    with http_service("asr", "--overlay", overlay(folder, {"server": SERVER})) as service:
+    with http_service("asr", "--overlay", overlay(folder, {"server": ASR_SERVER})) as service:
         yield service
 
 
@@ -64,7 +75,8 @@ def still_serving(service: HttpService) -> None:
 HOSTILE = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70),
                     st.floats(allow_nan=False), st.text(max_size=60),
                     st.sampled_from(["user", "system", "assistant", "tool", "image_url",
-                                     "json_schema", "gemma3-270m", "x" * 5000]))
+                                     "json_schema", "gemma3-270m", "x" * 5000, "\ud800",
+                                     "a\udfffb", "\ud83d"]))
 VALUES = st.recursive(HOSTILE, lambda inner: st.one_of(
     st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=12), inner, max_size=4)),
     max_leaves=12)
@@ -170,7 +182,168 @@ def test_lying_content_lengths(llm: HttpService) -> None:
     # A Content-Length that is not a number is refused before any route runs.
     answer = raw(llm, head + b"Content-Length: lots\r\n\r\n{}")
     assert answer.startswith(b"HTTP/1.1 400")
+    # Far more promised than the limit, and nothing sent: 413, not a wait for the body.
+    answer = raw(llm, head + b"Content-Length: 99999999999999\r\n\r\n")
+    assert answer.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in answer
     still_serving(llm)
+
+
+CHAT_HEAD = (b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
+             b"Content-Type: application/json\r\n")
+UPLOAD_HEAD = (b"POST /v1/audio/transcriptions HTTP/1.1\r\nHost: x\r\n"
+               b"Content-Type: multipart/form-data; boundary=hostile\r\n")
+FILE_PART = (b'--hostile\r\nContent-Disposition: form-data; name="file"; filename="a.wav"\r\n'
+             b"Content-Type: audio/wav\r\n\r\n")
+
+
+def until_closed(sock: socket.socket, timeout_s: float) -> bytes:
+    """What comes back on sock until the server ends its side; TimeoutError if it has not
+    within timeout_s (a deadline, not a measure: what is asked for comes at once)."""
+    sock.settimeout(timeout_s)
+    chunks = []
+    while chunk := sock.recv(65536):
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def continued(sock: socket.socket) -> None:
+    """Waits for `100 Continue`: uvicorn sends it when the route first reads the body, so
+    the request has passed every guard by then."""
+    sock.settimeout(15)
+    seen = b""
+    while b"\r\n\r\n" not in seen:
+        chunk = sock.recv(1)
+        assert chunk, "closed before 100 Continue"
+        seen += chunk
+    assert seen.startswith(b"HTTP/1.1 100"), seen
+
+
+def test_half_sent_bodies_hold_no_call_slot(llm: HttpService) -> None:
+    """Twice as many clients as call slots send a POST's headers and 10 bytes of its body,
+    then stall: a caller over HTTP and one over gRPC are answered meanwhile (a call slot is
+    taken once a body is whole), and each stalled client is answered 408 and disconnected
+    at the body's deadline."""
+    stalled = [socket.create_connection(("127.0.0.1", llm.port), timeout=15)
+               for _ in range(2 * MAX_CONCURRENT_RPCS)]
+    try:
+        for sock in stalled:
+            sock.sendall(CHAT_HEAD + b"Expect: 100-continue\r\nContent-Length: 1000\r\n\r\n")
+        for sock in stalled:
+            continued(sock)
+            sock.sendall(b'{"messages')
+        response = httpx.post(f"{llm.base_url}/v1/chat/completions", json=QUESTION, timeout=30)
+        assert response.status_code == 200, response.text
+        with grpc.insecure_channel(llm.grpc_address) as channel:
+            answer = language_pb2_grpc.LanguageModelStub(channel).Generate(
+                language_pb2.GenerateRequest(prompt=QUESTION["messages"][0]["content"]),
+                timeout=30)
+        assert answer.finish_reason in ("stop", "length")
+        for sock in stalled:
+            refusal = until_closed(sock, REQUEST_TIMEOUT_S + 10)
+            assert refusal.startswith(b"HTTP/1.1 408") and b'"request_timeout"' in refusal
+    finally:
+        for sock in stalled:
+            sock.close()
+    still_serving(llm)
+
+
+def test_an_upload_declared_over_the_limit_is_413_before_its_body(asr: HttpService) -> None:
+    """Only the headers, saying a terabyte is coming: 413 at once, long before the body's
+    deadline, and the connection is closed."""
+    with socket.create_connection(("127.0.0.1", asr.port), timeout=15) as sock:
+        sock.sendall(UPLOAD_HEAD + b"Content-Length: 1000000000000\r\n\r\n")
+        refusal = until_closed(sock, ASR_REQUEST_TIMEOUT_S / 2)
+    assert refusal.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in refusal
+    assert b"connection: close" in refusal.lower()
+
+
+def test_a_chunked_upload_past_the_limit_is_413_at_once(asr: HttpService) -> None:
+    """A chunked body has no length to be refused by: it is cut off where it crosses the
+    upload limit and answered 413 without waiting for the rest (which never comes here)."""
+    chunk = bytes(1024 * 1024)
+    with socket.create_connection(("127.0.0.1", asr.port), timeout=15) as sock:
+        sock.sendall(UPLOAD_HEAD + b"Transfer-Encoding: chunked\r\n\r\n"
+                     + b"%x\r\n%s\r\n" % (len(FILE_PART), FILE_PART))
+        try:
+            for _ in range(MAX_UPLOAD_BYTES // len(chunk) + 2):
+                sock.sendall(b"%x\r\n%s\r\n" % (len(chunk), chunk))
+        except OSError:  # the server stopped reading: the answer is waiting
+            pass
+        refusal = until_closed(sock, ASR_REQUEST_TIMEOUT_S / 2)
+    assert refusal.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in refusal
+    assert health(asr).status_code == 200
+
+
+SURROGATE_BODIES = [
+    ({"messages": [{"role": "user", "content": "How many? \ud800"}]}, "messages[0].content"),
+    ({"messages": [{"role": "system", "content": "Be brief.\udfff"}, *QUESTION["messages"]]},
+     "messages[0].content"),
+    ({"messages": [{"role": "user", "content": [{"type": "text", "text": "\ud83d"}]}]},
+     "messages[0].content[0].text"),
+    ({**QUESTION, "stop": ["\ud800"]}, "stop[0]"),
+    ({**QUESTION, "stop": "\ud800"}, "stop"),
+    ({**QUESTION, "model": "gemma\ud800"}, "model"),
+    ({**QUESTION, "stream": True, "messages": [{"role": "user", "content": "\ud800"}]},
+     "messages[0].content"),
+    ({**QUESTION, "stream": True, "stop": "\udc00"}, "stop"),
+    ({**QUESTION, "facts": [{"name": "people\ud800", "integer": 1}]}, "facts[0].name"),
+    ({**QUESTION, "x\ud800": 1}, "(a key)"),
+]
+
+
+@pytest.mark.parametrize(("body", "field"), SURROGATE_BODIES)
+def test_lone_surrogates_are_400_naming_the_field(llm: HttpService, body: dict[str, Any],
+                                                  field: str) -> None:
+    """`"\\ud800"` (a surrogate without its pair) anywhere in a body is not text."""
+    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=json.dumps(body),
+                          headers={"Content-Type": "application/json"}, timeout=30)
+    assert response.status_code == 400, response.text
+    assert_openai_error(response)
+    error = response.json()["error"]
+    assert error["param"] == field and "surrogate" in error["message"]
+
+
+def test_lone_surrogates_as_bytes_are_400(llm: HttpService) -> None:
+    """The same surrogate as the three bytes that would encode it (Python's JSON decoder
+    lets them through)."""
+    body = b'{"messages": [{"role": "user", "content": "\xed\xa0\x80"}]}'
+    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=body, timeout=30)
+    assert response.status_code == 400, response.text
+    assert response.json()["error"]["param"] == "messages[0].content"
+    still_serving(llm)
+
+
+SILENCE = encode_wav(np.zeros(8000, dtype=np.int16), 16000)  # half a second, real audio
+
+
+def form(fields: dict[str, bytes], charset: str | None = None) -> tuple[bytes, dict[str, str]]:
+    """A multipart body with a small file and these text fields, as raw bytes (a client
+    library would refuse to encode some of them)."""
+    parts = [b'--hostile\r\nContent-Disposition: form-data; name="%s"\r\n\r\n%s\r\n'
+             % (name.encode(), value) for name, value in fields.items()]
+    body = b"".join(parts) + FILE_PART + SILENCE + b"\r\n--hostile--\r\n"
+    kind = "multipart/form-data; boundary=hostile"
+    return body, {"Content-Type": kind + (f"; charset={charset}" if charset else "")}
+
+
+@pytest.mark.parametrize("name", ["model", "prompt", "language", "response_format",
+                                  "temperature"])
+@pytest.mark.parametrize(("value", "charset"), [
+    (b"\\ud800", "unicode_escape"),       # the form's charset makes a lone surrogate of it
+    (b"x\\udfffy", "raw_unicode_escape"),
+    (b"\xed\xa0\x80", None),              # the bytes of one, in a UTF-8 form
+    (b"\xed\xa0\x80", "utf-8"),
+])
+def test_lone_surrogates_in_form_fields_are_client_errors(asr: HttpService, name: str,
+                                                          value: bytes,
+                                                          charset: str | None) -> None:
+    body, headers = form({name: value}, charset)
+    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", content=body,
+                          headers=headers, timeout=30)
+    assert_openai_error(response)
+    if charset and "escape" in charset:
+        assert response.json()["error"]["param"] == "content-type"
+    assert asr.process.poll() is None
 
 
 def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:

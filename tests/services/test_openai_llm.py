@@ -160,10 +160,18 @@ def test_a_body_over_the_limit_is_413(api: openai.OpenAI) -> None:
 
 def test_a_call_over_the_limit_is_429_with_retry_after(llm: HttpService,
                                                        api: openai.OpenAI) -> None:
-    # A client still sending its body holds the service's only call slot.
-    with socket.create_connection(("127.0.0.1", llm.port), timeout=10) as slow:
-        slow.sendall(b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
-                     b"Content-Type: application/json\r\nContent-Length: 100\r\n\r\n{")
+    # A streamed answer holds the service's only call slot until its last byte; its schema
+    # makes it long (20 numbers at least), so it is still going while the others ask.
+    many = {"type": "object", "required": ["numbers"], "properties": {
+        "numbers": {"type": "array", "items": {"type": "integer"}, "minItems": 20}}}
+    long_answer = {"model": MODEL, "stream": True, "max_tokens": 256, "temperature": 0,
+                   "messages": [{"role": "user", "content": "List numbers in JSON."}],
+                   "response_format": {"type": "json_schema",
+                                       "json_schema": {"name": "numbers", "schema": many}}}
+    with httpx.stream("POST", f"{llm.base_url}/v1/chat/completions", json=long_answer,
+                      timeout=60) as stream:
+        assert stream.status_code == 200
+        next(stream.iter_lines())  # the answer has begun
         response = httpx.post(f"{llm.base_url}/v1/chat/completions", timeout=10, json={
             "messages": [{"role": "user", "content": QUESTION}]})
         assert response.status_code == 429
@@ -175,6 +183,23 @@ def test_a_call_over_the_limit_is_429_with_retry_after(llm: HttpService,
     # moment after the socket closes: the official client, retrying after the Retry-After it
     # is given, gets its answer.
     assert "4" in ask(client(llm, max_retries=3))
+
+
+def test_a_client_still_sending_its_body_holds_no_call_slot(llm: HttpService,
+                                                            api: openai.OpenAI) -> None:
+    """A call slot is taken once a body is whole: with the service's only slot, callers over
+    HTTP and gRPC are answered while a client sits on half a body (until the body's
+    deadline, 30 s here)."""
+    with socket.create_connection(("127.0.0.1", llm.port), timeout=10) as slow:
+        slow.sendall(b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
+                     b"Content-Type: application/json\r\nExpect: 100-continue\r\n"
+                     b"Content-Length: 100\r\n\r\n")
+        assert slow.recv(100).startswith(b"HTTP/1.1 100")  # the route is reading its body
+        slow.sendall(b"{")
+        assert "4" in ask(api)
+        with grpc.insecure_channel(llm.grpc_address) as channel:
+            language_pb2_grpc.LanguageModelStub(channel).Generate(
+                language_pb2.GenerateRequest(prompt=QUESTION), timeout=30)
 
 
 def test_503_until_the_model_is_loaded(tmp_path: Path) -> None:

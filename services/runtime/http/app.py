@@ -79,7 +79,7 @@ def build_app(routes: Sequence[BaseRoute], slot: ModelSlot[Any], server: ServerS
         paths = [route.path for route in all_routes if isinstance(route, Route)]
         middleware.append(Middleware(MetricsMiddleware, metrics=HttpMetrics(registry),
                                      routes=paths))
-    middleware.append(Middleware(ErrorShape, limit=limit, drain_timeout_s=http.request_timeout_s))
+    middleware.append(Middleware(ErrorShape, limit=limit))
     if server.auth is not None:
         middleware.append(Middleware(TokenAuth, tokens=server.auth.tokens()))
     middleware.append(Middleware(BodyLimit, max_body=http.max_body_bytes,

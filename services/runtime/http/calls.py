@@ -1,6 +1,10 @@
 """Helpers for a service's HTTP routes: reading a JSON body, and running the blocking model
 off the event loop while noticing that the client went away.
 
+A JSON body may carry lone UTF-16 surrogates (`"\\ud800"`, or their bytes, which Python's
+JSON decoder lets through): no text can be made of them (a tokenizer, a phonemizer and UTF-8
+all refuse them), so a body with one anywhere, key or value, is refused here, naming where.
+
 Model code is blocking (llama.cpp, CTranslate2) and checks a `still_wanted` callable between
 steps, as over gRPC. Here that check raises Cancelled once the client has disconnected, so a
 generation stops within a token of the client leaving.
@@ -10,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import threading
 from collections.abc import AsyncGenerator, Callable, Iterator
 from typing import Any, TypeVar
@@ -18,8 +23,11 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 
 from oricf.errors import Cancelled, InvalidInput
+from oricf.services.runtime.http.errors import InvalidParam
 
 T = TypeVar("T")
+
+SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 async def read_json(request: Request) -> dict[str, Any]:
@@ -35,7 +43,32 @@ async def read_json(request: Request) -> dict[str, Any]:
         raise InvalidInput("the request body is nested too deeply") from None
     if not isinstance(data, dict):
         raise InvalidInput(f"the request body must be a JSON object, not {type(data).__name__}")
+    where = lone_surrogate(data)
+    if where is not None:
+        raise InvalidParam(f"{where}: a lone UTF-16 surrogate (\\ud800-\\udfff without its "
+                           f"pair) is not text; send valid Unicode", param=where)
     return data
+
+
+def lone_surrogate(data: Any) -> str | None:
+    """The path (`messages[0].content`) of a string, key or value, in parsed JSON
+    that holds a lone surrogate; None if there is none. A loop, not recursion: the body
+    may be nested as deeply as the JSON decoder allowed."""
+    stack: list[tuple[str, Any]] = [("", data)]
+    while stack:
+        path, value = stack.pop()
+        if isinstance(value, str):
+            if SURROGATE.search(value):
+                return path or "body"
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                inner = f"{path}.{key}" if path else key
+                if SURROGATE.search(key):
+                    return f"{path}.(a key)" if path else "(a key)"
+                stack.append((inner, item))
+        elif isinstance(value, list):
+            stack.extend((f"{path}[{i}]", item) for i, item in enumerate(value))
+    return None
 
 
 class Presence:

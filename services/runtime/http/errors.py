@@ -5,7 +5,9 @@
 The same domain errors the gRPC side maps (services/runtime/errors.py) get the HTTP status
 an OpenAI client expects: InvalidInput 400, NotFound 404, Overloaded 429 (with Retry-After),
 NotReady 503. Anything unexpected is logged with its traceback and answered 500 without
-internals. Messages are cut as on the gRPC side, since they may echo caller input.
+internals. Messages are cut as on the gRPC side, since they may echo caller input, and
+whatever they echo is made encodable first (a lone UTF-16 surrogate cannot be written as
+UTF-8), so building an error answer cannot fail and it is always JSON.
 """
 
 from __future__ import annotations
@@ -73,11 +75,18 @@ def _cut(message: str) -> str:
     return message if len(message) <= MAX_MESSAGE else message[:MAX_MESSAGE] + "... (cut)"
 
 
+def printable(text: str) -> str:
+    """text with what UTF-8 cannot encode (lone surrogates) written as escapes: an error
+    that echoes caller input must still be sendable."""
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 def error_body(status: int, message: str, *, kind: str | None = None,
                param: str | None = None, code: str | None = None) -> dict[str, Any]:
-    return {"error": {"message": _cut(message),
+    return {"error": {"message": _cut(printable(message)),
                       "type": kind or TYPE_FOR_STATUS.get(status, "invalid_request_error"),
-                      "param": param, "code": code}}
+                      "param": None if param is None else _cut(printable(param)),
+                      "code": code}}
 
 
 def as_api_error(exc: BaseException, retry_after_ms: int) -> ApiError:

@@ -3,12 +3,15 @@ streamed answer holds its call slot until its last byte): errors in OpenAI's sha
 tokens, body size and time limits, and the service's call limit.
 
 Order, outermost first: ErrorShape, TokenAuth, BodyLimit, CallSlot. Health checks are
-exempt from tokens and the call limit, as on the gRPC side.
+exempt from tokens and the call limit, as on the gRPC side. A call slot is taken only once
+the request's body is whole, so clients that send half a body and stall hold none: they hold
+a connection until the body's deadline, and are then answered 408 and disconnected.
 """
 
 from __future__ import annotations
 
 import asyncio
+import codecs
 import logging
 import time
 from collections.abc import Sequence
@@ -25,10 +28,10 @@ Receive = Any
 Send = Any
 
 HEALTH_PATH = "/health"
-# An error answer is sent once the client's body is read (closing a socket with unread
-# bytes resets it, and the client would see a reset instead of the answer); at most this
-# much is read and thrown away for it.
-DRAIN_LIMIT = 64 * 1024 * 1024
+# Form fields in these charsets are text; in others (unicode_escape, say) the form parser
+# could make strings that are not (lone surrogates).
+FORM_CHARSETS = frozenset({"utf-8", "ascii", "iso8859-1"})
+FORM_TYPES = ("multipart/form-data", "application/x-www-form-urlencoded")
 
 
 def header(scope: Scope, name: bytes) -> str | None:
@@ -38,19 +41,24 @@ def header(scope: Scope, name: bytes) -> str | None:
     return None
 
 
+def has_body(scope: Scope) -> bool:
+    length = header(scope, b"content-length")
+    return header(scope, b"transfer-encoding") is not None or (
+        length is not None and length.strip() != "0")
+
+
 class ErrorShape:
     """Turns any exception into an OpenAI-shaped error answer, never a traceback."""
 
-    def __init__(self, app: Any, limit: CallLimit, drain_timeout_s: float) -> None:
+    def __init__(self, app: Any, limit: CallLimit) -> None:
         self.app = app
         self.limit = limit
-        self.drain_timeout_s = drain_timeout_s
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        state = {"started": False, "body_done": False}
+        state = {"started": False, "body_done": not has_body(scope)}
 
         async def tracked_receive() -> Any:
             message = await receive()
@@ -70,24 +78,14 @@ class ErrorShape:
             if state["started"]:  # mid-stream: the route already said what it could
                 log.debug("%s: ended mid-answer: %s", scope["path"], error.message)
                 return
+            response = error_response(error)
             if not state["body_done"]:
-                await self._drain(receive)
+                # The rest of the body is not read (for a 413 or a 408 that is the point):
+                # the connection ends with the answer, closed lingering (server.py).
+                response.headers["connection"] = "close"
             log.debug("%s %s -> %d: %s", scope["method"], scope["path"], error.status,
                       error.message)
-            await error_response(error)(scope, receive, send)
-
-    async def _drain(self, receive: Receive) -> None:
-        """Reads what is left of the body, within the time and byte limits."""
-        deadline = time.monotonic() + self.drain_timeout_s
-        read = 0
-        try:
-            while read < DRAIN_LIMIT:
-                message = await asyncio.wait_for(receive(), deadline - time.monotonic())
-                read += len(message.get("body", b""))
-                if message["type"] != "http.request" or not message.get("more_body", False):
-                    return
-        except (asyncio.TimeoutError, ValueError):
-            return
+            await response(scope, receive, send)
 
 
 class TokenAuth:
@@ -110,11 +108,13 @@ class TokenAuth:
 
 
 class BodyLimit:
-    """Refuses bodies over the limit (413) and bodies not sent within the deadline (408).
+    """Refuses bodies over the limit (413), bodies not sent within the deadline (408) and
+    forms in a charset that is not UTF-8 (400).
 
     The limit is the upload limit for multipart bodies (files), the body limit otherwise; a
-    Content-Length over it is refused before any byte is read, and a body that turns out
-    longer than it said or than the limit is cut off when it crosses the limit.
+    Content-Length over it is refused at once, before any byte is read, and a body that
+    turns out longer than it said or than the limit (a chunked one) is cut off when it
+    crosses the limit. Either way the connection is closed after the answer (ErrorShape).
     """
 
     def __init__(self, app: Any, max_body: int, max_upload: int, timeout_s: float) -> None:
@@ -131,6 +131,7 @@ class BodyLimit:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        check_form_charset(header(scope, b"content-type") or "")
         limit = self._limit(scope)
         declared = header(scope, b"content-length")
         if declared is not None and declared.strip().isdigit() and int(declared) > limit:
@@ -160,9 +161,31 @@ class BodyLimit:
         await self.app(scope, limited_receive, send)
 
 
+def check_form_charset(content_type: str) -> None:
+    """A form body declared in a charset other than UTF-8 (or ASCII, Latin-1): 400."""
+    kind, _, options = content_type.partition(";")
+    if kind.strip().lower() not in FORM_TYPES:
+        return
+    for option in options.split(";"):
+        name, _, value = option.partition("=")
+        if name.strip().lower() != "charset":
+            continue
+        charset = value.strip().strip('"')
+        try:
+            known = codecs.lookup(charset).name in FORM_CHARSETS
+        except LookupError:
+            known = False
+        if not known:
+            raise ApiError(400, f"content-type: charset '{charset[:40]}' is not read here; "
+                                f"send form fields in UTF-8", param="content-type")
+
+
 class CallSlot:
     """Holds one of the service's call slots (server.max_concurrent_rpcs, shared with gRPC)
-    for each POST, until its answer has been sent; none free: 429 with Retry-After."""
+    for each POST from the moment its body is whole until its answer has been sent; none
+    free then: 429 with Retry-After. A client still sending its body holds none (its
+    deadline is BodyLimit's), so stalled half-sent bodies cannot lock out other callers,
+    over HTTP or gRPC."""
 
     def __init__(self, app: Any, limit: CallLimit) -> None:
         self.app = app
@@ -172,12 +195,26 @@ class CallSlot:
         if scope["type"] != "http" or scope["method"] != "POST":
             await self.app(scope, receive, send)
             return
+        held = False
+
+        async def receive_then_enter() -> Any:
+            nonlocal held
+            message = await receive()
+            whole = message["type"] == "http.request" and not message.get("more_body", False)
+            if whole and not held:
+                self._enter()
+                held = True
+            return message
+
+        try:
+            await self.app(scope, receive_then_enter, send)
+        finally:
+            if held:
+                self.limit.leave()
+
+    def _enter(self) -> None:
         if not self.limit.try_enter():
             wait_ms = self.limit.pushback_ms()
             raise ApiError(429, f"the service is busy ({self.limit.limit} calls in progress); "
                                 f"retry in {wait_ms} ms", code="rate_limit_exceeded",
                            retry_after_ms=wait_ms)
-        try:
-            await self.app(scope, receive, send)
-        finally:
-            self.limit.leave()

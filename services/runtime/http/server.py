@@ -6,7 +6,14 @@ idle keep-alive connections and refuses requests beyond `max_connections` with 5
 has no limit on how long a client may take to send a request's headers: the protocol below
 closes a connection whose headers are not complete within `request_timeout_s` (a slowloris
 client that dribbles a header a minute would otherwise hold its connection for ever). The
-body's deadline is kept by the app (limits.py).
+body's deadline is kept by the app (guards.py).
+
+A connection closed while its client is still sending a body (an answer of 413 or 408, or
+any refusal before the body was read) is closed lingering, as web servers do: the answer's
+side is ended first, and what the client goes on sending is read and dropped for at most
+LINGER_S or LINGER_BYTES before the socket closes. Closing a socket with unread bytes at
+once resets the connection, and a client still writing its body would see the reset instead
+of the answer.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ import ssl
 import threading
 from typing import Any
 
+import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
@@ -32,20 +40,79 @@ log = logging.getLogger(__name__)
 START_TIMEOUT_S = 10.0
 # After the grace period, how long uvicorn may take to cancel what is left.
 STOP_MARGIN_S = 5.0
+# A lingering close reads and drops the rest of a refused body for at most this long, and
+# this much.
+LINGER_S = 2.0
+LINGER_BYTES = 64 * 1024 * 1024
+
+
+class LingeringClose:
+    """A connection's transport whose close(), while the client is still sending its body,
+    ends the answer's side (when the transport can: not under TLS) and keeps reading for
+    the protocol to drop, until the client closes, LINGER_S pass or LINGER_BYTES arrive."""
+
+    def __init__(self, transport: asyncio.Transport, still_sending: Any,
+                 loop: asyncio.AbstractEventLoop) -> None:
+        self._transport = transport
+        self._still_sending = still_sending
+        self._loop = loop
+        self._timer: asyncio.TimerHandle | None = None
+        self.lingering = False
+        self.dropped = 0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._transport, name)
+
+    def is_closing(self) -> bool:
+        return self.lingering or self._transport.is_closing()
+
+    def close(self) -> None:
+        if self.lingering or self._transport.is_closing() or not self._still_sending():
+            self.close_now()
+            return
+        self.lingering = True
+        if self._transport.can_write_eof():
+            self._transport.write_eof()  # after what is still buffered: the answer
+        self._transport.resume_reading()
+        self._timer = self._loop.call_later(LINGER_S, self.close_now)
+
+    def close_now(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._transport.close()
+
+    def drop(self, data: bytes) -> None:
+        """Bytes that arrived while lingering: dropped, the connection closed at the cap."""
+        self.dropped += len(data)
+        if self.dropped > LINGER_BYTES:
+            self.close_now()
 
 
 def _protocol(header_timeout_s: float) -> type[asyncio.Protocol]:
     class HeaderDeadlineProtocol(H11Protocol):
-        """uvicorn's HTTP/1.1 protocol, closing connections whose request headers are late."""
+        """uvicorn's HTTP/1.1 protocol, closing connections whose request headers are late,
+        and closing lingering while a client is still sending a body."""
 
         def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-            super().connection_made(transport)
+            self._lingering = LingeringClose(transport, self._still_sending, self.loop)
+            super().connection_made(self._lingering)  # type: ignore[arg-type]
             self._arm_header_deadline()
 
+        def _still_sending(self) -> bool:
+            return self.conn.their_state is h11.SEND_BODY
+
         def data_received(self, data: bytes) -> None:
+            if self._lingering.lingering:
+                self._lingering.drop(data)
+                return
             super().data_received(data)
             if self.cycle is not self._waiting_after:  # a request's headers are complete
                 self._disarm_header_deadline()
+
+        def eof_received(self) -> None:
+            if self._lingering.lingering:  # the client has read the answer and left
+                self._lingering.close_now()
 
         def on_response_complete(self) -> None:
             super().on_response_complete()
@@ -53,6 +120,7 @@ def _protocol(header_timeout_s: float) -> type[asyncio.Protocol]:
 
         def connection_lost(self, exc: Exception | None) -> None:
             self._disarm_header_deadline()
+            self._lingering.close_now()
             super().connection_lost(exc)
 
         def _arm_header_deadline(self) -> None:
