@@ -13,8 +13,13 @@ closed. Too long a line or too many clients: an `error:` line, and nothing else 
 Connections that have not sent their token wait in a pool of their own (`max_pending`), so
 they never take an authenticated client's place, and are closed after `auth_timeout_s`;
 clients that send nothing for `idle_timeout_s` are closed too, and one address holds at most
-`max_per_address` connections. Every question is answered, with the route's answer or an
-`error:` line (Client.fail), also when the client half-closes its connection after asking.
+`max_per_address` connections. When a new connection finds its address or its pool full, the
+connection there that has sent nothing for longest is closed to make room (`error: closed to
+make room ...`): with `auth`, only one yet to send its token; without, one with no question
+waiting for its answer. Idle sockets (on a robot every local client shares 127.0.0.1) never
+lock a client out. Every question is answered, with the route's answer or an `error:` line
+(Client.fail), also when the client half-closes its connection after asking. Lines reach a
+client as printable text (text_clients.one_printable_line).
 """
 
 from __future__ import annotations
@@ -23,7 +28,6 @@ import asyncio
 import logging
 import ssl
 import threading
-from collections import Counter
 from collections.abc import Callable
 
 from pydantic import Field, field_validator
@@ -72,7 +76,7 @@ class TextChannel:
         self.config = config
         self.clients: set[Client] = set()   # authenticated
         self.pending: set[Client] = set()   # yet to send their token
-        self._per_address: Counter[str] = Counter()
+        self._by_address: dict[str, set[Client]] = {}
         self.address = ""
         self._on_line: OnLine | None = None
         self._tokens = [t.encode() for t in config.auth.tokens()] if config.auth else []
@@ -151,7 +155,7 @@ class TextChannel:
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         host, port = writer.get_extra_info("peername")[:2]
-        client = Client(writer, self._loop, f"{host}:{port}", self.name)
+        client = Client(writer, self._loop, host, port, self.name)
         refusal = self._admit(client, host)
         if refusal:
             client.reply(f"error: {refusal}")
@@ -162,11 +166,7 @@ class TextChannel:
             except (OSError, asyncio.IncompleteReadError):
                 pass
             finally:
-                self.clients.discard(client)
-                self.pending.discard(client)
-                self._per_address[host] -= 1
-                if self._per_address[host] <= 0:  # no entry left behind per address seen
-                    del self._per_address[host]
+                self._forget(client)
                 log.info("text channel %s: %s disconnected", self.name, client.peer)
         client.open = False
         try:
@@ -175,18 +175,49 @@ class TextChannel:
         except (OSError, ssl.SSLError):
             pass
 
+    def _forget(self, client: Client) -> None:
+        self.clients.discard(client)
+        self.pending.discard(client)
+        here = self._by_address.get(client.host)
+        if here is not None:
+            here.discard(client)
+            if not here:  # no entry left behind per address seen
+                del self._by_address[client.host]
+
     def _admit(self, client: Client, host: str) -> str:
-        """Takes the client into its pool; or says why not."""
-        if self._per_address[host] >= self.config.max_per_address:
+        """Takes the client into its pool, closing an idle connection to make room where
+        the pool or its address is full; or says why not."""
+        here = self._by_address.get(host, set())
+        if len(here) >= self.config.max_per_address and not self._make_room(here):
             return f"{host} has {self.config.max_per_address} connections here already"
-        if self._tokens and len(self.pending) >= self.config.max_pending:
-            return f"{self.config.max_pending} connections wait to authenticate already"
-        if not self._tokens and not self._promote(client):
-            return f"the channel has {self.config.max_clients} clients already"
-        if self._tokens:
-            self.pending.add(client)
-        self._per_address[host] += 1
+        pool, size = ((self.pending, self.config.max_pending) if self._tokens else
+                      (self.clients, self.config.max_clients))
+        if len(pool) >= size and not self._make_room(pool):
+            return (f"{size} connections wait to authenticate already" if self._tokens else
+                    f"the channel has {size} clients already")
+        pool.add(client)
+        self._by_address.setdefault(host, set()).add(client)
         return ""
+
+    def _make_room(self, among: set[Client]) -> bool:
+        """Closes the connection of `among` that has sent nothing for longest, of those that
+        may go; False if none may."""
+        movable = [client for client in among if self._movable(client)]
+        if not movable:
+            return False
+        idlest = max(movable, key=lambda client: client.idle_s())
+        log.info("text channel %s: closing %s, silent for %.0f s, to make room for a new "
+                 "connection", self.name, idlest.peer, idlest.idle_s())
+        idlest.reply(f"error: closed to make room for a new connection after "
+                     f"{idlest.idle_s():.0f} s without a line")
+        self._forget(idlest)
+        idlest.close()
+        return True
+
+    def _movable(self, client: Client) -> bool:
+        """With `auth`, a connection yet to send its token (an authenticated client is never
+        closed for room); without, a client with no question waiting for its answer."""
+        return client in self.pending if self._tokens else client.answered.is_set()
 
     def _promote(self, client: Client) -> bool:
         """An authenticated client takes a place among `clients`, if one is free."""
@@ -210,6 +241,7 @@ class TextChannel:
                 if not client.answered.is_set() and not client.transport_closing():
                     await asyncio.wait_for(client.answered.wait(), HALF_CLOSED_WAIT_S)
                 return
+            client.heard()
             if not authenticated:
                 if not self._check_token(line):
                     client.reply("error: the first line must be 'authorization: Bearer TOKEN' "

@@ -1,15 +1,30 @@
 """One client of a text channel (text_channels.py): its writes, made on the channel's event
 loop whatever thread sends, and the answers it still waits for, so that a client that
-half-closes its connection after its last question is answered before it is closed."""
+half-closes its connection after its last question is answered before it is closed.
+
+A line reaches the client as one line of printable text: line breaks of any kind become
+spaces, and the other control characters (ESC, NUL, the C1 set, DEL; all but tab) are
+written as `\\xNN`, so text from a model or an agent cannot drive the terminal or display
+that shows it.
+"""
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import time
 
 log = logging.getLogger(__name__)
 
 MAX_UNSENT_BYTES = 1 << 20
+ESCAPED = {code: f"\\x{code:02x}" for code in (*range(0x20), 0x7F, *range(0x80, 0xA0))
+           if code != ord("\t")}
+
+
+def one_printable_line(line: str) -> str:
+    """Line breaks (\\r, \\v, \\x1c, U+2028 and the rest) as spaces, other control
+    characters escaped."""
+    return " ".join(line.splitlines()).translate(ESCAPED)
 
 
 class Client:
@@ -17,8 +32,9 @@ class Client:
     block; the rest runs on the channel's loop."""
 
     def __init__(self, writer: asyncio.StreamWriter, loop: asyncio.AbstractEventLoop,
-                 peer: str, channel: str) -> None:
-        self.peer = peer
+                 host: str, port: int, channel: str) -> None:
+        self.host = host
+        self.peer = f"{host}:{port}"
         self.channel = channel
         self.open = True
         self.answered = asyncio.Event()  # no question of this client is waiting
@@ -26,12 +42,12 @@ class Client:
         self._waiting = 0
         self._writer = writer
         self._loop = loop
+        self.heard_at = time.monotonic()  # when it last sent a line (or connected)
 
     def send(self, line: str, answer: bool = False) -> None:
         """A line to this client; `answer`: it answers one of the client's questions."""
         if self.open:
-            # One line for any client: \r, \v, \x1c and the rest split lines too.
-            data = (" ".join(line.splitlines()) + "\n").encode()
+            data = (one_printable_line(line) + "\n").encode()
             try:
                 self._loop.call_soon_threadsafe(self._deliver, data, answer)
             except RuntimeError:  # the loop has closed
@@ -46,9 +62,16 @@ class Client:
         self._waiting += 1
         self.answered.clear()
 
+    def heard(self) -> None:
+        """On the loop: the client sent a line."""
+        self.heard_at = time.monotonic()
+
+    def idle_s(self) -> float:
+        return time.monotonic() - self.heard_at
+
     def reply(self, line: str) -> None:
         """On the loop itself (the channel's own messages), ahead of anything scheduled."""
-        self._write((line + "\n").encode())
+        self._write((one_printable_line(line) + "\n").encode())
 
     def transport_closing(self) -> bool:
         """Whether nothing can reach the client any more (TLS closes both sides at once)."""

@@ -3,7 +3,9 @@ bounds (clamped or refused), rate, approval, then sent; a deadman sends the zero
 when a motion target is not renewed in time. Every outcome goes to the audit log.
 
 Approval by MCP elicitation happens in the MCP server, which asks its user before it calls
-`send(..., approved=True)`; a target that needs it is refused without. Approval on a text
+`send(..., approved=True)`; a target that needs it is refused without. Over the control API
+only a request carrying a token of `control.approvers` (the attached MCP server) can say
+so; any other client's `approved` is dropped before it reaches here. Approval on a text
 channel happens here, so no client of the control API can skip it.
 """
 

@@ -39,7 +39,9 @@ class ChannelApprover:
 
     def _on_line(self, line: str, client: Client) -> None:
         words = line.strip().lower().split()
-        if len(words) != 2 or words[0] not in ("yes", "no") or not words[1].isdigit():
+        # ASCII digits only: str.isdigit() also takes "²" and "①", which int() refuses
+        if len(words) != 2 or words[0] not in ("yes", "no") or \
+                not (words[1].isascii() and words[1].isdigit()):
             client.send("answer: yes N or no N")
             return
         with self._lock:

@@ -1,14 +1,17 @@
 """The audit trail of an agent: one JSON line per tool call or command, allowed or refused,
 and Prometheus counters of the same (`oricf_agent_calls_total{tool,outcome}`).
 
-Arguments are recorded clipped (an image is recorded by its size, never its bytes); a
-bearer token never reaches a tool's arguments, so it never reaches this file.
+Arguments are recorded clipped (an image is recorded by its size, never its bytes); numbers
+JSON cannot hold (NaN, infinities) and integers beyond 64 bits as text, so a refused command
+is recorded as refused whatever it held. A bearer token never reaches a tool's arguments,
+so it never reaches this file.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
 import threading
 import time
 from pathlib import Path
@@ -33,9 +36,22 @@ def clipped(value: Any) -> Any:
         return f"<{len(value)} bytes>"
     if isinstance(value, str):
         return value if len(value) <= MAX_VALUE_CHARS else f"{value[:MAX_VALUE_CHARS]}..."
+    if isinstance(value, float) and not math.isfinite(value):  # JSON has no such number
+        return "NaN" if math.isnan(value) else "Infinity" if value > 0 else "-Infinity"
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return big_integer(value)
     if value is None or isinstance(value, bool | int | float):
         return value
     return clipped(str(value))
+
+
+def big_integer(value: int) -> str:
+    """An integer beyond 64 bits, as text (a reader of the log may take numbers as 64-bit
+    floats): its digits, clipped; one too long to print, by its size."""
+    try:
+        return clipped(str(value))
+    except ValueError:  # beyond Python's limit on digits printed
+        return f"<integer of {value.bit_length()} bits>"
 
 
 class AuditLog:

@@ -1,6 +1,7 @@
 """MCP over streamable HTTP (the SDK's Starlette app on uvicorn): loopback by default;
 bearer tokens and TLS, both required for any other address; a cap on request bodies; the
-SDK's DNS-rebinding protection on loopback."""
+SDK's DNS-rebinding protection on loopback; a deadline for request headers and room for a
+client that asks when every connection is taken (oricf.http_connections)."""
 
 from __future__ import annotations
 
@@ -14,12 +15,17 @@ from mcp.server.mcpserver import MCPServer
 from oricf.errors import ConfigError
 from oricf.gateway.control.server import BearerTokens
 from oricf.hosts import is_loopback
+from oricf.http_connections import guarded_h11
 from oricf.metrics import split_listen
 from oricf.tls import ServerTls, TokenSource
 
 log = logging.getLogger(__name__)
 
 PATH = "/mcp"
+MAX_CONNECTIONS = 64
+# A connection whose request headers are not complete this long after it opened (or after
+# its last answer) is closed: no client needs long to send a few hundred bytes of headers.
+HEADER_TIMEOUT_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -62,7 +68,8 @@ def serve_http(app: MCPServer, settings: HttpSettings) -> None:
     config = uvicorn.Config(
         http_app(app, settings), host=settings.host, port=settings.port, log_level="warning",
         ssl_certfile=str(tls.cert) if tls else None, ssl_keyfile=str(tls.key) if tls else None,
-        lifespan="on", timeout_keep_alive=30, limit_concurrency=64)
+        lifespan="on", timeout_keep_alive=30, limit_concurrency=MAX_CONNECTIONS,
+        http=guarded_h11(HEADER_TIMEOUT_S))
     scheme = "https" if tls else "http"
     log.info("MCP on %s://%s:%d%s (%s)", scheme, settings.host, settings.port, PATH,
              "bearer tokens" if settings.tokens else "no tokens: this machine only")

@@ -8,6 +8,7 @@ only then made into a ROS message or a text line. Nothing in a message is ever e
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Mapping
 from typing import Any
 
@@ -23,6 +24,7 @@ FIELDS: dict[str, dict[str, str]] = {
     "std_msgs/String": {"data": "text"},
 }
 MAX_TEXT = 2000
+FLOAT_MAX = sys.float_info.max
 MAX_DEPTH = 4
 
 
@@ -71,12 +73,14 @@ def _value(name: str, kind: str, value: Any) -> Any:
         return value
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InvalidInput(f"{name} must be a number, got {type(value).__name__}")
-    if not math.isfinite(value):
-        raise InvalidInput(f"{name} must be a finite number")
+    # Compared as numbers, never converted first: an integer of 400 digits has no float.
+    finite = math.isfinite(value) if isinstance(value, float) else abs(value) <= FLOAT_MAX
     if kind == "int":
-        if value != int(value) or abs(value) > 2**31 - 1:
+        if not finite or value != int(value) or abs(value) > 2**31 - 1:
             raise InvalidInput(f"{name} must be a 32-bit integer")
         return int(value)
+    if not finite:
+        raise InvalidInput(f"{name} must be a finite number (a 64-bit float)")
     return float(value)
 
 

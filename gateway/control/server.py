@@ -8,11 +8,18 @@ tokens, TLS; Starlette on uvicorn in a thread of its own.
          /v1/check {target, message} /v1/publish {target, message, approved}
 
 Images and audio travel base64. Errors: {"error": why, "kind": InvalidInput | NotReady |
-Refused | Internal} with 400, 503, 403 or 500; nothing internal is told.
+Refused | Internal} with 400 (408 for a body that does not arrive in time), 503, 403 or
+500; nothing internal is told.
+
+`approved: true` counts only on a request that carries a token of `control.approvers` (the
+MCP server that asked its user by elicitation): any other client's claim is not taken, so a
+target that needs approval refuses it. Connections: a deadline for request headers and room
+for a client that asks (oricf.http_connections), a deadline for request bodies.
 """
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import binascii
 import json
@@ -30,34 +37,61 @@ from starlette.responses import JSONResponse
 from starlette.routing import Route
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from oricf.errors import InvalidInput, NotReady, OricfError
+from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.api import Gateway, Json
 from oricf.gateway.control.config import ControlConfig
+from oricf.http_connections import guarded_h11
 from oricf.metrics import split_listen
 from oricf.tls import token_matches
 
 log = logging.getLogger(__name__)
 
 STATUS = {"InvalidInput": 400, "Refused": 403, "NotReady": 503}
+APPROVER = "oricf.approver"  # in a request's scope: it carries a token of control.approvers
+
+
+class LateBody(InvalidInput):
+    """A request body that did not arrive within control.body_timeout_s (408)."""
+
+
+def bearer(scope: Scope) -> str | None:
+    """The request's bearer token, if it gives one."""
+    given = dict(scope.get("headers") or []).get(b"authorization")
+    if given is None:
+        return None
+    scheme, _, token = given.decode("latin-1").partition(" ")
+    return token.strip() if scheme.lower() == "bearer" else None
+
+
+async def unauthorized(scope: Scope, receive: Receive, send: Send) -> None:
+    response = JSONResponse({"error": "missing or wrong bearer token"}, 401,
+                            headers={"WWW-Authenticate": "Bearer"})
+    await response(scope, receive, send)
 
 
 class BearerTokens:
-    """ASGI middleware: every HTTP request carries `Authorization: Bearer TOKEN`."""
+    """ASGI middleware: with `tokens`, every HTTP request carries `Authorization: Bearer
+    TOKEN` with one of them or of `approvers`; a token of `approvers` also marks the request
+    as an approver's (scope[APPROVER]): of the control API's clients, the one whose
+    `approved: true` is taken."""
 
-    def __init__(self, app: ASGIApp, tokens: tuple[bytes, ...]) -> None:
+    def __init__(self, app: ASGIApp, tokens: tuple[bytes, ...],
+                 approvers: tuple[bytes, ...] = ()) -> None:
         self.app = app
         self.tokens = tokens
+        self.approvers = approvers
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "http":
-            given = dict(scope.get("headers") or []).get(b"authorization", b"")
-            scheme, _, token = given.decode("latin-1").partition(" ")
-            if scheme.lower() != "bearer" or not token_matches(token.strip(), self.tokens):
-                response = JSONResponse({"error": "missing or wrong bearer token"}, 401,
-                                        headers={"WWW-Authenticate": "Bearer"})
-                await response(scope, receive, send)
+            token = bearer(scope)
+            approver = token is not None and bool(self.approvers) and \
+                token_matches(token, self.approvers)
+            if self.tokens and not approver and \
+                    (token is None or not token_matches(token, self.tokens)):
+                await unauthorized(scope, receive, send)
                 return
+            scope[APPROVER] = approver
         await self.app(scope, receive, send)
 
 
@@ -66,6 +100,15 @@ def error_kind(exc: Exception) -> str:
         if isinstance(exc, kind):
             return kind.__name__
     return "InvalidInput" if isinstance(exc, OricfError) else "Internal"
+
+
+def error_response(request: Request, exc: Exception) -> JSONResponse:
+    kind = error_kind(exc)
+    if kind == "Internal":
+        log.exception("control API %s failed", request.url.path)
+        return JSONResponse({"error": "internal error", "kind": kind}, 500)
+    status = 408 if isinstance(exc, LateBody) else STATUS[kind]
+    return JSONResponse({"error": str(exc), "kind": kind}, status)
 
 
 def b64(data: Any, what: str) -> bytes:
@@ -77,16 +120,30 @@ def b64(data: Any, what: str) -> bytes:
         raise InvalidInput(f"{what}: not valid base64") from None
 
 
-def control_app(gateway: Gateway, max_body_bytes: int) -> Starlette:
-    async def body(request: Request) -> Json:
-        chunks, size = [], 0
-        async for chunk in request.stream():
-            size += len(chunk)
-            if size > max_body_bytes:
-                raise InvalidInput(f"request body over {max_body_bytes:,} bytes")
-            chunks.append(chunk)
+async def read_body(request: Request, max_bytes: int, timeout_s: float) -> bytes:
+    """The whole body, within the byte limit and the deadline."""
+    chunks: list[bytes] = []
+    size = 0
+    deadline = time.monotonic() + timeout_s
+    stream = request.stream().__aiter__()
+    while True:
         try:
-            data = json.loads(b"".join(chunks) or b"{}")
+            chunk = await asyncio.wait_for(stream.__anext__(), deadline - time.monotonic())
+        except StopAsyncIteration:
+            return b"".join(chunks)
+        except asyncio.TimeoutError:
+            raise LateBody(f"the request body did not arrive within {timeout_s:g} s") from None
+        size += len(chunk)
+        if size > max_bytes:
+            raise InvalidInput(f"request body over {max_bytes:,} bytes")
+        chunks.append(chunk)
+
+
+def control_app(gateway: Gateway, config: ControlConfig) -> Starlette:
+    async def body(request: Request) -> Json:
+        raw = await read_body(request, config.max_body_bytes, config.body_timeout_s)
+        try:
+            data = json.loads(raw or b"{}")
         except (ValueError, RecursionError):
             raise InvalidInput("request body is not JSON") from None
         if not isinstance(data, dict):
@@ -102,12 +159,17 @@ def control_app(gateway: Gateway, max_body_bytes: int) -> Starlette:
                 data = await body(request) if post else {}
                 return JSONResponse(await run_in_threadpool(work, request, data))
             except Exception as exc:
-                kind = error_kind(exc)
-                if kind == "Internal":
-                    log.exception("control API %s failed", request.url.path)
-                return JSONResponse({"error": "internal error" if kind == "Internal"
-                                     else str(exc), "kind": kind}, STATUS.get(kind, 500))
+                return error_response(request, exc)
         return handle
+
+    def publish(request: Request, data: Json) -> Json:
+        target = str(data.get("target", ""))
+        claimed = data.get("approved") is True
+        approved = claimed and bool(request.scope.get(APPROVER))
+        if claimed and not approved:  # the policy refuses it, and the audit says so
+            log.warning("control API: a publish to %.100r said it was approved without an "
+                        "approver's token (control.approvers); not taken", target)
+        return gateway.publish(target, data.get("message"), approved)
 
     def look(request: Request, _: Json) -> Json:
         info, jpeg = gateway.look(request.query_params.get("route"))
@@ -131,8 +193,7 @@ def control_app(gateway: Gateway, max_body_bytes: int) -> Starlette:
         "/v1/transcribe": lambda r, d: g.transcribe(b64(d.get("audio"), "audio")),
         "/v1/say": lambda r, d: g.say(d.get("text")),  # type: ignore[arg-type]
         "/v1/check": lambda r, d: g.check(str(d.get("target", "")), d.get("message")),
-        "/v1/publish": lambda r, d: g.publish(str(d.get("target", "")), d.get("message"),
-                                              d.get("approved") is True),
+        "/v1/publish": publish,
     }
     routes = [Route(path, endpoint(work)) for path, work in reads.items()]
     routes += [Route(path, endpoint(work, post=True), methods=["POST"])
@@ -173,18 +234,28 @@ class ControlServer:
         self.address = f"{scheme}://{shown}:{sock.getsockname()[1]}"
         return sock
 
+    def _app(self) -> ASGIApp:
+        config = self.config
+        tokens = tuple(t.encode() for t in config.auth.tokens()) if config.auth else ()
+        approvers = (tuple(t.encode() for t in config.approvers.tokens())
+                     if config.approvers else ())
+        if set(tokens) & set(approvers):
+            raise ConfigError("control.approvers: a token of control.auth is also an "
+                              "approver's; every client holding it could approve")
+        return BearerTokens(control_app(self.gateway, config), tokens, approvers)
+
     def start(self) -> None:
         import uvicorn
 
-        app: Any = control_app(self.gateway, self.config.max_body_bytes)
-        if self.config.auth is not None:
-            app = BearerTokens(app, tuple(t.encode() for t in self.config.auth.tokens()))
+        app = self._app()
         tls = self.config.tls
         sock = self._socket()
         config = uvicorn.Config(app, log_level="warning", lifespan="off",
+                                http=guarded_h11(self.config.header_timeout_s),
                                 ssl_certfile=str(tls.cert) if tls else None,
                                 ssl_keyfile=str(tls.key) if tls else None,
-                                timeout_keep_alive=30, limit_concurrency=64)
+                                timeout_keep_alive=30,
+                                limit_concurrency=self.config.max_connections)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [sock]},
                                         daemon=True, name="control-api")
@@ -195,8 +266,9 @@ class ControlServer:
             time.sleep(0.02)
         if not self._server.started:
             raise OSError(f"control API did not start on {self.config.listen}")
-        log.info("control API on %s (%s)", self.address,
-                 "bearer tokens" if self.config.auth else "no tokens: socket mode 0600")
+        log.info("control API on %s (%s%s)", self.address,
+                 "bearer tokens" if self.config.auth else "no tokens: socket mode 0600",
+                 ", approvers' tokens" if self.config.approvers else "")
 
     def close(self) -> None:
         if self._server is not None and self._thread is not None:

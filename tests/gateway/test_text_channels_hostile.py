@@ -108,20 +108,80 @@ def test_a_client_that_sends_nothing_is_told_and_closed(
         assert lines.readline() == ""  # closed
 
 
-@pytest.mark.parametrize(("config", "told"), [
-    ({"max_per_address": 3}, "error: 127.0.0.1 has 3 connections here already\n"),
-    ({"max_pending": 3}, "error: 3 connections wait to authenticate already\n"),
-])
-def test_connections_beyond_a_bound_are_told(certs: Path, channels: list[TextChannel],
-                                             config: dict[str, Any], told: str) -> None:
-    channel = open_channel(secure(certs, **config))
+def test_connections_beyond_a_bound_are_told(certs: Path, channels: list[TextChannel]) -> None:
+    """An address whose connections are all authenticated clients: none is closed for room."""
+    channel = open_channel(secure(certs, max_per_address=3))
     channels.append(channel)
     with ExitStack() as stack:
-        for _ in range(3):
-            stack.enter_context(connect(channel, certs))
+        for n in range(3):
+            sock = stack.enter_context(connect(channel, certs))
+            sock.sendall(TOKEN + f"ping {n}\n".encode())
+            assert line_of(sock) == f"got ping {n}\n"
+        with connect(channel, certs) as sock:
+            assert line_of(sock) == "error: 127.0.0.1 has 3 connections here already\n"
+
+
+@pytest.mark.parametrize("config", [{"max_per_address": 3}, {"max_pending": 3}])
+def test_a_full_pool_closes_its_idlest_connection_for_a_new_one(
+        certs: Path, channels: list[TextChannel], config: dict[str, Any]) -> None:
+    channel = open_channel(secure(certs, auth_timeout_s=300, **config))
+    channels.append(channel)
+    with ExitStack() as stack:
+        idle = [stack.enter_context(connect(channel, certs)) for _ in range(3)]
         settle(channel, 3)
         with connect(channel, certs) as sock:
-            assert line_of(sock) == told
+            sock.sendall(TOKEN + b"ping\n")
+            assert line_of(sock) == "got ping\n"
+        oldest = idle[0].makefile("r", encoding="utf-8")
+        assert oldest.readline().startswith("error: closed to make room for a new connection")
+        assert oldest.readline() == ""  # closed
+
+
+@pytest.mark.parametrize("config", [{}, {"auth_timeout_s": 300}])
+def test_idle_clients_of_one_address_never_lock_a_client_out(
+        certs: Path, channels: list[TextChannel], config: dict[str, Any]) -> None:
+    """Eight idle connections from 127.0.0.1 (the bound per address; on a robot every local
+    client has that address) on a channel without tokens and on one with: a client that
+    asks is answered at once, and an idle one makes room."""
+    secured = certs if config else None
+    channel = open_channel(secure(certs, **config) if config else {})
+    channels.append(channel)
+    with ExitStack() as stack:
+        idle = [stack.enter_context(connect(channel, secured)) for _ in range(8)]
+        settle(channel, 8)
+        for n in range(3):  # each one stays: the next finds the address full again
+            sock = stack.enter_context(connect(channel, secured))
+            sock.sendall((TOKEN if config else b"") + f"ping {n}\n".encode())
+            assert line_of(sock) == f"got ping {n}\n"
+        for sock in idle[:3]:  # the three idlest made room, one for each client
+            assert line_of(sock).startswith("error: closed to make room")
+
+
+def test_a_client_waiting_for_its_answer_is_never_closed_for_room(
+        channels: list[TextChannel]) -> None:
+    channel = open_channel({"max_per_address": 2}, answer_after_s=1.0)
+    channels.append(channel)
+    with connect(channel) as asker, connect(channel) as idle:
+        asker.sendall(b"slow question\n")
+        wait_until(lambda: any(not c.answered.is_set() for c in channel.clients))
+        with connect(channel) as newcomer:
+            newcomer.sendall(b"ping\n")
+            assert line_of(newcomer) == "got ping\n"
+        assert line_of(asker) == "got slow question\n"
+        assert line_of(idle).startswith("error: closed to make room")
+
+
+def test_control_characters_reach_a_client_escaped(channels: list[TextChannel]) -> None:
+    """ESC, NUL, BEL, the C1 set and DEL as `\\xNN`, line breaks as spaces, tab kept: a
+    display's terminal is never driven by what a route or an agent writes."""
+    channel = open_channel({})
+    channels.append(channel)
+    with connect(channel) as display:
+        display.sendall(b"hello\n")  # answered: the display is a client of the channel now
+        assert line_of(display) == "got hello\n"
+        channel.send("\x1b[2J\x1b]0;title\x07a\x00b\tc\rd\x85e\u2028f\x9b1m\x7f")
+        assert line_of(display) == \
+            "\\x1b[2J\\x1b]0;title\\x07a\\x00b\tc d e f\\x9b1m\\x7f\n"
 
 
 def test_a_client_that_half_closes_after_asking_gets_its_answer(

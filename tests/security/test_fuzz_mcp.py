@@ -3,7 +3,9 @@ against a real gateway (the real detector; the policy's topics heard by a real r
 
 - raw HTTP to the MCP endpoint: random bytes, random JSON-RPC, lying and oversized bodies;
 - tool calls through the `mcp` SDK's client with arguments drawn from hostile JSON values;
-- requests to every path of the control API on its Unix socket.
+- requests to every path of the control API on its Unix socket;
+- seventy idle connections (silent, or headers never finished) beside a client that asks;
+- numbers no message field holds (NaN, infinities, 1e309, 400 digits) in raw JSON-RPC.
 
 Whatever arrives: an HTTP status that names a client mistake (never 5xx), a tool result or
 an MCP error (never a dead server), no command outside the policy's bounds on the robot's
@@ -18,6 +20,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +36,7 @@ from tests.gateway.agents.session import TOOLS, http_session, server_env
 from tests.gateway.ros.gateway_node import private_domain
 from tests.support.processes import free_port
 from tests.support.services import running_service
+from tests.support.sockets import peer_closed
 
 EXAMPLES = 120
 TOKEN = "fuzz-token-71"
@@ -255,3 +259,79 @@ def test_hostile_control_requests(served: tuple[str, Path, subprocess.Popen[byte
     within_policy(driver)
     assert process.poll() is None
     still_serving(url)
+
+
+MCP_HEADERS = {"Authorization": f"Bearer {TOKEN}", "Content-Type": "application/json",
+               "Accept": "application/json, text/event-stream"}
+INITIALIZE = json.dumps({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+    "protocolVersion": "2025-06-18", "capabilities": {},
+    "clientInfo": {"name": "raw", "version": "1"}}}).encode()
+
+
+def answer_of(response: httpx.Response) -> dict[str, Any]:
+    """The JSON-RPC answer in a response, plain JSON or one server-sent event."""
+    assert response.status_code == 200, (response.status_code, response.text[:300])
+    if response.headers.get("content-type", "").startswith("text/event-stream"):
+        data = [line[5:] for line in response.text.splitlines() if line.startswith("data:")]
+        return dict(json.loads(data[-1]))
+    return dict(response.json())
+
+
+def test_idle_connections_never_lock_a_client_out(
+        served: tuple[str, Path, subprocess.Popen[bytes]]) -> None:
+    """Seventy connections, silent or with headers never finished, at a server of 64: a
+    client that asks is answered while they are still open (the header deadline, 10 s, has
+    not cleared them); until the idle ones are a second old and may make room: 503."""
+    url, _, process = served
+    port = int(url.split(":")[2].split("/")[0])
+    with ExitStack() as stack:
+        idle = [stack.enter_context(socket.create_connection(("127.0.0.1", port), timeout=10))
+                for _ in range(70)]
+        for n, sock in enumerate(idle):
+            if n % 2:
+                sock.sendall(f"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n".encode())
+        started = time.monotonic()
+        for _ in range(3):  # a fresh connection each time, to a server full of idle ones
+            while True:
+                with httpx.Client(timeout=30) as client:
+                    response = client.post(url, content=INITIALIZE, headers=MCP_HEADERS)
+                if response.status_code != 503 or time.monotonic() - started > 8:
+                    break
+                time.sleep(0.1)
+            assert answer_of(response)["result"]["serverInfo"]["name"]
+        assert sum(peer_closed(sock) for sock in idle) < len(idle) // 2  # no deadline yet
+    assert process.poll() is None
+
+
+BIG = b"1" + b"0" * 400
+
+
+@pytest.mark.parametrize(("target", "message"), [
+    ("arm", b'{"data": NaN}'), ("arm", b'{"data": Infinity}'), ("arm", b'{"data": 1e309}'),
+    ("arm", b'{"data": ' + BIG + b"}"),
+    ("cmd_vel", b'{"linear": {"x": -Infinity}}'), ("cmd_vel", b'{"linear": {"x": ' + BIG + b"}}"),
+], ids=["nan", "infinity", "1e309", "400-digits", "twist-infinity", "twist-400-digits"])
+def test_numbers_no_field_holds_are_refused_and_audited(
+        served: tuple[str, Path, subprocess.Popen[bytes]], target: str,
+        message: bytes) -> None:
+    url, sock, process = served
+    audit = sock.parent / "audit.jsonl"
+    before = len(audit.read_text().splitlines())
+    call = (b'{"jsonrpc": "2.0", "id": 2, "method": "tools/call", "params": {"name": '
+            b'"publish", "arguments": {"target": "' + target.encode() + b'", "message": '
+            + message + b"}}}")
+    with httpx.Client(timeout=30) as client:
+        opened = client.post(url, content=INITIALIZE, headers=MCP_HEADERS)
+        answer_of(opened)
+        session = {**MCP_HEADERS, "mcp-session-id": opened.headers.get("mcp-session-id", "")}
+        client.post(url, headers=session, content=json.dumps(
+            {"jsonrpc": "2.0", "method": "notifications/initialized"}).encode())
+        result = answer_of(client.post(url, content=call, headers=session))["result"]
+    assert result["isError"] is True, result
+    text = result["content"][0]["text"]
+    assert f"refused: {target}: " in text and "must be a finite number" in text
+    entries = [json.loads(line) for line in audit.read_text().splitlines()[before:]]
+    publishes = [e for e in entries if e["tool"] == "publish"]
+    assert [e["outcome"] for e in publishes] == ["refused"], entries
+    assert "must be a finite number" in publishes[0]["reason"]
+    assert process.poll() is None

@@ -1,9 +1,11 @@
-"""The IPv4 and IPv6 sockets a process holds, read from Linux's /proc as `ss -tuanp` does."""
+"""The IPv4 and IPv6 sockets a process holds, read from Linux's /proc as `ss -tuanp` does;
+whether a peer has closed a connection."""
 
 from __future__ import annotations
 
 import ipaddress
 import os
+import socket
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,3 +61,16 @@ def inet_sockets(pid: int) -> list[Socket]:
                 address, port = fields[1].split(":")
                 found.append(Socket(table, local_address(address), int(port, 16), fields[3]))
     return found
+
+
+def peer_closed(sock: socket.socket) -> bool:
+    """Whether the other end has closed this connection, looked at without waiting."""
+    sock.setblocking(False)
+    try:
+        return sock.recv(1, socket.MSG_PEEK) == b""
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
+    finally:
+        sock.setblocking(True)

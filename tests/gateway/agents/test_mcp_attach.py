@@ -27,6 +27,8 @@ from tests.gateway.agents.session import server_env, stdio_session, text_of, war
 from tests.support.certs import local_certificates
 from tests.support.processes import free_port
 
+APPROVER = "attach-approver-5"
+
 
 @contextmanager
 def gateway(config: Path, log: Path) -> Iterator[subprocess.Popen[bytes]]:
@@ -64,7 +66,9 @@ def wait_for(check: Any, process: subprocess.Popen[bytes], log: Path) -> None:
 @pytest.fixture()
 def socket_gateway(pipeline: Path, tmp_path: Path) -> Iterator[Path]:
     sock = tmp_path / "control.sock"
-    config = with_control(pipeline, {"listen": f"unix:{sock}"}, "attach_unix.yaml")
+    (tmp_path / "approver.tokens").write_text(APPROVER + "\n")  # for the MCP server alone
+    config = with_control(pipeline, {"listen": f"unix:{sock}", "approvers": {
+        "file": str(tmp_path / "approver.tokens")}}, "attach_unix.yaml")
     log = tmp_path / "gateway.log"
     with gateway(config, log) as process:
         wait_for(sock.exists, process, log)
@@ -78,7 +82,8 @@ def test_attach_over_a_unix_socket(socket_gateway: Path, driver: RosListener) ->
         return types.ElicitResult(action="accept", content={"approve": True})
 
     async def scenario() -> None:
-        async with stdio_session("--attach", f"unix:{socket_gateway}",
+        async with stdio_session("--attach", f"unix:{socket_gateway}", "--token-file",
+                                 str(socket_gateway.parent / "approver.tokens"),
                                  elicit=approve) as session:
             deadline = time.monotonic() + 60
             while (look := await session.call_tool("look", {})).is_error:
@@ -109,6 +114,8 @@ def test_attach_over_a_unix_socket(socket_gateway: Path, driver: RosListener) ->
     client = ControlClient(f"unix:{socket_gateway}")
     with pytest.raises(Refused, match="approval"):
         client.publish("arm", {"data": 0.5}, approved=False)
+    with pytest.raises(Refused, match="approval"):  # said, without an approver's token
+        client.publish("arm", {"data": 0.5}, approved=True)
     with pytest.raises(Refused, match="outside"):
         client.publish("arm", {"data": 5.0}, approved=True)
     client.close()

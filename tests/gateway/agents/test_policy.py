@@ -17,6 +17,7 @@ import yaml
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.agents.actuation import Actuation
+from oricf.gateway.agents.approval import ChannelApprover
 from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.policy import AgentPolicy, Refused
 from oricf.gateway.agents.senders import ChannelSender, Senders
@@ -148,6 +149,30 @@ def test_approval_on_a_text_channel(channels: Channels, tmp_path: Path) -> None:
         audit.close()
     outcomes = [line for line in (tmp_path / "audit.jsonl").read_text().splitlines()]
     assert len(outcomes) == 3 and '"outcome": "sent"' in outcomes[0]
+
+
+def test_answers_without_a_plain_number_are_told_the_form(channels: Channels) -> None:
+    """`yes ²` (a digit to str.isdigit, not to int) and the like are answered with the form
+    an answer takes; the approver goes on serving the same client."""
+    approver = ChannelApprover(channels.get("approvals"))
+    person = LineClient(channels.get("approvals").address)
+    try:
+        deadline = time.monotonic() + 10
+        while not channels.get("approvals").clients:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        for answer in ("yes \u00b2", "no \u2460", "yes -1", "yes", "yes 1 2"):
+            person.say(answer)
+            assert person.line() == "answer: yes N or no N", answer
+        given: list[bool] = []
+        asking = threading.Thread(target=lambda: given.append(approver.ask("q", 10)))
+        asking.start()
+        number = person.line().split()[1].rstrip("?")
+        person.say(f"yes {number}")
+        asking.join(10)
+        assert given == [True]
+    finally:
+        person.close()
 
 
 def _wait_clients(channels: Channels) -> None:
