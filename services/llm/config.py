@@ -39,6 +39,27 @@ class GenerationSettings(Schema):
         return self
 
 
+class JsonSchemaLimits(Schema):
+    """What a response_format JSON Schema, and the llama.cpp grammar made from it, may cost.
+
+    The ceilings are what was measured safe (docs/openai.md): llama.cpp's own parser gives
+    up on deeper repetitions, and more alternatives make every token slower."""
+
+    max_schema_chars: int = Field(16_384, ge=2, le=262_144, description="the schema's JSON text")
+    max_depth: int = Field(32, ge=1, le=64, description="nested objects and lists in the schema")
+    max_repeat: int = Field(
+        256, ge=1, le=1000, description="minLength, maxLength, minItems, maxItems, "
+        "minProperties, maxProperties, and each {m,n} of a pattern")
+    max_pattern_expansion: int = Field(
+        256, ge=1, le=4096, description="places in a pattern with its {m,n} written out")
+    max_grammar_bytes: int = Field(
+        65_536, ge=1024, le=1_048_576, description="the GBNF grammar made from the schema")
+    max_grammar_rules: int = Field(
+        32_768, ge=16, le=262_144, description="rules llama.cpp makes from that grammar")
+    max_alternatives: int = Field(
+        32, ge=1, le=256, description="parse stacks one position of the answer may need")
+
+
 class InputLimits(Schema):
     max_prompt_chars: int = Field(2000, ge=1)
     max_facts: int = Field(32, ge=0, description="facts in one request")
@@ -46,6 +67,7 @@ class InputLimits(Schema):
     max_text_chars: int = Field(256, ge=1, description="characters in a fact's text value")
     max_stop_sequences: int = Field(4, ge=0)
     max_stop_chars: int = Field(32, ge=1)
+    json_schema: JsonSchemaLimits = JsonSchemaLimits()
 
 
 class QueueSettings(Schema):

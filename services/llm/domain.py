@@ -27,9 +27,9 @@ class Fact:
 @dataclass(frozen=True)
 class JsonOutput:
     """Answer in JSON, enforced by a grammar while decoding: any JSON object, or one that
-    validates against a JSON Schema (its JSON text)."""
+    validates against a JSON Schema (the checked GBNF grammar made from it)."""
 
-    schema: str | None = None
+    grammar: str | None = None
 
 
 @dataclass(frozen=True)

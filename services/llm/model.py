@@ -65,6 +65,7 @@ class LlamaModel:
         self.stats = GenerationStats()
         self._llm: Any = None
         self._is_end: Callable[[int], bool] = lambda token: False
+        self._vocab: Any = None
         self._runtime = "llama.cpp"
 
     def load(self) -> None:
@@ -79,6 +80,7 @@ class LlamaModel:
             n_threads=s.threads, n_threads_batch=s.threads, verbose=False)
         vocab = llama_cpp.llama_model_get_vocab(llm.model)
         self._is_end = lambda token: bool(llama_cpp.llama_vocab_is_eog(vocab, token))
+        self._vocab = vocab
         self._runtime = f"llama.cpp (llama-cpp-python {llama_cpp.__version__})"
         self._llm = llm
         self._warm_up()
@@ -131,7 +133,7 @@ class LlamaModel:
              *(f.value for f in request.facts if isinstance(f.value, str))])
         rendered = self.renderer.render(request.prompt, request.facts, request.system,
                                         request.history)
-        grammar = json_grammar(request.json) if request.json is not None else None
+        grammar = json_grammar(request.json, self._vocab) if request.json is not None else None
         tokens = self._tokenize(rendered.text, add_bos=True)
         self._check_fits(len(tokens), request.max_tokens)
         log.debug("prompt facts: %s", rendered.facts)

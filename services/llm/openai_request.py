@@ -17,7 +17,7 @@ from typing import Any, Literal
 from google.protobuf import json_format
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from oricf.services.llm.config import LlmConfig
+from oricf.services.llm.config import JsonSchemaLimits, LlmConfig
 from oricf.services.llm.domain import GenerationRequest, JsonOutput
 from oricf.services.llm.grammar import check_schema
 from oricf.services.llm.request import to_generation_request
@@ -135,7 +135,8 @@ def parse_facts(facts: list[Any] | None) -> list[common_pb2.Fact]:
     return parsed
 
 
-def json_output(response_format: dict[str, Any] | None) -> JsonOutput | None:
+def json_output(response_format: dict[str, Any] | None,
+                limits: JsonSchemaLimits) -> JsonOutput | None:
     kind = (response_format or {}).get("type", "text")
     if kind == "text":
         return None
@@ -148,7 +149,7 @@ def json_output(response_format: dict[str, Any] | None) -> JsonOutput | None:
                                "needed", param="response_format.json_schema")
         schema = spec.get("schema")
         return JsonOutput(None if schema is None else
-                          check_schema(schema, "response_format.json_schema.schema"))
+                          check_schema(schema, "response_format.json_schema.schema", limits))
     raise InvalidParam(f"response_format.type: {str(kind)[:40]!r} is not one of text, "
                        f"json_object, json_schema", param="response_format.type")
 
@@ -173,6 +174,6 @@ def to_generation(chat: ChatRequest, config: LlmConfig) -> GenerationRequest:
     if chat.temperature is not None:
         request.temperature = chat.temperature
     generation = to_generation_request(request, config.generation, config.limits)
-    return replace(generation, system=system, history=history,
-                   json=json_output(chat.response_format), seed=chat.seed,
+    json = json_output(chat.response_format, config.limits.json_schema)
+    return replace(generation, system=system, history=history, json=json, seed=chat.seed,
                    top_p=_top_p(chat.top_p))

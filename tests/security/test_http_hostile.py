@@ -398,3 +398,36 @@ def test_200_connections_at_once(llm: HttpService) -> None:
     assert statuses.count(200) >= 1 and statuses.count(429) + statuses.count(503) >= 1
     assert rss_mb(llm.process.pid) - before < MAX_GROWTH_MB
     still_serving(llm)
+
+
+PATTERN_ATOMS = st.sampled_from(["a", "[0-9]", ".", "\\d", "(a|b)", "\\x00", "[^a]", "[b-a]"])
+PATTERNS = st.recursive(PATTERN_ATOMS, lambda inner: st.one_of(
+    st.builds(lambda item, low, high: f"({item}){{{low},{high}}}", inner,
+              st.integers(0, 3000), st.integers(0, 3000)),
+    st.builds(lambda item: f"({item})?", inner),
+    st.builds(lambda first, second: first + second, inner, inner),
+    st.builds(lambda first, second: f"{first}|{second}", inner, inner)), max_leaves=6)
+SCHEMAS = st.one_of(
+    st.builds(lambda pattern: {"type": "string", "pattern": f"^{pattern}$"}, PATTERNS),
+    st.builds(lambda patterns: {"anyOf": [{"type": "string", "pattern": f"^{pattern}$"}
+                                          for pattern in patterns]},
+              st.lists(PATTERNS, min_size=1, max_size=40)),
+    st.builds(lambda length, items: {"type": "array", "maxItems": items, "items": {
+        "type": "string", "maxLength": length}}, st.integers(0, 2000), st.integers(0, 2000)))
+
+
+@settings(max_examples=80, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(schema=SCHEMAS, stream=st.booleans())
+def test_fuzzed_json_schemas_never_take_the_language_service_down(
+        llm: HttpService, schema: dict[str, Any], stream: bool) -> None:
+    """Counted repetitions nested in each other, optional runs, look-alike alternatives,
+    characters no token gives: answered (the grammar is within the limits) or refused with
+    a 400 naming the limit, and the process lives on."""
+    body = {**QUESTION, "stream": stream, "response_format": {
+        "type": "json_schema", "json_schema": {"name": "x", "schema": schema}}}
+    response = httpx.post(f"{llm.base_url}/v1/chat/completions", json=body, timeout=120)
+    if response.status_code != 200:
+        assert response.status_code == 400
+        assert_openai_error(response)
+    assert llm.process.poll() is None
