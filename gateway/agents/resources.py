@@ -15,6 +15,7 @@ import logging
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from typing import Any
+from urllib.parse import quote
 
 import anyio
 import mcp_types as types
@@ -28,6 +29,15 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.5
 MIN_NOTIFY_INTERVAL_S = 1.0
+
+
+def product_uri(name: str) -> str:
+    """A product's resource; its name escaped, so a '/', '?' or '#' in it stays in it."""
+    return f"oricf://products/{quote(name, safe='')}"
+
+
+def frame_uri(route: str) -> str:
+    return f"oricf://frames/{quote(route, safe='')}"
 
 
 class ListenedBus(InMemorySubscriptionBus):
@@ -65,12 +75,12 @@ class ResourceFeed:
         for product in gateway.products():
             name = product["name"]
             app.add_resource(FunctionResource.from_function(
-                lambda name=name: gateway.read_product(name), f"oricf://products/{name}",
+                lambda name=name: gateway.read_product(name), product_uri(name),
                 name=f"product {name}", mime_type="application/json",
                 description=f"data product {name}: value, age_s, stale, route"))
         for route in self._camera_routes():
             app.add_resource(FunctionResource.from_function(
-                lambda route=route: gateway.look(route)[1], f"oricf://frames/{route}",
+                lambda route=route: gateway.look(route)[1], frame_uri(route),
                 name=f"frame {route}", mime_type="image/jpeg",
                 description=f"the newest frame of route {route}, detections drawn"))
         # Clients of protocol versions before 2026-07-28 subscribe per resource. MCPServer
@@ -126,11 +136,10 @@ class ResourceFeed:
         now: dict[str, Any] = {}
         for product in self.gateway.products():
             if product["written"]:
-                now[f"oricf://products/{product['name']}"] = (product["value"],
-                                                              product["age_s"])
+                now[product_uri(product["name"])] = (product["value"], product["age_s"])
         for name, route in self.gateway.status()["routes"].items():
             if route["method"] in IMAGE_METHODS:
-                now[f"oricf://frames/{name}"] = route["ok"]
+                now[frame_uri(name)] = route["ok"]
         changed = []
         for uri, value in now.items():
             before = self._seen.get(uri)

@@ -1,6 +1,11 @@
 """The control API from another process (`oricf mcp --attach`): api.Gateway over HTTP, on a
 Unix socket or http(s)://HOST:PORT, with a bearer token; the server's errors come back as
-the same exception types (InvalidInput, NotReady, Refused)."""
+the same exception types (InvalidInput, NotReady, Refused).
+
+Names a caller passes are checked here by the rule the gateway applies (control.names)
+before they reach a URL, and every path segment is percent-escaped: `../status` or
+`people_count?x=1` is no data product, never another endpoint or a query.
+"""
 
 from __future__ import annotations
 
@@ -8,17 +13,26 @@ import base64
 import ssl
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import httpx
 
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.api import Json
+from oricf.gateway.control.names import known_product
 from oricf.tls import TokenSource
 
 ERRORS: dict[str, type[OricfError]] = {"InvalidInput": InvalidInput, "NotReady": NotReady,
                                        "Refused": Refused}
 TIMEOUT_S = 60.0  # a language model's answer may take this long on a small CPU
+
+
+def path_segment(name: str) -> str:
+    """`name` as one path segment: every reserved character escaped ('/', '?', '#', '%'),
+    and the dots of a '.' or '..' segment too, which a URL would otherwise resolve."""
+    escaped = quote(name, safe="")
+    return escaped.replace(".", "%2E") if escaped in (".", "..") else escaped
 
 
 class ControlClient:
@@ -60,7 +74,8 @@ class ControlClient:
         return list(self._call("GET", "/v1/products")["products"])
 
     def read_product(self, name: str) -> Json:
-        return dict(self._call("GET", f"/v1/products/{name}"))
+        known_product(name, (p["name"] for p in self.products()))
+        return dict(self._call("GET", f"/v1/products/{path_segment(name)}"))
 
     def look(self, route: str | None = None) -> tuple[Json, bytes]:
         data = self._call("GET", "/v1/look", params={"route": route} if route else None)

@@ -27,6 +27,7 @@ from oricf.gateway.control.api import (
     MAX_TEXT_CHARS,
     Json,
 )
+from oricf.gateway.control.names import known_product
 from oricf.gateway.control.tensors import tensor_inputs, tensor_json
 from oricf.gateway.methods import METHODS
 from oricf.gateway.methods.base import Skip
@@ -66,9 +67,7 @@ class PipelineView:
         return out
 
     def read_product(self, name: str) -> Json:
-        if name not in self._writers:
-            raise InvalidInput(f"no data product {quoted(name, 100)} (products: "
-                               f"{', '.join(sorted(self._writers)) or 'none'})")
+        known_product(name, self._writers)
         reading = self.pipeline.products.read(name)
         if reading is None:
             raise NotReady(f"data product {name} has no value yet")

@@ -4,6 +4,7 @@ the gateway, so what the control API refuses no client can send."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -18,12 +19,18 @@ import mcp_types as types
 import pytest
 import yaml
 
-from oricf.errors import NotReady
+from oricf.errors import InvalidInput, NotReady
 from oricf.gateway.agents.policy import Refused
-from oricf.gateway.agents.resources import POLL_S, ResourceFeed
+from oricf.gateway.agents.resources import POLL_S, ResourceFeed, product_uri
 from oricf.gateway.control.client import ControlClient
 from tests.gateway.agents.scene import PEOPLE, RosListener
-from tests.gateway.agents.session import server_env, stdio_session, text_of, warm_up
+from tests.gateway.agents.session import (
+    server_env,
+    stdio_session,
+    text_of,
+    wait_product,
+    warm_up,
+)
 from tests.support.certs import local_certificates
 from tests.support.processes import free_port
 
@@ -200,3 +207,54 @@ def test_resources_are_polled_only_while_a_client_listens(socket_gateway: Path) 
     # one poll = two control calls (the products with their values, the routes)
     assert gateway.calls["read_product"] == 0
     assert abs(gateway.calls["products"] - gateway.calls["status"]) <= 1
+
+
+ODD_PRODUCT = "people count?x=1#y%2F"  # in a URL: a query, a fragment, an escape
+NOT_PRODUCTS = ["../status", "../policy", "../look", "people_count?x=1", "people_count#x",
+                "people_count/", "..", ".", "%2e%2e%2fstatus", "people/count",
+                "people_count/../people_count", "people_count\r\nX: y"]
+
+
+@pytest.fixture()
+def odd_gateway(pipeline: Path, tmp_path: Path) -> Iterator[Path]:
+    """A gateway on a Unix socket whose people route also writes ODD_PRODUCT."""
+    sock = tmp_path / "control.sock"
+    config = with_control(pipeline, {"listen": f"unix:{sock}"}, "attach_odd.yaml")
+    data = yaml.safe_load(config.read_text())
+    data["routes"]["people"]["outputs"].append({"product": ODD_PRODUCT, "from": "count"})
+    config.write_text(yaml.safe_dump(data))
+    log = tmp_path / "gateway.log"
+    with gateway(config, log) as process:
+        wait_for(sock.exists, process, log)
+        yield sock
+
+
+def test_attached_product_names_are_checked_as_in_process(odd_gateway: Path) -> None:
+    """What is not a data product is refused as the gateway itself refuses it, never read
+    as another endpoint of the control API; a product's name reaches the gateway whole."""
+    known = ", ".join(sorted([ODD_PRODUCT, "people_count", "transcript"]))
+
+    async def scenario() -> None:
+        async with stdio_session("--attach", f"unix:{odd_gateway}") as session:
+            await wait_product(session, "people_count")
+            for name in NOT_PRODUCTS:
+                result = await session.call_tool("read_product", {"name": name})
+                assert result.is_error, (name, result.structured_content)
+                assert text_of(result).endswith(
+                    f": no data product {name!r} (products: {known})"), text_of(result)
+            odd = await wait_product(session, ODD_PRODUCT)
+            assert odd["name"] == ODD_PRODUCT and odd["value"] == PEOPLE
+            uri = product_uri(ODD_PRODUCT)  # its resource: the name escaped in the URI
+            assert uri == "oricf://products/people%20count%3Fx%3D1%23y%252F"
+            read = await session.read_resource(uri)
+            text = read.contents[0]
+            assert isinstance(text, types.TextResourceContents), text
+            assert json.loads(text.text)["name"] == ODD_PRODUCT
+
+    anyio.run(scenario)
+    client = ControlClient(f"unix:{odd_gateway}")
+    for name in NOT_PRODUCTS:
+        with pytest.raises(InvalidInput, match=r"^no data product "):
+            client.read_product(name)
+    assert client.read_product(ODD_PRODUCT)["value"] == PEOPLE
+    client.close()
