@@ -23,10 +23,13 @@ import logging
 import sys
 from pathlib import Path
 
+import anyio
+
 from oricf.errors import ConfigError, NotReady
 from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.http import HttpSettings, serve_http
 from oricf.gateway.agents.mcp_server import build_server
+from oricf.gateway.agents.stdio import serve_stdio
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.control.api import Gateway
 from oricf.metrics import MetricsConfig, MetricsServer
@@ -113,7 +116,7 @@ def serve(gateway: Gateway, audit: AuditLog, http: HttpSettings | None,
     try:
         if http is None:
             log.info("MCP on standard input and output")
-            app.run("stdio")
+            anyio.run(serve_stdio, app)
         else:
             serve_http(app, http)
     finally:

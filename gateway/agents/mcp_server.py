@@ -165,23 +165,36 @@ def build_server(gateway: Gateway, audit: AuditLog, name: str = "oricf") -> MCPS
                           "geometry_msgs/Twist. Targets: " + allowed)
     async def publish(target: Name, message: dict[str, Any], ctx: Context) -> CallToolResult:
         approved = False
-        if targets.get(target, {}).get("approval") == "elicit":
+        policy = targets.get(target, {})
+        if policy.get("approval") == "elicit":
             preview = await call("publish", {}, lambda: gateway.check(target, message))
-            approved = await approve(ctx, target, preview)
+            try:
+                approved = await approve(ctx, target, preview,
+                                         float(policy["approval_timeout_s"]))
+            except Refused as exc:  # the gateway never hears of it: audited here
+                audit.record("publish", "refused", target=target, message=message,
+                             reason=str(exc))
+                raise ToolError(f"refused: {exc}") from None
         return as_result(await call("publish", {"target": target},
                                     lambda: gateway.publish(target, message, approved)))
 
     return app
 
 
-async def approve(ctx: Context, target: str, preview: Json) -> bool:
-    """Asks the client's user (MCP elicitation); anything but an explicit yes is a no."""
+async def approve(ctx: Context, target: str, preview: Json, timeout_s: float) -> bool:
+    """Asks the client's user (MCP elicitation); anything but an explicit yes is a no, and
+    no answer within timeout_s is Refused (the call must not wait on a person forever)."""
     clamped = f" (clamped: {', '.join(preview['clamped'])})" if preview["clamped"] else ""
+    answer = None
     try:
-        answer = await ctx.elicit(f"Send to {target}: {json.dumps(preview['sent'])}{clamped}?",
-                                  Approval)
+        with anyio.move_on_after(timeout_s):
+            answer = await ctx.elicit(
+                f"Send to {target}: {json.dumps(preview['sent'])}{clamped}?", Approval)
     except Exception as exc:  # a client without elicitation cannot approve
         log.info("approval for %s not obtained: %s", target, exc)
         return False
+    if answer is None:
+        log.info("approval for %s: no answer within %g s", target, timeout_s)
+        raise Refused(f"{target}: not approved (no answer within {timeout_s:g} s)")
     return answer.action == "accept" and bool(getattr(answer, "data", None)) and \
         answer.data.approve  # type: ignore[union-attr]

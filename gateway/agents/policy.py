@@ -105,7 +105,8 @@ class TargetPolicy(Schema):
         return {"where": self.where, "type": self.type, "description": self.description,
                 "bounds": {k: list(v) for k, v in self.bounds.items()},
                 "beyond_bounds": self.beyond_bounds, "max_rate_hz": self.max_rate_hz,
-                "approval": self.approval, "deadman_ms": self.deadman_ms}
+                "approval": self.approval, "approval_timeout_s": self.approval_timeout_s,
+                "deadman_ms": self.deadman_ms}
 
 
 @dataclass(frozen=True)

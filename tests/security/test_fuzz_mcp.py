@@ -2,14 +2,16 @@
 against a real gateway (the real detector; the policy's topics heard by a real rclpy node):
 
 - raw HTTP to the MCP endpoint: random bytes, random JSON-RPC, lying and oversized bodies;
+- raw lines to `oricf mcp` over stdio: random bytes, random JSON-RPC, batches, surrogates;
 - tool calls through the `mcp` SDK's client with arguments drawn from hostile JSON values;
 - requests to every path of the control API on its Unix socket;
 - seventy idle connections (silent, or headers never finished) beside a client that asks;
 - numbers no message field holds (NaN, infinities, 1e309, 400 digits) in raw JSON-RPC.
 
 Whatever arrives: an HTTP status that names a client mistake (never 5xx), a tool result or
-an MCP error (never a dead server), no command outside the policy's bounds on the robot's
-topics, bounded memory, and a well-formed call still served afterwards."""
+an MCP error (never a dead server), a JSON-RPC error for each stdio line that is no message,
+no command outside the policy's bounds on the robot's topics, bounded memory, and a
+well-formed call still served afterwards."""
 
 from __future__ import annotations
 
@@ -30,7 +32,10 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mcp_types import jsonrpc_message_adapter
+from pydantic import ValidationError
 
+from tests.gateway.agents.raw import RawStdio, approval_pipeline
 from tests.gateway.agents.scene import PEOPLE, RosListener, pipeline_yaml, ros_listener
 from tests.gateway.agents.session import TOOLS, http_session, server_env
 from tests.gateway.ros.gateway_node import private_domain
@@ -48,7 +53,8 @@ CONTROL_PATHS = ["/v1/products", "/v1/products/people_count", "/v1/look", "/v1/s
 SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-(2**63), 2**63),
                     st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=30),
                     st.sampled_from(["cmd_vel", "arm", "people", "people_count", "/cmd_vel",
-                                     "linear.x", "__import__('os').system('id')",
+                                     "linear.x", "__import__('os').system('id')", "../status",
+                     "people_count?x=1",
                                      "/9j/4AAQSkZJRg==", "UklGRiQAAABXQVZF", "x" * 5000]))
 JSON = st.recursive(SCALARS, lambda inner: st.one_of(
     st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=12), inner, max_size=4)),
@@ -259,6 +265,66 @@ def test_hostile_control_requests(served: tuple[str, Path, subprocess.Popen[byte
     within_policy(driver)
     assert process.poll() is None
     still_serving(url)
+
+
+STDIO_MESSAGES = st.fixed_dictionaries(
+    {"jsonrpc": st.sampled_from(["2.0", "1.0", 2, None]),
+     "method": st.one_of(st.sampled_from(["initialize", "ping", "tools/list", "tools/call",
+                                          "resources/list", "resources/read",
+                                          "notifications/initialized", "nothing", ""]),
+                         JSON)},
+    optional={"id": JSON, "params": JSON})
+STDIO_LINES = st.one_of(
+    st.binary(max_size=300),
+    STDIO_MESSAGES.map(lambda m: json.dumps(m).encode()),
+    st.lists(STDIO_MESSAGES, max_size=3).map(lambda b: json.dumps(b).encode()),
+    st.text(max_size=40).map(lambda t: json.dumps({"jsonrpc": "2.0", "id": 1, "method": t,
+                                                   "params": {"name": "\ud800" + t}}).encode()),
+    st.just(b"[" * 100_000), st.just(b'{"a": "' + b"x" * 70_000 + b'"}'))
+
+
+def is_message(line: bytes) -> bool:
+    """Whether the SDK reads the line as one JSON-RPC message (else an error is owed)."""
+    try:
+        jsonrpc_message_adapter.validate_json(line.decode("utf-8", "replace"), by_name=False)
+    except ValidationError:
+        return False
+    return True
+
+
+def test_hostile_stdio_lines(tmp_path: Path) -> None:
+    """Each line that is no message gets its JSON-RPC error before the next ping's answer;
+    everything written is JSON-RPC; the server stays up, in bounded memory."""
+    config = approval_pipeline(tmp_path, approval_timeout_s=1.0)
+    with RawStdio("--config", str(config), log=tmp_path / "mcp.log") as server:
+        server.initialize()
+        before = rss_mb(server.process.pid)
+        pings: list[int] = []
+
+        @settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
+                  suppress_health_check=list(HealthCheck))
+        @given(STDIO_LINES)
+        def hostile(line: bytes) -> None:
+            line = line.replace(b"\r", b" ").replace(b"\n", b" ")  # one line, as written
+            server.write(line)
+            ping = f"ping-{len(pings)}"
+            pings.append(len(pings))
+            server.send({"jsonrpc": "2.0", "id": ping, "method": "ping"})
+            errors = []
+            while (message := server.next()).get("id") != ping or "method" in message:
+                assert message.get("jsonrpc") == "2.0", message
+                if "error" in message:
+                    errors.append(message["error"]["code"])
+            assert "result" in message, message
+            if not is_message(line):
+                assert {-32600, -32700} & set(errors), (line[:200], errors)
+
+        hostile()
+        assert len(pings) >= EXAMPLES, len(pings)
+        server.send({"jsonrpc": "2.0", "id": "last", "method": "tools/list"})
+        assert server.reply("last")["result"]["tools"]
+        assert rss_mb(server.process.pid) - before < MAX_GROWTH_MB
+    assert "Traceback" not in (tmp_path / "mcp.log").read_text()
 
 
 MCP_HEADERS = {"Authorization": f"Bearer {TOKEN}", "Content-Type": "application/json",
