@@ -178,7 +178,7 @@ def control_app(gateway: Gateway, config: ControlConfig) -> Starlette:
     g = gateway
     reads: dict[str, Callable[[Request, Json], Any]] = {
         "/v1/products": lambda r, d: {"products": g.products()},
-        "/v1/products/{name}": lambda r, d: g.read_product(r.path_params["name"]),
+        "/v1/products/{name:path}": lambda r, d: g.read_product(r.path_params["name"]),
         "/v1/look": look,
         "/v1/status": lambda r, d: g.status(),
         "/v1/policy": lambda r, d: g.policy(),

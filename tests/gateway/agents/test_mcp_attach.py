@@ -209,7 +209,7 @@ def test_resources_are_polled_only_while_a_client_listens(socket_gateway: Path) 
     assert abs(gateway.calls["products"] - gateway.calls["status"]) <= 1
 
 
-ODD_PRODUCT = "people count?x=1#y%2F"  # in a URL: a query, a fragment, an escape
+ODD_PRODUCT = "people/count?x=1#y%2F"  # in a URL: a slash, a query, a fragment, an escape
 NOT_PRODUCTS = ["../status", "../policy", "../look", "people_count?x=1", "people_count#x",
                 "people_count/", "..", ".", "%2e%2e%2fstatus", "people/count",
                 "people_count/../people_count", "people_count\r\nX: y"]
@@ -245,7 +245,7 @@ def test_attached_product_names_are_checked_as_in_process(odd_gateway: Path) -> 
             odd = await wait_product(session, ODD_PRODUCT)
             assert odd["name"] == ODD_PRODUCT and odd["value"] == PEOPLE
             uri = product_uri(ODD_PRODUCT)  # its resource: the name escaped in the URI
-            assert uri == "oricf://products/people%20count%3Fx%3D1%23y%252F"
+            assert uri == "oricf://products/people%2Fcount%3Fx%3D1%23y%252F"
             read = await session.read_resource(uri)
             text = read.contents[0]
             assert isinstance(text, types.TextResourceContents), text
