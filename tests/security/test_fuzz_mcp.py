@@ -2,7 +2,8 @@
 against a real gateway (the real detector; the policy's topics heard by a real rclpy node):
 
 - raw HTTP to the MCP endpoint: random bytes, random JSON-RPC, lying and oversized bodies;
-- raw lines to `oricf mcp` over stdio: random bytes, random JSON-RPC, batches, surrogates;
+- raw lines to `oricf mcp` over stdio: random bytes, random JSON-RPC, batches, surrogates,
+  ids that are neither integers nor strings, a line over the bound;
 - tool calls through the `mcp` SDK's client with arguments drawn from hostile JSON values;
 - requests to every path of the control API on its Unix socket;
 - seventy idle connections (silent, or headers never finished) beside a client that asks;
@@ -32,7 +33,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from mcp_types import jsonrpc_message_adapter
+from mcp_types import JSONRPCNotification, jsonrpc_message_adapter
 from pydantic import ValidationError
 
 from tests.gateway.agents.raw import RawStdio, approval_pipeline
@@ -46,6 +47,7 @@ from tests.support.sockets import peer_closed
 EXAMPLES = 120
 TOKEN = "fuzz-token-71"
 MAX_GROWTH_MB = 400
+MAX_STDIO_LINE_BYTES = 16 * 1024 * 1024
 CONTROL_PATHS = ["/v1/products", "/v1/products/people_count", "/v1/look", "/v1/status",
                  "/v1/policy", "/v1/detect", "/v1/infer", "/v1/ask", "/v1/transcribe",
                  "/v1/say", "/v1/check", "/v1/publish", "/v1/../etc", "/nothing"]
@@ -274,22 +276,36 @@ STDIO_MESSAGES = st.fixed_dictionaries(
                                           "notifications/initialized", "nothing", ""]),
                          JSON)},
     optional={"id": JSON, "params": JSON})
+WRONG_ID_REQUESTS = st.fixed_dictionaries(
+    {"jsonrpc": st.just("2.0"), "method": st.sampled_from(["ping", "tools/list",
+                                                          "notifications/initialized"]),
+     "id": st.one_of(st.none(), st.booleans(), st.floats(allow_nan=False, allow_infinity=False),
+                     st.lists(SCALARS, max_size=2), st.dictionaries(st.text(max_size=5),
+                                                                    SCALARS, max_size=2))})
 STDIO_LINES = st.one_of(
     st.binary(max_size=300),
     STDIO_MESSAGES.map(lambda m: json.dumps(m).encode()),
     st.lists(STDIO_MESSAGES, max_size=3).map(lambda b: json.dumps(b).encode()),
     st.text(max_size=40).map(lambda t: json.dumps({"jsonrpc": "2.0", "id": 1, "method": t,
                                                    "params": {"name": "\ud800" + t}}).encode()),
-    st.just(b"[" * 100_000), st.just(b'{"a": "' + b"x" * 70_000 + b'"}'))
+    st.just(b"[" * 100_000), st.just(b'{"a": "' + b"x" * 70_000 + b'"}'),
+    WRONG_ID_REQUESTS.map(lambda m: json.dumps(m).encode()),
+    st.just(b'{"jsonrpc": "2.0", "id": 1, "method": "ping", "params": {"pad": "'
+            + b"x" * MAX_STDIO_LINE_BYTES + b'"}}'))
 
 
 def is_message(line: bytes) -> bool:
-    """Whether the SDK reads the line as one JSON-RPC message (else an error is owed)."""
+    """Whether the line is one JSON-RPC message that MCP takes (else an error is owed): not
+    over the bound, read by the SDK, and not a request read as a notification because its id
+    is neither an integer nor a string."""
+    if len(line) > MAX_STDIO_LINE_BYTES:
+        return False
+    text = line.decode("utf-8", "replace")
     try:
-        jsonrpc_message_adapter.validate_json(line.decode("utf-8", "replace"), by_name=False)
+        message = jsonrpc_message_adapter.validate_json(text, by_name=False)
     except ValidationError:
         return False
-    return True
+    return not (isinstance(message, JSONRPCNotification) and "id" in json.loads(text))
 
 
 def test_hostile_stdio_lines(tmp_path: Path) -> None:
