@@ -1,9 +1,9 @@
 """Hostile input on the services' HTTP side (the OpenAI-compatible API), against real
 `oricf serve llm|asr --http-listen` processes: fuzzed JSON bodies, bytes that are not JSON,
 10 MB bodies, uploads that are not audio, lying Content-Lengths, slow clients (slowloris),
-half-sent bodies, lone UTF-16 surrogates and 200 connections at once. Every answer is a
-client error in OpenAI's shape or a limit, never a 500; memory stays bounded; the service
-answers normally afterwards."""
+half-sent bodies, lone UTF-16 surrogates, 200 connections at once and more silent
+connections than the connection limit. Every answer is a client error in OpenAI's shape or
+a limit, never a 500; memory stays bounded; the service answers normally afterwards."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import socket
 import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 from typing import Any
 
 import grpc
@@ -22,8 +23,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from oricf.audio import encode_wav
+from oricf.http_connections import MIN_IDLE_S
 from oricf.v1 import language_pb2, language_pb2_grpc
-from tests.support.openai_http import HttpService, health, http_service, overlay, rss_mb
+from tests.support.openai_http import HttpService, client, health, http_service, overlay, rss_mb
+from tests.support.sockets import inet_sockets, peer_closed
 
 REQUEST_TIMEOUT_S = 2.0
 # The speech service's body deadline is long, so that an answer that waited for it could
@@ -36,18 +39,37 @@ CLIENT_ERRORS = {400, 404, 408, 413, 429}
 MAX_GROWTH_MB = 300
 QUESTION = {"messages": [{"role": "user", "content": "How many people do you see?"}]}
 
-SERVER = {"max_concurrent_rpcs": MAX_CONCURRENT_RPCS,
-          "http": {"request_timeout_s": REQUEST_TIMEOUT_S, "max_connections": MAX_CONNECTIONS,
-                   "keep_alive_s": 2}}
+SERVER: dict[str, Any] = {
+    "max_concurrent_rpcs": MAX_CONCURRENT_RPCS,
+    "http": {"request_timeout_s": REQUEST_TIMEOUT_S, "max_connections": MAX_CONNECTIONS,
+             "keep_alive_s": 2}}
 ASR_SERVER = {**SERVER, "http": {**SERVER["http"], "request_timeout_s": ASR_REQUEST_TIMEOUT_S}}
+# Idle connections on `patient_llm`: more than its connection limit. Its header deadline is
+# far beyond any wait in their test, so only room made for a new connection explains an
+# answer there.
+SILENT = MAX_CONNECTIONS + 6
+PATIENT_REQUEST_TIMEOUT_S = 60.0
+WAIT_S = 10.0
+LLM_MODEL = "gemma3-270m"
+SHORT_ANSWERS = {"max_tokens": 2, "max_tokens_limit": 4}
 
 
 @pytest.fixture(scope="module")
 def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("llm")
-    short = overlay(folder, {"server": SERVER,
-                             "generation": {"max_tokens": 2, "max_tokens_limit": 4}})
+    short = overlay(folder, {"server": SERVER, "generation": SHORT_ANSWERS})
     with http_service("llm", "--overlay", short) as service:
+        yield service
+
+
+@pytest.fixture(scope="module")
+def patient_llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+    folder = tmp_path_factory.mktemp("patient_llm")
+    patient = {**SERVER, "http": {**SERVER["http"],
+                                  "request_timeout_s": PATIENT_REQUEST_TIMEOUT_S}}
+    with http_service("llm", "--overlay", overlay(folder, {"server": patient,
+                                                           "generation": SHORT_ANSWERS})
+                      ) as service:
         yield service
 
 
@@ -361,7 +383,7 @@ def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:
                 except OSError:
                     continue
             time.sleep(1.0)
-            closed = sum(_closed(sock) for sock in slow)
+            closed = sum(peer_closed(sock) for sock in slow)
         assert closed == len(slow)
         assert time.monotonic() - started < REQUEST_TIMEOUT_S + 5
     finally:
@@ -370,16 +392,44 @@ def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:
     still_serving(llm)
 
 
-def _closed(sock: socket.socket) -> bool:
-    sock.setblocking(False)
-    try:
-        return sock.recv(1) == b""
-    except BlockingIOError:
-        return False
-    except OSError:
-        return True
-    finally:
-        sock.setblocking(True)
+TCP_ESTABLISHED = "01"  # /proc's hex state of a connected TCP socket
+
+
+def accepted(service: HttpService) -> int:
+    """Connections the service's process has accepted on its HTTP port."""
+    return sum(sock.port == service.port and sock.state == TCP_ESTABLISHED
+               for sock in inet_sockets(service.process.pid))
+
+
+HALF_HEADERS = b"GET /v1/models HTTP/1.1\r\nHost: x\r\n"  # the headers never end
+
+
+@pytest.mark.parametrize("first_bytes", [b"", HALF_HEADERS], ids=["silent", "half-headers"])
+def test_idle_connections_never_lock_a_client_out(patient_llm: HttpService,
+                                                  first_bytes: bytes) -> None:
+    """More connections than `max_connections` that send nothing, or headers that never
+    end: once they have waited MIN_IDLE_S, the OpenAI client's first request on a fresh
+    connection is answered 200, three times over (as many of the idle connections as it
+    takes are closed for it), long before the header deadline could close them, and most of
+    them stay open."""
+    with ExitStack() as stack:
+        idle = [stack.enter_context(socket.create_connection(("127.0.0.1", patient_llm.port),
+                                                             timeout=15))
+                for _ in range(SILENT)]
+        for sock in idle:
+            sock.sendall(first_bytes)
+        deadline = time.monotonic() + WAIT_S
+        while accepted(patient_llm) < SILENT and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert accepted(patient_llm) >= SILENT
+        time.sleep(2 * MIN_IDLE_S)  # the age a connection needs before it may go for room
+        for _ in range(3):
+            with client(patient_llm) as fresh:
+                answer = fresh.chat.completions.create(model=LLM_MODEL, messages=[
+                    {"role": "user", "content": QUESTION["messages"][0]["content"]}])
+            assert answer.choices[0].finish_reason in ("stop", "length")
+        assert sum(peer_closed(sock) for sock in idle) < len(idle) // 2
+    still_serving(patient_llm)
 
 
 def test_200_connections_at_once(llm: HttpService) -> None:

@@ -2,11 +2,13 @@
 
 The socket is bound when the server is made, so a port in use fails the service at start
 like the gRPC port does, and port 0 is known before anything is served. uvicorn cuts off
-idle keep-alive connections and refuses requests beyond `max_connections` with 503, but it
-has no limit on how long a client may take to send a request's headers: the protocol below
-closes a connection whose headers are not complete within `request_timeout_s` (a slowloris
-client that dribbles a header a minute would otherwise hold its connection for ever). The
-body's deadline is kept by the app (guards.py).
+idle keep-alive connections and refuses requests beyond `max_connections` with 503; the
+connection rules every uvicorn server in ORICF shares (oricf.http_connections) close a
+connection whose headers are not complete within `request_timeout_s` (a slowloris client
+that dribbles a header a minute would otherwise hold its connection for ever) and, at a
+full server, close the connections idle longest so that a client that asks is served
+(silent sockets would otherwise hold the API at 503). The body's deadline is kept by the
+app (guards.py).
 
 A connection closed while its client is still sending a body (an answer of 413 or 408, or
 any refusal before the body was read) is closed lingering, as web servers do: the answer's
@@ -27,9 +29,9 @@ from typing import Any
 
 import h11
 import uvicorn
-from uvicorn.protocols.http.h11_impl import H11Protocol
 
 from oricf.errors import ConfigError
+from oricf.http_connections import GuardedH11Protocol, guarded_h11
 from oricf.metrics import split_listen
 from oricf.services.runtime.config import HttpSettings
 from oricf.tls import ServerTls
@@ -89,60 +91,30 @@ class LingeringClose:
             self.close_now()
 
 
-def _protocol(header_timeout_s: float) -> type[asyncio.Protocol]:
-    class HeaderDeadlineProtocol(H11Protocol):
-        """uvicorn's HTTP/1.1 protocol, closing connections whose request headers are late,
-        and closing lingering while a client is still sending a body."""
+class LingeringH11Protocol(GuardedH11Protocol):
+    """The shared HTTP/1.1 protocol, closing lingering while a client is still sending a
+    body."""
 
-        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-            self._lingering = LingeringClose(transport, self._still_sending, self.loop)
-            super().connection_made(self._lingering)  # type: ignore[arg-type]
-            self._arm_header_deadline()
+    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+        self._lingering = LingeringClose(transport, self._still_sending, self.loop)
+        super().connection_made(self._lingering)  # type: ignore[arg-type]
 
-        def _still_sending(self) -> bool:
-            return self.conn.their_state is h11.SEND_BODY
+    def _still_sending(self) -> bool:
+        return self.conn.their_state is h11.SEND_BODY
 
-        def data_received(self, data: bytes) -> None:
-            if self._lingering.lingering:
-                self._lingering.drop(data)
-                return
-            super().data_received(data)
-            if self.cycle is not self._waiting_after:  # a request's headers are complete
-                self._disarm_header_deadline()
+    def data_received(self, data: bytes) -> None:
+        if self._lingering.lingering:
+            self._lingering.drop(data)
+            return
+        super().data_received(data)
 
-        def eof_received(self) -> None:
-            if self._lingering.lingering:  # the client has read the answer and left
-                self._lingering.close_now()
-
-        def on_response_complete(self) -> None:
-            super().on_response_complete()
-            self._arm_header_deadline()  # the next request on this connection
-
-        def connection_lost(self, exc: Exception | None) -> None:
-            self._disarm_header_deadline()
+    def eof_received(self) -> None:
+        if self._lingering.lingering:  # the client has read the answer and left
             self._lingering.close_now()
-            super().connection_lost(exc)
 
-        def _arm_header_deadline(self) -> None:
-            self._disarm_header_deadline()
-            self._waiting_after = self.cycle
-            self._header_timer: asyncio.TimerHandle | None = self.loop.call_later(
-                header_timeout_s, self._headers_too_late)
-
-        def _disarm_header_deadline(self) -> None:
-            timer = getattr(self, "_header_timer", None)
-            if timer is not None:
-                timer.cancel()
-                self._header_timer = None
-
-        def _headers_too_late(self) -> None:
-            in_progress = self.cycle is not None and not self.cycle.response_complete
-            if not in_progress and not self.transport.is_closing():
-                log.debug("closing a connection from %s: no complete request in %.0f s",
-                          self.client, header_timeout_s)
-                self.transport.close()
-
-    return HeaderDeadlineProtocol
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._lingering.close_now()
+        super().connection_lost(exc)
 
 
 def _bind(listen: str) -> socket.socket:
@@ -172,7 +144,8 @@ class HttpServer:
         self.scheme = "https" if tls else "http"
         context = tls.ssl_context("server.tls") if tls else None
         config = uvicorn.Config(
-            app, http=_protocol(settings.request_timeout_s), lifespan="off", ws="none",
+            app, http=guarded_h11(settings.request_timeout_s, LingeringH11Protocol),
+            lifespan="off", ws="none",
             log_config=None, access_log=False, server_header=False, proxy_headers=False,
             limit_concurrency=settings.max_connections,
             timeout_keep_alive=settings.keep_alive_s,  # type: ignore[arg-type]
