@@ -8,7 +8,8 @@ oricf.audio.vad and oricf.audio.endpointing; their settings schema is exported h
 
     pcm          int16 frames: checks, conversion to float32, mix-down
     wav          WAV files read and written; decode_audio for request bytes
-    resample     band-limited resampling, one-shot or streaming
+    resample     band-limited resampling, one-shot or streaming; ModelInput, any audio
+                 as a model's input piece by piece
     synth        speech from espeak-ng for tests, demos and benchmarks
     vad          the Silero VAD session and its per-stream state
     endpointing  utterances from a stream, and VadSettings / EndpointingSettings
@@ -31,8 +32,10 @@ from oricf.audio.pcm import (
 from oricf.audio.resample import (
     BLOCK,
     MAX_PHASES,
+    MIX_FRAMES,
     ROLLOFF,
     ZERO_CROSSINGS,
+    ModelInput,
     Resampler,
     resample,
     to_model_input,
@@ -51,8 +54,9 @@ from oricf.audio.wav import (
 
 __all__ = [
     "BLOCK", "ENCODINGS", "INT16_SCALE", "MAX_CHANNELS", "MAX_PHASES", "MAX_RATE", "MIN_RATE",
-    "MODEL_RATE", "ROLLOFF", "STREAMED_DATA_SIZE", "WAVE_FORMAT_EXTENSIBLE", "WAVE_FORMAT_PCM",
-    "ZERO_CROSSINGS", "EndpointingSettings", "PcmAudio", "Resampler", "VadSettings",
-    "check_format", "decode_audio", "encode_wav", "mix_down", "parse_wav", "pcm_from_bytes",
-    "resample", "synthesize", "to_float32", "to_int16", "to_model_input", "wav_header",
+    "MIX_FRAMES", "MODEL_RATE", "ROLLOFF", "STREAMED_DATA_SIZE", "WAVE_FORMAT_EXTENSIBLE",
+    "WAVE_FORMAT_PCM", "ZERO_CROSSINGS", "EndpointingSettings", "ModelInput", "PcmAudio",
+    "Resampler", "VadSettings", "check_format", "decode_audio", "encode_wav", "mix_down",
+    "parse_wav", "pcm_from_bytes", "resample", "synthesize", "to_float32", "to_int16",
+    "to_model_input", "wav_header",
 ]

@@ -49,7 +49,8 @@ def check_format(sample_rate: int, channels: int) -> None:
         raise InvalidInput(f"channels must be 1 to {MAX_CHANNELS}, got {channels}")
 
 
-def pcm_from_bytes(data: bytes, sample_rate: int, channels: int = 1) -> PcmAudio:
+def pcm_from_bytes(data: bytes | memoryview, sample_rate: int, channels: int = 1
+                   ) -> PcmAudio:
     """Reads interleaved pcm_s16le bytes; the byte count must hold whole frames."""
     check_format(sample_rate, channels)
     frame_bytes = 2 * channels
@@ -63,7 +64,9 @@ def pcm_from_bytes(data: bytes, sample_rate: int, channels: int = 1) -> PcmAudio
 
 def to_float32(samples: np.ndarray) -> np.ndarray:
     """int16 -> float32 in [-1, 1)."""
-    return samples.astype(np.float32) / INT16_SCALE
+    out = samples.astype(np.float32)
+    out /= INT16_SCALE  # in place: one array of the size of the input, not two
+    return out
 
 
 def to_int16(samples: np.ndarray) -> np.ndarray:
@@ -77,4 +80,4 @@ def mix_down(frames: np.ndarray) -> np.ndarray:
         return frames.astype(np.float32, copy=False)
     if frames.shape[1] == 1:
         return frames[:, 0].astype(np.float32, copy=False)
-    return frames.astype(np.float32).mean(axis=1)
+    return frames.mean(axis=1, dtype=np.float32)

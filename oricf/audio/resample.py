@@ -1,5 +1,5 @@
 """Band-limited resampling of mono float32 audio, one-shot or streaming, and the conversion
-of any audio to what a speech model takes (mono float32 at 16 kHz)."""
+of any audio to what a speech model takes (mono float32 at 16 kHz), piece by piece."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ ZERO_CROSSINGS = 12
 MAX_PHASES = 1024
 BLOCK = 8192   # outputs per tap matrix
 ROLLOFF = 0.94  # cut-off as a share of the lower Nyquist rate: room for the transition band
+MIX_FRAMES = 65536  # frames converted to float and mixed down at once (ModelInput)
 
 
 @lru_cache(maxsize=32)
@@ -85,10 +86,45 @@ class Resampler:
         return np.einsum("ij,ij->i", self._buffer[taps], self.bank[phase]).astype(np.float32)
 
 
+class ModelInput:
+    """Interleaved int16 frames of any rate and channel count, pushed in pieces of any
+    length, as mono float32 at a model's rate.
+
+    Each piece is converted, mixed down and resampled MIX_FRAMES frames at a time, so the
+    memory this takes is the mono result plus one block, whatever the rate and channels of
+    the input: converting 30 s of 384 kHz audio in 8 channels at once would hold 370 MB of
+    float32 for a 2 MB result. The result is the same as one-shot conversion (Resampler).
+    """
+
+    def __init__(self, source_rate: int, channels: int, target_rate: int = MODEL_RATE) -> None:
+        check_format(source_rate, channels)
+        self.channels = channels
+        self.frames = 0  # pushed so far, at the source rate
+        self._resampler = (Resampler(source_rate, target_rate)
+                           if source_rate != target_rate else None)
+        self._parts: list[np.ndarray] = []
+
+    def push(self, frames: np.ndarray) -> None:
+        """Frames shaped (n, channels), or (n,) for mono."""
+        for start in range(0, len(frames), MIX_FRAMES):
+            mono = mix_down(to_float32(frames[start:start + MIX_FRAMES]))
+            self._parts.append(mono if self._resampler is None else self._resampler.push(mono))
+        self.frames += len(frames)
+
+    def finish(self) -> np.ndarray:
+        """All of it, the resampler's tail included; call once."""
+        if self._resampler is not None:
+            self._parts.append(self._resampler.flush())
+        if not self._parts:
+            return np.zeros(0, dtype=np.float32)
+        return np.concatenate(self._parts)
+
+
 def to_model_input(audio: PcmAudio, rate: int = MODEL_RATE) -> np.ndarray:
     """Mono float32 at the model's rate: what a speech model takes."""
-    mono = mix_down(to_float32(audio.samples))
-    return resample(mono, audio.sample_rate, rate)
+    converter = ModelInput(audio.sample_rate, audio.channels, rate)
+    converter.push(audio.samples)
+    return converter.finish()
 
 
 def resample(samples: np.ndarray, source_rate: int, target_rate: int) -> np.ndarray:

@@ -18,19 +18,21 @@ WAVE_FORMAT_EXTENSIBLE = 0xFFFE
 STREAMED_DATA_SIZE = 0x7FFF0000
 
 
-def _chunks(data: bytes) -> tuple[dict[bytes, bytes], bool]:
+def _chunks(data: bytes) -> tuple[dict[bytes, memoryview], bool]:
     """The chunks of a RIFF/WAVE file by id (first of each kind), and whether the data chunk
-    had a placeholder size (a WAV written to a pipe, e.g. by `espeak-ng --stdout`)."""
+    had a placeholder size (a WAV written to a pipe, e.g. by `espeak-ng --stdout`). Each is a
+    view of the file's bytes: a WAV file of many megabytes is not copied to be read."""
     if len(data) < 12 or data[:4] != b"RIFF" or data[8:12] != b"WAVE":
         raise InvalidInput("not a WAV file (no RIFF/WAVE header)")
-    chunks: dict[bytes, bytes] = {}
+    view = memoryview(data)
+    chunks: dict[bytes, memoryview] = {}
     offset = 12
     while offset + 8 <= len(data):
         chunk_id, size = struct.unpack_from("<4sI", data, offset)
         if chunk_id == b"data" and (size == 0 or size >= STREAMED_DATA_SIZE):
-            chunks.setdefault(chunk_id, data[offset + 8:])
+            chunks.setdefault(chunk_id, view[offset + 8:])
             return chunks, True
-        body = data[offset + 8: offset + 8 + size]
+        body = view[offset + 8: offset + 8 + size]
         if len(body) < size:
             raise InvalidInput(
                 f"truncated WAV file: chunk {chunk_id.decode('latin-1')!r} declares {size} "

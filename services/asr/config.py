@@ -12,6 +12,12 @@ from oricf.services.runtime import ServiceConfig
 
 class AudioSettings(Schema):
     max_audio_s: float = Field(30.0, gt=0, le=3600, description="longest Transcribe request")
+    max_decoded_mb: float = Field(
+        32.0, gt=0, le=4096,
+        description="most audio one Transcribe request or upload may hold, as 16-bit samples "
+                    "at its own rate and channel count (frames x channels x 2 bytes), before "
+                    "it is mixed down and resampled; bounds what decoding a small compressed "
+                    "file costs")
     max_stream_s: float = Field(
         600.0, gt=0, le=86_400, description="most audio one TranscribeStream may carry")
 

@@ -16,8 +16,8 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, PlainTextResponse, Response
 from starlette.routing import Route
 
-from oricf.audio import to_model_input
 from oricf.services.asr.config import AsrConfig
+from oricf.services.asr.limits import AudioLimits
 from oricf.services.asr.model import SpeechModel
 from oricf.services.asr.upload import decode_upload
 from oricf.services.runtime import ModelSlot
@@ -77,6 +77,7 @@ class Transcriptions:
     def __init__(self, slot: ModelSlot[SpeechModel], config: AsrConfig) -> None:
         self.slot = slot
         self.config = config
+        self.limits = AudioLimits(config.audio)
         self.name = config.model.name
 
     def routes(self) -> list[Route]:
@@ -107,14 +108,14 @@ class Transcriptions:
 
     def _recognise(self, model: SpeechModel, data: bytes, language: str,
                    response_format: str, still_wanted: Any) -> dict[str, Any]:
-        pcm = decode_upload(data, self.config.audio.max_audio_s)
-        samples = to_model_input(pcm, model.sample_rate)
+        audio = decode_upload(data, self.limits, model.sample_rate)
+        samples = audio.samples
         still_wanted()
         if response_format != "verbose_json":
             return {"text": model.infer(samples, language).text}
         segments = _segments(model, samples, language, still_wanted)
         return {"task": "transcribe", "language": language or model.default_language,
-                "duration": pcm.duration_s,
+                "duration": audio.duration_s,
                 "text": " ".join(s["text"] for s in segments if s["text"]),
                 "segments": segments}
 

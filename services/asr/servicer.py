@@ -12,6 +12,7 @@ from oricf.audio import decode_audio, to_model_input
 from oricf.audio.endpointing import Utterance
 from oricf.errors import InvalidInput
 from oricf.services.asr.config import AsrConfig
+from oricf.services.asr.limits import AudioLimits
 from oricf.services.asr.model import SpeechModel
 from oricf.services.asr.recognizer import Recognition
 from oricf.services.asr.stream import StreamDecoder
@@ -27,14 +28,15 @@ class SpeechRecognizerServicer(speech_pb2_grpc.SpeechRecognizerServicer):
     def __init__(self, slot: ModelSlot[SpeechModel], config: AsrConfig) -> None:
         self.slot = slot
         self.config = config
+        self.limits = AudioLimits(config.audio)
 
     def Transcribe(self, request: speech_pb2.TranscribeRequest,
                    context: grpc.ServicerContext) -> speech_pb2.Transcript:
         started = time.perf_counter()
         model = self.slot.get()
         audio = request.audio
-        pcm = decode_audio(audio.data, audio.encoding, audio.sample_rate, audio.channels,
-                           self.config.audio.max_audio_s)
+        pcm = decode_audio(audio.data, audio.encoding, audio.sample_rate, audio.channels)
+        self.limits.check(pcm.frames, pcm.channels, pcm.sample_rate)  # before any conversion
         samples = to_model_input(pcm, model.sample_rate)
         decode_ms = (time.perf_counter() - started) * 1e3
         # decoding may have used up the caller's time

@@ -1,24 +1,41 @@
-"""An uploaded audio file (the OpenAI transcription API) -> checked int16 frames.
+"""An uploaded audio file (the OpenAI transcription API) -> mono float32 at the model's rate.
 
-WAV goes through the service's own reader (oricf.audio.decode_audio); FLAC, OGG (Opus or
+WAV goes through the service's own reader (oricf.audio.parse_wav); FLAC, OGG (Opus or
 Vorbis) and MP3 are decoded by FFmpeg through PyAV, which faster-whisper already brings.
 The format is told from the file's first bytes and FFmpeg is given only that demuxer, so a
-file cannot make it read playlists or other files. Decoding stops as soon as the audio is
-longer than the service's limit: a small compressed file can expand into hours of samples.
+file cannot make it read playlists or other files.
+
+A small compressed file can expand into hours of samples, or into seconds of audio at
+384 kHz in 8 channels, so what it may cost is bounded (limits.py): a FLAC file whose header
+declares more is refused before decoding, and every file is decoded frame by frame, each
+frame mixed down and resampled at once, and refused as soon as it passes the limits. What
+decoding holds is the model's input and one frame, never the whole file at its own rate.
 """
 
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from oricf.audio import PcmAudio, check_format, decode_audio
+from oricf.audio import ModelInput, parse_wav
 from oricf.errors import InvalidInput
+from oricf.services.asr.limits import AudioLimits
 
 SUPPORTED = "WAV, FLAC, OGG (Opus, Vorbis) or MP3"
 # FFmpeg demuxer names of the compressed formats.
 DEMUXERS = {"flac": "flac", "ogg": "ogg", "mp3": "mp3"}
+# Formats whose header gives the exact length (FLAC's STREAMINFO): refused from it before
+# decoding. Others' durations are FFmpeg's estimates, checked only as samples arrive.
+EXACT_LENGTH = ("flac",)
+
+
+@dataclass(frozen=True)
+class Decoded:
+    samples: np.ndarray  # mono float32 at the model's rate
+    duration_s: float    # of the file's audio
 
 
 def sniff(data: bytes) -> str:
@@ -34,16 +51,26 @@ def sniff(data: bytes) -> str:
     raise InvalidInput(f"the file is not audio this service reads: send {SUPPORTED}")
 
 
-def decode_upload(data: bytes, max_seconds: float) -> PcmAudio:
+def decode_upload(data: bytes, limits: AudioLimits, rate: int) -> Decoded:
     if not data:
         raise InvalidInput("the file is empty")
     kind = sniff(data)
     if kind == "wav":
-        return decode_audio(data, "wav", max_seconds=max_seconds)
-    return _decode_compressed(data, kind, max_seconds)
+        return _decode_wav(data, limits, rate)
+    return _decode_compressed(data, kind, limits, rate)
 
 
-def _decode_compressed(data: bytes, kind: str, max_seconds: float) -> PcmAudio:
+def _decode_wav(data: bytes, limits: AudioLimits, rate: int) -> Decoded:
+    pcm = parse_wav(data)  # a view of the upload's bytes: its size is the file's
+    if pcm.frames == 0:
+        raise InvalidInput("the WAV file holds no samples")
+    limits.check(pcm.frames, pcm.channels, pcm.sample_rate)
+    converter = ModelInput(pcm.sample_rate, pcm.channels, rate)
+    converter.push(pcm.samples)
+    return Decoded(converter.finish(), pcm.duration_s)
+
+
+def _decode_compressed(data: bytes, kind: str, limits: AudioLimits, rate: int) -> Decoded:
     import av
 
     try:
@@ -51,7 +78,7 @@ def _decode_compressed(data: bytes, kind: str, max_seconds: float) -> PcmAudio:
             stream = next((s for s in container.streams if s.type == "audio"), None)
             if stream is None:
                 raise InvalidInput(f"the {kind.upper()} file has no audio stream")
-            return _frames(container, stream, kind, max_seconds)
+            return _frames(container, stream, kind, limits, rate)
     except InvalidInput:
         raise
     except Exception as exc:  # FFmpeg's errors, and whatever a broken file makes PyAV raise
@@ -59,26 +86,30 @@ def _decode_compressed(data: bytes, kind: str, max_seconds: float) -> PcmAudio:
                            f"{str(exc)[:200] or type(exc).__name__}") from None
 
 
-def _frames(container: object, stream: object, kind: str, max_seconds: float) -> PcmAudio:
+def _declared_frames(stream: Any, rate: int) -> int:
+    """The length the stream's header declares, in frames; 0 when it says none."""
+    if stream.duration is None or stream.time_base is None:
+        return 0
+    return int(stream.duration * stream.time_base * rate)
+
+
+def _frames(container: Any, stream: Any, kind: str, limits: AudioLimits,
+            rate: int) -> Decoded:
     import av
 
-    rate = int(stream.codec_context.sample_rate or 0)  # type: ignore[attr-defined]
-    channels = int(stream.codec_context.channels or 0)  # type: ignore[attr-defined]
-    check_format(rate, channels)
-    # Interleaved int16 at the file's own rate and channels: the service resamples and
-    # mixes down as for any other audio.
-    resampler = av.AudioResampler(format="s16", layout=stream.layout, rate=rate)  # type: ignore[attr-defined]
-    limit = int(max_seconds * rate)
-    parts: list[np.ndarray] = []
-    frames = 0
-    for frame in container.decode(stream):  # type: ignore[attr-defined]
+    source_rate = int(stream.codec_context.sample_rate or 0)
+    channels = int(stream.codec_context.channels or 0)
+    converter = ModelInput(source_rate, channels, rate)  # checks the rate and channels
+    if kind in EXACT_LENGTH:
+        limits.check(_declared_frames(stream, source_rate), channels, source_rate,
+                     f"the {kind.upper()} file's header")
+    # Interleaved int16 at the file's own rate and channels, as a WAV file gives.
+    resampler = av.AudioResampler(format="s16", layout=stream.layout, rate=source_rate)
+    for frame in container.decode(stream):
         for out in resampler.resample(frame):
             samples = out.to_ndarray().reshape(-1, channels)
-            frames += len(samples)
-            if frames > limit:
-                raise InvalidInput(f"audio of more than {max_seconds:g} s is over the limit "
-                                   f"of {max_seconds:g} s")
-            parts.append(samples)
-    if not parts:
+            limits.check_decoding(converter.frames + len(samples), channels, source_rate)
+            converter.push(samples)
+    if converter.frames == 0:
         raise InvalidInput(f"the {kind.upper()} file holds no samples")
-    return PcmAudio(np.concatenate(parts).astype(np.int16, copy=False), rate)
+    return Decoded(converter.finish(), converter.frames / source_rate)

@@ -2,12 +2,15 @@
 
 import struct
 import subprocess
+import tracemalloc
 
 import numpy as np
 import pytest
 
 from oricf.audio import (
     MODEL_RATE,
+    ModelInput,
+    PcmAudio,
     Resampler,
     decode_audio,
     encode_wav,
@@ -43,6 +46,11 @@ def wav_with_format(tag: int, bits: int, rate: int = 16000, channels: int = 1,
                       channels * bits // 8, bits)
     chunks = b"fmt " + struct.pack("<I", len(fmt)) + fmt + b"data" + struct.pack("<I", len(body))
     return b"RIFF" + struct.pack("<I", 4 + len(chunks) + len(body)) + b"WAVE" + chunks + body
+
+
+# Converting 24 MB of samples at 384 kHz holds one block of MIX_FRAMES frames as float32
+# (8 MB for 32 channels) and the resampler's taps for it (about 27 MB).
+MAX_CONVERSION_MB = 45
 
 
 # --- WAV ------------------------------------------------------------------------------------
@@ -198,6 +206,37 @@ def test_to_model_input_mixes_and_resamples() -> None:
     out = to_model_input(pcm_from_bytes(frames.tobytes(), 48000, 2))
     assert out.dtype == np.float32 and len(out) == MODEL_RATE // 2
     assert peak_frequency(out, MODEL_RATE) == pytest.approx(500, abs=4)
+
+
+def test_model_input_holds_one_block_of_many_channels_not_the_whole_audio() -> None:
+    """24 MB of samples at 384 kHz in 32 channels: converted whole, they were held as
+    float32 twice over (96 MB); in blocks, the conversion holds one block of them (8 MB)
+    beside the resampler's own block of taps."""
+    rng = np.random.default_rng(3)
+    frames = rng.integers(-3000, 3000, (24 * 1024 * 1024 // 64, 32), dtype=np.int16)
+    expected = resample(to_float32(frames).mean(axis=1), 384_000, MODEL_RATE)
+    tracemalloc.start()
+    try:
+        out = to_model_input(PcmAudio(frames, 384_000))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak / 2**20 < MAX_CONVERSION_MB, f"held {peak / 2**20:.0f} MiB"
+    np.testing.assert_allclose(out, expected, atol=1e-6)
+
+
+def test_model_input_pushed_in_pieces_equals_one_shot() -> None:
+    rng = np.random.default_rng(5)
+    frames = rng.integers(-3000, 3000, (100_000, 3), dtype=np.int16)
+    converter = ModelInput(44100, 3)
+    start = 0
+    while start < len(frames):
+        size = int(rng.integers(1, 9000))
+        converter.push(frames[start:start + size])
+        start += size
+    assert converter.frames == len(frames)
+    np.testing.assert_allclose(converter.finish(),
+                               to_model_input(PcmAudio(frames, 44100)), atol=1e-6)
 
 
 # --- synthesis ------------------------------------------------------------------------------

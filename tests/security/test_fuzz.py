@@ -17,6 +17,7 @@ from grpc_health.v1 import health_pb2, health_pb2_grpc
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from oricf.audio import wav_header
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
 from tests.support.services import RunningService, running_service
@@ -41,8 +42,9 @@ SERVICES: dict[str, tuple[ServiceDescriptor, dict[str, Any]]] = {
 CASES = [(service, method.name) for service, (descriptor, _) in SERVICES.items()
          for method in descriptor.methods]
 
+# The last: a WAV header of 384 kHz in 32 channels whose data runs to the end of the file.
 HEADERS = [b"\xff\xd8\xff\xc0\x00\x11\x08\xff\xff\xff\xff", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR",
-           b"RIFF\xff\xff\xff\xffWAVEfmt ", b"GIF89a", b""]
+           b"RIFF\xff\xff\xff\xffWAVEfmt ", b"GIF89a", b"", wav_header(384_000, 32, 0x7FFFFFFF)]
 TEXTS = st.one_of(st.text(max_size=40), st.sampled_from(
     ["jpeg", "png", "rgb8", "bgr8", "mono8", "wav", "pcm_s16le", "person", "yolox-nano",
      "images", "output", "FP32", "BYTES", "UINT8", "{text}", "x" * 5000]))

@@ -130,9 +130,17 @@ def test_bytes_that_are_not_json_are_400(llm: HttpService, body: bytes) -> None:
         assert_openai_error(response)
 
 
+# A FLAC STREAMINFO declaring 29.5 s at 384 kHz in 8 channels (173 MB of samples), and a WAV
+# header declaring 384 kHz in 32 channels with its data running to the end of the file.
+BIG_FLAC = (b"fLaC\x80\x00\x00\x22" + b"\x10\x00\x10\x00" + bytes(6)
+            + ((384_000 << 44) | (7 << 41) | (15 << 36) | 11_328_000).to_bytes(8, "big")
+            + bytes(16))
+WIDE_WAV = b"".join([b"RIFF\xff\xff\xff\xffWAVEfmt \x10\x00\x00\x00\x01\x00\x20\x00",
+                     (384_000).to_bytes(4, "little"), bytes(4), b"\x40\x00\x10\x00",
+                     b"data\xff\xff\xff\x7f"])
 AUDIO_HEADERS = [b"RIFF\x24\x00\x00\x00WAVEfmt ", b"RIFF\xff\xff\xff\xffWAVE", b"fLaC",
                  b"fLaC\x00\x00\x00\x22", b"OggS\x00\x02", b"ID3\x04\x00", b"\xff\xfb\x90",
-                 b""]
+                 BIG_FLAC, WIDE_WAV, b""]
 
 
 @settings(max_examples=120, deadline=None, derandomize=True,

@@ -23,6 +23,7 @@ def test_the_shipped_config_is_valid() -> None:
     ({"endpointing": {"threshold": 1.5}}, "endpointing.threshold"),
     ({"endpointing": {"max_utterance_s": 40}}, "max_utterance_s must not exceed"),
     ({"audio": {"max_seconds": 3}}, "audio.max_seconds: unknown key"),
+    ({"audio": {"max_decoded_mb": 0}}, "audio.max_decoded_mb: Input should be greater than 0"),
 ])
 def test_bad_config_names_the_key(overrides: dict, message: str) -> None:
     with pytest.raises(ConfigError) as error:
