@@ -17,6 +17,10 @@ VOICE_KEY = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 class AudioSettings(Schema):
     sentence_pause_ms: int = Field(
         200, ge=0, le=5000, description="silence after each sentence but the last")
+    max_audio_s: float = Field(
+        240.0, gt=0, le=3600,
+        description="most audio one request may make: synthesis stops once its audio passes "
+                    "this, and the request is refused")
 
 
 class TtsConfig(ServiceConfig):

@@ -13,6 +13,7 @@ import logging
 import re
 import shutil
 import subprocess
+from collections.abc import Iterator
 from typing import Literal
 
 import numpy as np
@@ -138,3 +139,7 @@ class EspeakVoice:
         if rate != self.sample_rate:
             raise RuntimeError(f"{PROGRAM} changed its sample rate to {rate} Hz")
         return samples
+
+    def pieces(self, sentence: str, speed: float) -> Iterator[np.ndarray]:
+        """The sentence whole: espeak-ng makes even a long one in milliseconds."""
+        yield self.speak(sentence, speed)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,23 +86,45 @@ class SynthesisModel:
         if not math.isfinite(speed) or not MIN_SPEED <= speed <= MAX_SPEED:
             raise InvalidInput(f"speed: {speed} is outside {MIN_SPEED} to {MAX_SPEED}")
         settings = self.config.text
-        normalised = texts.normalise(texts.check(text, settings.max_chars),
-                                     settings.abbreviations)
+        normalised = texts.check_spoken(
+            texts.normalise(texts.check(text, settings.max_chars), settings.abbreviations),
+            settings.max_spoken_chars)
         sentences = texts.sentences(normalised, settings.max_sentence_chars)
         if not sentences:
             raise InvalidInput("text: nothing to say (no letters or digits)")
         return Job(chosen, sentences, speed)
 
-    def speak(self, job: Job) -> Iterator[SpokenSentence]:
-        """The job's sentences as audio, one at a time, as each is made."""
+    def speak(self, job: Job, still_wanted: Callable[[], None] = lambda: None
+              ) -> Iterator[SpokenSentence]:
+        """The job's sentences as audio, one at a time, as each is made.
+
+        still_wanted is called after each piece a voice makes (a sentence, or a part of a
+        long one) and stops the work by raising once the caller has gone. A job whose audio
+        passes audio.max_audio_s is refused there: its length is known only once made.
+        """
         voice = job.voice
         pause = np.zeros(voice.sample_rate * self.config.audio.sentence_pause_ms // 1000,
                          dtype=np.int16)
+        made = 0  # samples so far
+        limit = int(self.config.audio.max_audio_s * voice.sample_rate)
         for i, sentence in enumerate(job.sentences):
             started = time.perf_counter()
-            samples = voice.speak(sentence, job.speed)
+            parts = []
+            for piece in voice.pieces(sentence, job.speed):
+                made += len(piece)
+                if made > limit:
+                    raise InvalidInput(self._too_long(job))
+                parts.append(piece)
+                still_wanted()
             inference_ms = (time.perf_counter() - started) * 1e3
             last = i == len(job.sentences) - 1
             if not last:
-                samples = np.concatenate([samples, pause])
+                parts.append(pause)
+                made += len(pause)
+            samples = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int16)
             yield SpokenSentence(i, sentence, samples, voice.sample_rate, inference_ms, last)
+
+    def _too_long(self, job: Job) -> str:
+        limit = self.config.audio.max_audio_s
+        return (f"text: at speed {job.speed:g} it makes more than {limit:g} s of audio, this "
+                f"service's limit (audio.max_audio_s); send less text or a higher speed")

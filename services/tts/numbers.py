@@ -16,6 +16,7 @@ ORDINAL_ENDINGS = {"one": "first", "two": "second", "three": "third", "five": "f
                    "eight": "eighth", "nine": "ninth", "twelve": "twelfth"}
 # Beyond this a number is read digit by digit (a serial number, not a quantity).
 MAX_CARDINAL = 10**15 - 1
+MAX_CARDINAL_DIGITS = len(str(MAX_CARDINAL))
 
 
 def _below_hundred(n: int) -> str:
@@ -81,7 +82,10 @@ def decimal(text: str) -> str:
     "12.5" -> "twelve point five", "-3" -> "minus three", "1,000" -> "one thousand"."""
     sign = "minus " if text.startswith("-") else ""
     whole, _, fraction = text.lstrip("+-").replace(",", "").partition(".")
-    words = cardinal(int(whole)) if whole else "zero"
+    if len(whole) > MAX_CARDINAL_DIGITS:  # read digit by digit; never made an int
+        words = digits(whole)
+    else:
+        words = cardinal(int(whole)) if whole else "zero"
     if fraction:
         words += f" point {digits(fraction)}"
     return sign + words

@@ -10,6 +10,7 @@ writes), since its length is not known when the first sentence goes out.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import AsyncGenerator, AsyncIterator
 from typing import Any
@@ -17,15 +18,18 @@ from typing import Any
 from starlette.requests import Request
 from starlette.responses import Response, StreamingResponse
 from starlette.routing import Route
+from starlette.types import Receive
 
 from oricf.audio import STREAMED_DATA_SIZE, wav_header
-from oricf.errors import InvalidInput
+from oricf.errors import Cancelled, InvalidInput
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.http.app import check_model, models_route
 from oricf.services.runtime.http.calls import Presence, iterate_blocking, read_json
 from oricf.services.runtime.http.errors import InvalidParam
 from oricf.services.tts.config import TtsConfig
 from oricf.services.tts.model import Job, SpokenSentence, SynthesisModel
+
+log = logging.getLogger(__name__)
 
 FORMATS = {"wav": "audio/wav", "pcm": "audio/pcm"}
 PARAMS = {"text": "input", "voice": "voice", "speed": "speed"}  # the model's names -> the API's
@@ -69,16 +73,19 @@ def _options(body: dict[str, Any]) -> str:
     return response_format
 
 
+def _in_api_terms(exc: InvalidInput) -> InvalidInput:
+    """A refusal naming the field as this API calls it (input, not text)."""
+    field, _, rest = str(exc).partition(": ")
+    param = PARAMS.get(field)
+    return exc if param is None else InvalidParam(f"{param}: {rest}", param=param)
+
+
 def _prepare(model: SynthesisModel, body: dict[str, Any]) -> Job:
-    """The checked job; a refusal names the field as this API calls it (input, not text)."""
+    """The checked job."""
     try:
         return model.prepare(_text(body, "input"), _text(body, "voice"), _speed(body))
     except InvalidInput as exc:
-        field, _, rest = str(exc).partition(": ")
-        param = PARAMS.get(field)
-        if param is None:
-            raise
-        raise InvalidParam(f"{param}: {rest}", param=param) from None
+        raise _in_api_terms(exc) from None
 
 
 class Speech:
@@ -97,19 +104,40 @@ class Speech:
         model = self.slot.get()
         job = _prepare(model, body)
         presence = Presence()
-        sentences = iterate_blocking(model.speak(job), presence)
+        sentences = iterate_blocking(model.speak(job, presence.still_wanted), presence)
         try:
             # The first sentence is made before the answer starts, so a failure is still
             # an HTTP status rather than a cut stream.
             first = await anext(sentences)
+        except InvalidInput as exc:
+            await sentences.aclose()
+            raise _in_api_terms(exc) from None
         except BaseException:
             await sentences.aclose()
             raise
         rate = job.voice.sample_rate
         head = wav_header(rate, 1, STREAMED_DATA_SIZE) if response_format == "wav" else b""
-        return StreamingResponse(_audio(head, first, sentences),
-                                 media_type=FORMATS[response_format],
-                                 headers={"x-sample-rate": str(rate)})
+        return SpeechStream(_audio(head, first, sentences), presence,
+                            media_type=FORMATS[response_format],
+                            headers={"x-sample-rate": str(rate)})
+
+
+class SpeechStream(StreamingResponse):
+    """The audio as it is made; a client that disconnects stops the synthesis at once.
+
+    The worker thread making a piece is not interrupted by the stream's cancellation, so the
+    disconnect is passed on as it arrives: the voice's next check between pieces stops."""
+
+    def __init__(self, content: AsyncIterator[bytes], presence: Presence,
+                 **options: Any) -> None:
+        super().__init__(content, **options)
+        self.presence = presence
+
+    async def listen_for_disconnect(self, receive: Receive) -> None:
+        try:
+            await super().listen_for_disconnect(receive)
+        finally:
+            self.presence.leave()
 
 
 async def _audio(head: bytes, first: SpokenSentence,
@@ -118,6 +146,11 @@ async def _audio(head: bytes, first: SpokenSentence,
         yield head + first.samples.astype("<i2").tobytes()
         async for sentence in rest:
             yield sentence.samples.astype("<i2").tobytes()
+    except Cancelled:
+        log.debug("speech stream stopped: the client went away")
+    except InvalidInput as exc:
+        # The answer has started: its status cannot change any more, so the audio ends here.
+        log.warning("speech stream cut: %s", exc)
     finally:
         await rest.aclose()
 

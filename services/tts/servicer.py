@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import grpc
 import numpy as np
@@ -32,6 +32,12 @@ def audio_message(samples: np.ndarray, rate: int, encoding: str) -> speech_pb2.A
     return speech_pb2.Audio(data=data, encoding=encoding, sample_rate=rate, channels=1)
 
 
+def _still_wanted(context: grpc.ServicerContext) -> Callable[[], None]:
+    """Checked between the pieces a voice makes: a call whose deadline passed or whose
+    caller went away (a cancelled stream) stops there."""
+    return lambda: check_wanted(context, "during synthesis")
+
+
 class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
     def __init__(self, slot: ModelSlot[SynthesisModel]) -> None:
         self.slot = slot
@@ -42,12 +48,7 @@ class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
         model = self.slot.get()
         encoding = check_encoding(request.encoding)
         job = model.prepare(request.text, request.voice, request.speed)
-        parts: list[SpokenSentence] = []
-        for sentence in model.speak(job):
-            parts.append(sentence)
-            if not sentence.last:
-                check_wanted(context, f"after sentence {sentence.index + 1} of "
-                                      f"{len(job.sentences)}")
+        parts: list[SpokenSentence] = list(model.speak(job, _still_wanted(context)))
         samples = np.concatenate([p.samples for p in parts])
         rate = job.voice.sample_rate
         reply = synthesis_pb2.SynthesizedAudio(
@@ -68,15 +69,13 @@ class SpeechSynthesizerServicer(synthesis_pb2_grpc.SpeechSynthesizerServicer):
         model = self.slot.get()
         encoding = check_encoding(request.encoding)
         job = model.prepare(request.text, request.voice, request.speed)
-        for sentence in model.speak(job):
+        for sentence in model.speak(job, _still_wanted(context)):
             yield synthesis_pb2.SynthesizedAudio(
                 audio=audio_message(sentence.samples, sentence.sample_rate, encoding),
                 duration_s=sentence.duration_s, sentence=sentence.index, text=sentence.text,
                 last=sentence.last, voice=job.voice.name,
                 timings=common_pb2.Timings(inference_ms=sentence.inference_ms,
                                            total_ms=(time.perf_counter() - started) * 1e3))
-            if not sentence.last:
-                check_wanted(context, "before the next sentence")
 
     def GetModelInfo(self, request: common_pb2.GetModelInfoRequest,
                      context: grpc.ServicerContext) -> common_pb2.GetModelInfoResponse:

@@ -10,7 +10,8 @@ The rule (docs/speech-out.md), checked before anything is synthesized:
 
 Normalisation then writes out what a voice would misread: numbers ("4", "12.5", "-3",
 "1,000", years, ordinals such as "21st"), times ("10:30"), percentages, dollars, units after
-a number ("2.5 m"), common abbreviations ("Dr.", "e.g.") and a few symbols. Sentences end at
+a number ("2.5 m"), common abbreviations ("Dr.", "e.g.") and a few symbols. The text written
+out may be at most `text.max_spoken_chars` long. Sentences end at
 ".", "!" or "?" followed by a space, or at a line break; one longer than
 `text.max_sentence_chars` is cut at a comma or a space, so the first audio of a stream never
 waits for a run-on sentence.
@@ -22,7 +23,7 @@ import re
 import unicodedata
 from collections.abc import Callable
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
@@ -72,10 +73,22 @@ class TextSettings(Schema):
 
     max_chars: int = Field(2000, ge=1, le=100_000,
                            description="longest text one request may carry (characters)")
+    max_spoken_chars: int = Field(
+        4000, ge=1, le=400_000,
+        description="longest the text may be once written out for speech (numbers, units, "
+                    "abbreviations and symbols in words): \"1\" + \",000\" * 400 is 1,601 "
+                    "characters that read as 6,000")
     max_sentence_chars: int = Field(
         200, ge=20, le=10_000, description="a longer sentence is cut at a comma or a space")
     abbreviations: dict[str, str] = Field(
         default_factory=dict, description="said in full, beside the built-in ones")
+
+    @model_validator(mode="after")
+    def _spoken_fits(self) -> TextSettings:
+        if self.max_spoken_chars < self.max_chars:
+            raise ValueError(f"max_spoken_chars ({self.max_spoken_chars}) must be at least "
+                             f"max_chars ({self.max_chars}): text is never shorter written out")
+        return self
 
 
 def check(text: str, max_chars: int) -> str:
@@ -98,6 +111,16 @@ def check(text: str, max_chars: int) -> str:
     return text
 
 
+def check_spoken(normalised: str, max_spoken_chars: int) -> str:
+    """The normalised text if it is within the limit: written-out numbers can make text many
+    times longer, and what a voice must say costs in proportion."""
+    if len(normalised) > max_spoken_chars:
+        raise InvalidInput(f"text: {len(normalised):,} characters once numbers, units and "
+                           f"abbreviations are written out for speech, more than this "
+                           f"service's limit of {max_spoken_chars:,} (text.max_spoken_chars)")
+    return normalised
+
+
 def _sub(pattern: re.Pattern[str], say: Callable[[re.Match[str]], str], text: str) -> str:
     return pattern.sub(lambda m: f" {say(m)} ", text)
 
@@ -106,6 +129,13 @@ def _unit(match: re.Match[str]) -> str:
     value, unit = match.group(1), match.group(2)
     singular, plural = UNITS[unit]
     return f"{numbers.decimal(value)} {singular if value.lstrip('+') == '1' else plural}"
+
+
+def _ordinal(match: re.Match[str]) -> str:
+    digits = match.group(1)
+    if len(digits) > numbers.MAX_CARDINAL_DIGITS:  # a serial number: never made an int
+        return numbers.digits(digits)
+    return numbers.ordinal(int(digits))
 
 
 def _time(match: re.Match[str]) -> str:
@@ -119,7 +149,7 @@ def _time(match: re.Match[str]) -> str:
 def say_numbers(text: str) -> str:
     """Every number, unit, time, percentage and dollar amount written out in words."""
     text = _sub(TIME, _time, text)
-    text = _sub(ORDINAL, lambda m: numbers.ordinal(int(m.group(1))), text)
+    text = _sub(ORDINAL, _ordinal, text)
     text = _sub(DOLLARS, lambda m: numbers.decimal(m.group(1)) + (
         " dollar" if m.group(1) == "1" else " dollars"), text)
     text = _sub(PERCENT, lambda m: f"{numbers.decimal(m.group(1))} percent", text)
@@ -141,7 +171,7 @@ def normalise(text: str, abbreviations: dict[str, str] | None = None) -> str:
     return "\n".join(line for line in lines if line)
 
 
-def _cut(sentence: str, limit: int) -> list[str]:
+def cut(sentence: str, limit: int) -> list[str]:
     """A sentence in pieces of at most `limit` characters, cut after a comma or at a space."""
     pieces = []
     while len(sentence) > limit:
@@ -159,5 +189,5 @@ def sentences(text: str, max_chars: int) -> list[str]:
     out = []
     for sentence in SENTENCE_END.split(text):
         if any(c.isalnum() for c in sentence):
-            out.extend(_cut(sentence.strip(), max_chars))
+            out.extend(cut(sentence.strip(), max_chars))
     return out

@@ -7,6 +7,7 @@ turns one normalised sentence into mono int16 samples at its sample rate.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Annotated, Protocol
 
 import numpy as np
@@ -40,6 +41,12 @@ class Voice(Protocol):
 
     def speak(self, sentence: str, speed: float) -> np.ndarray:
         """Mono int16 samples of one normalised sentence; speed 1.0 is the voice's own."""
+        ...
+
+    def pieces(self, sentence: str, speed: float) -> Iterator[np.ndarray]:
+        """The same samples in pieces, each made when it is asked for: a sentence that costs
+        much (a long one at a low speed, letters of a script the voice spells out) comes in
+        parts of bounded work and memory, and the caller may stop between them."""
         ...
 
 

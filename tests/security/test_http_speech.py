@@ -27,6 +27,7 @@ HOSTILE = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70),
                     st.sampled_from(["joe", "espeak", "wav", "pcm", "oricf-tts", "mp3",
                                      "<speak>hi</speak>", "[[h@loU]]", "a\x00b", "x" * 5000,
                                      "1st 2.5 m 50% $3 10:30 -7 1,000,000", "\u202e\u200b",
+                                     "1" + ",000" * 400, "9" * 60 + "th",
                                      "\ud800", "Hello \udfff world", "\ud83d"]))
 VALUES = st.recursive(HOSTILE, lambda inner: st.one_of(
     st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=12), inner, max_size=3)),

@@ -200,3 +200,20 @@ def test_model_info_names_the_voices_and_licence(tts_service: RunningService) ->
     assert info.parameters["voices"] == "joe,espeak"
     assert info.parameters["voice.joe.sample_rate"] == str(RATE)
     assert info.parameters["voice.espeak.engine"] == "espeak-ng"
+
+
+def test_a_sentence_made_in_several_runs_is_understood(tts_service: RunningService,
+                                                       asr: RunningService) -> None:
+    """At speed 0.75 the Piper voice makes at most 150 phonemes at once (max_run_phonemes
+    200 at speed 1): this sentence of 184 is made in two runs, cut at its comma."""
+    sentence = ("I can see four people near the kitchen door and two dogs asleep on the sofa, "
+                "and there is a small red box on the wooden table beside the open window at "
+                "the end of the hall.")
+    reply = synthesize(tts_service, sentence, "joe", speed=0.75)
+    transcript = speech_pb2_grpc.SpeechRecognizerStub(asr.channel).Transcribe(
+        speech_pb2.TranscribeRequest(audio=speech_pb2.Audio(
+            data=reply.audio.data, encoding="pcm_s16le", sample_rate=reply.audio.sample_rate)),
+        timeout=60).text
+    reference = words(sentence)
+    hypothesis = [SPELLINGS.get(w, w) for w in words(normalise(transcript))]
+    assert word_errors(reference, hypothesis) / len(reference) <= MAX_WER, transcript

@@ -35,6 +35,9 @@ def test_the_shipped_config_declares_both_engines() -> None:
     ({"voices": {"bad name!": {"engine": "espeak-ng"}}}, "is not a voice name"),
     ({"text": {"max_chars": 0}}, "text.max_chars"),
     ({"audio": {"sentence_pause_ms": -1}}, "audio.sentence_pause_ms"),
+    ({"audio": {"max_audio_s": 0}}, "audio.max_audio_s"),
+    ({"text": {"max_chars": 5000}}, "max_spoken_chars (4000) must be at least max_chars (5000)"),
+    ({"voices": {"joe": {"max_run_phonemes": 4}}}, "voices.joe.piper.max_run_phonemes"),
 ])
 def test_mistakes_name_the_file_and_key(overrides: dict[str, Any], said: str) -> None:
     with pytest.raises(ConfigError) as refused:

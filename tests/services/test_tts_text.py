@@ -7,7 +7,7 @@ import pytest
 
 from oricf.errors import InvalidInput
 from oricf.services.tts import numbers
-from oricf.services.tts.text import check, normalise, sentences
+from oricf.services.tts.text import check, check_spoken, normalise, sentences
 
 
 @pytest.mark.parametrize(("value", "words"), [
@@ -102,3 +102,21 @@ def test_the_rule_refuses_with_a_reason(text: str, said: str) -> None:
 
 def test_tabs_and_line_breaks_are_allowed() -> None:
     assert check("one\ttwo\r\nthree", 100) == "one\ttwo\r\nthree"
+
+
+def test_text_that_writes_out_too_long_is_refused() -> None:
+    said = normalise("1" + ",000" * 400)  # digit by digit: "one zero zero ..."
+    assert len(said) == 6003
+    with pytest.raises(InvalidInput) as refused:
+        check_spoken(said, 4000)
+    assert str(refused.value) == ("text: 6,003 characters once numbers, units and abbreviations "
+                                  "are written out for speech, more than this service's limit "
+                                  "of 4,000 (text.max_spoken_chars)")
+    assert check_spoken(said, 6003) == said
+
+
+@pytest.mark.parametrize("text", ["7" * 5000, "7" * 5000 + "th", "-" + "7" * 5000 + ".5"])
+def test_a_number_of_thousands_of_digits_is_read_digit_by_digit(text: str) -> None:
+    # Python refuses to make an int of more than 4300 digits: such a number never becomes one.
+    said = normalise(text)
+    assert said.count("seven") == 5000 and said.endswith(("seven", "five"))
