@@ -1,11 +1,11 @@
 """What one request may cost the speech synthesis service, against real `oricf serve tts
 --http-listen` processes of their own with both shipped voices: text whose numbers write out
 many times longer, a script the voices spell out letter by letter (300 Arabic characters are
-80 s of "Arabic mim, Arabic alef..."), digits at a quarter of the speed, text that makes more
-audio than audio.max_audio_s, and clients that abandon a stream. Each is refused with a
-400 / INVALID_ARGUMENT naming its limit, or made in runs of bounded size; the process's peak
-resident memory (VmHWM) and its CPU time (/proc/PID/stat) grow by bounded amounts, and a
-normal request is still answered with speech."""
+140 s of "Arabic mim, Arabic alef..."), digits at a quarter of the speed, text that makes
+more audio than audio.max_audio_s, and clients that abandon a stream (HTTP) or cancel it
+(gRPC). Each is refused with a 400 / INVALID_ARGUMENT naming its limit, or made in runs of
+bounded size; the process's peak resident memory (VmHWM) and its CPU time (/proc/PID/stat)
+grow by bounded amounts, and a normal request is still answered with speech."""
 
 from __future__ import annotations
 
@@ -41,8 +41,9 @@ LONG = " ".join(["This sentence goes on and on for a long while, without a pause
 COSTLY = {"arabic-joe": (ARABIC, "joe", 1.0, 650), "arabic-espeak": (ARABIC, "espeak", 1.0, 100),
           "digits-joe": (DIGITS, "joe", 0.25, 450),
           "digits-espeak": (DIGITS, "espeak", 0.25, 100)}
-# An abandoned stream finishes the run in progress (at most about 2 s of CPU here), then
-# stops; before, it finished the sentence in progress (about 8 s of CPU at speed 0.25).
+# An abandoned stream (HTTP, or a cancelled gRPC call) finishes the run in progress (at most
+# about 2 s of CPU here), then stops; before, it finished the sentence in progress (6-7 s of
+# CPU at speed 0.25).
 MAX_CPU_AFTER_LEAVING_S = 4.0
 IDLE_CPU_S = 0.05   # over IDLE_WINDOW_S: the service has stopped working
 IDLE_WINDOW_S = 0.5
@@ -191,3 +192,18 @@ def test_audio_past_the_limit_stops_synthesis_over_grpc(tts_short: HttpService,
         assert "(audio.max_audio_s)" in (cut.value.details() or "")
         assert 0 < sent <= SHORT_AUDIO_S
     still_speaks(tts_short)
+
+
+@pytest.mark.parametrize("voice", VOICES)
+def test_a_cancelled_grpc_stream_stops_its_synthesis(tts: HttpService, voice: str) -> None:
+    wait_idle(tts)
+    request = synthesis_pb2.SynthesizeRequest(text=LONG, voice=voice, speed=0.25)
+    with grpc.insecure_channel(tts.grpc_address, options=CHANNEL_OPTIONS) as channel:
+        call = synthesis_pb2_grpc.SpeechSynthesizerStub(channel).SynthesizeStream(
+            request, timeout=120)
+        assert next(call).sentence == 0
+        call.cancel()
+        left = cpu_s(tts.process.pid)
+        after = wait_idle(tts) - left
+    assert after < MAX_CPU_AFTER_LEAVING_S, f"{after:.1f} s of CPU after the call was cancelled"
+    still_speaks(tts)
