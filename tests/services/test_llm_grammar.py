@@ -17,6 +17,7 @@ from oricf.services.llm.config import JsonSchemaLimits
 from oricf.services.llm.gbnf import measure
 from oricf.services.llm.grammar import check_schema, native_check
 from oricf.services.llm.pattern_size import expanded_size
+from tests.services.schemas import look_alikes
 from tests.support.data import data_file
 
 LIMITS = JsonSchemaLimits()
@@ -66,27 +67,13 @@ def test_costly_schemas_are_refused_naming_the_limit(schema: dict[str, Any], say
     assert says in str(error.value)
 
 
-def nested_look_alikes(levels: int) -> dict[str, Any]:
-    """Each level an anyOf of two arrays that both start with `[` and the next level: the
-    answer `[[[[...` is read both ways at every level, so the ways double per level."""
-    defs: dict[str, Any] = {f"d{levels}": {"type": "integer"}}
-    for k in range(levels):
-        inner = {"$ref": f"#/$defs/d{k + 1}"}
-        defs[f"d{k}"] = {"anyOf": [
-            {"type": "array", "prefixItems": [inner], "minItems": 1, "maxItems": 1},
-            {"type": "array", "prefixItems": [inner, {"type": "boolean"}], "minItems": 2,
-             "maxItems": 2}]}
-    return {"$defs": defs, "type": "object", "properties": {"x": {"$ref": "#/$defs/d0"}},
-            "required": ["x"]}
-
-
 def test_alternatives_nested_in_alternatives_multiply() -> None:
     limits = JsonSchemaLimits(max_alternatives=256)
-    counts = [measure(check_schema(nested_look_alikes(levels), PATH, limits), cap=10**9)
+    counts = [measure(check_schema(look_alikes(levels), PATH, limits), cap=10**9)
               .alternatives for levels in (3, 4, 5)]
     assert counts[1] == 2 * counts[0] and counts[2] == 2 * counts[1]
     with pytest.raises(InvalidInput, match="in over 32 ways"):
-        check_schema(nested_look_alikes(20), PATH, LIMITS)
+        check_schema(look_alikes(20), PATH, LIMITS)
 
 
 def test_optional_items_in_a_row_add_up() -> None:

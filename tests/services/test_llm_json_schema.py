@@ -17,6 +17,7 @@ import openai
 import pytest
 
 from oricf.v1 import language_pb2, language_pb2_grpc
+from tests.services.schemas import look_alikes
 from tests.support.openai_http import HttpService, client, http_service, overlay, rss_mb
 
 MODEL = "gemma3-270m"
@@ -34,19 +35,6 @@ def string(pattern: str) -> dict[str, Any]:
 
 def response_format(schema: dict[str, Any]) -> dict[str, Any]:
     return {"type": "json_schema", "json_schema": {"name": "x", "schema": schema}}
-
-
-def look_alikes(levels: int) -> dict[str, Any]:
-    """Arrays inside arrays, each level an anyOf of two that both start with `[`."""
-    defs: dict[str, Any] = {f"d{levels}": {"type": "integer"}}
-    for k in range(levels):
-        inner = {"$ref": f"#/$defs/d{k + 1}"}
-        defs[f"d{k}"] = {"anyOf": [
-            {"type": "array", "prefixItems": [inner], "minItems": 1, "maxItems": 1},
-            {"type": "array", "prefixItems": [inner, {"type": "boolean"}], "minItems": 2,
-             "maxItems": 2}]}
-    return {"$defs": defs, "type": "object", "properties": {"x": {"$ref": "#/$defs/d0"}},
-            "required": ["x"]}
 
 
 @pytest.fixture(scope="module")
