@@ -2,7 +2,8 @@
 each process read from /proc (psutil), the ERROR and Traceback lines of the processes' log,
 each answer judged against the people count published just before it, and the summary per
 process (RSS at the first sample and the last, growth per hour by a least-squares line over
-the samples after the warm-up), as a table, JSON and CSV."""
+the samples after the warm-up, and over the run's second half alone: a cache that fills and
+levels off has a late slope near zero, a leak keeps its slope), as a table, JSON and CSV."""
 
 from __future__ import annotations
 
@@ -140,6 +141,7 @@ class ProcessSummary:
     rss_first_mb: float | None
     rss_last_mb: float | None
     growth_mb_per_h: float | None
+    late_growth_mb_per_h: float | None  # the same line over the second half of the run
     cpu_s: float | None        # over the soak (last sample - first)
     cpu_share: float | None    # of one core, over the soak
     ended: bool                # gone before the last sample
@@ -149,8 +151,11 @@ class ProcessSummary:
         def mb(value: float | None) -> str:
             return "-" if value is None else f"{value:.0f}"
 
-        growth = "-" if self.growth_mb_per_h is None else f"{self.growth_mb_per_h:+.1f}"
-        return [self.process, mb(self.rss_first_mb), mb(self.rss_last_mb), growth,
+        def rate(value: float | None) -> str:
+            return "-" if value is None else f"{value:+.1f}"
+
+        return [self.process, mb(self.rss_first_mb), mb(self.rss_last_mb),
+                rate(self.growth_mb_per_h), rate(self.late_growth_mb_per_h),
                 "-" if self.cpu_s is None else f"{self.cpu_s:.1f}",
                 "-" if self.cpu_share is None else f"{self.cpu_share:.0%}",
                 "ENDED" if self.ended else "running", str(self.error_lines)]
@@ -169,15 +174,16 @@ def summarize(samples: list[Sample], warmup_s: float, errors: Counter[str]
                 and last.cpu_s is not None:
             cpu = last.cpu_s - first.cpu_s
             share = cpu / (last.t_s - first.t_s) if last.t_s > first.t_s else None
+        half = max(warmup_s, (mine[0].t_s + mine[-1].t_s) / 2)
         summaries.append(ProcessSummary(
             name, first.rss_mb if first else None, last.rss_mb if last else None,
-            growth_mb_per_h(mine, warmup_s), cpu, share, mine[-1].rss_mb is None,
-            errors.get(name, 0)))
+            growth_mb_per_h(mine, warmup_s), growth_mb_per_h(mine, half), cpu, share,
+            mine[-1].rss_mb is None, errors.get(name, 0)))
     return summaries
 
 
-HEADER = ["process", "RSS first MB", "RSS last MB", "growth MB/h", "CPU s", "CPU",
-          "state", "error lines"]
+HEADER = ["process", "RSS first MB", "RSS last MB", "growth MB/h", "2nd half MB/h",
+          "CPU s", "CPU", "state", "error lines"]
 
 
 def print_samples(samples: list[Sample]) -> None:
@@ -190,7 +196,8 @@ def print_samples(samples: list[Sample]) -> None:
 
 def print_summary(summaries: list[ProcessSummary], answers: list[Answer],
                   warmup_s: float) -> None:
-    print_table(f"Per process (growth: a line fitted to RSS after the first {warmup_s:g} s)",
+    print_table(f"Per process (growth: a line fitted to RSS after the first {warmup_s:g} s, "
+                "and to the second half of the run)",
                 HEADER, [s.cells() for s in summaries])
     answered = sum(a.answered for a in answers)
     wrong = sum(a.answered and not a.right for a in answers)

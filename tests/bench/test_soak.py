@@ -120,6 +120,15 @@ def test_growth_is_the_slope_after_the_warm_up_per_hour() -> None:
     assert growth_mb_per_h(samples[:2], warmup_s=60) is None
     summary, = summarize(samples, 60, Counter())
     assert (summary.rss_first_mb, summary.rss_last_mb) == (300.0, 405.0)
+    assert summary.late_growth_mb_per_h == pytest.approx(60.0)  # a leak keeps its slope
+
+
+def test_memory_that_levels_off_has_no_late_growth() -> None:
+    # A cache filling for ten minutes, then flat for ten: growth over the run, none late.
+    samples = [Sample(60.0 * k, "llm", 1, 400.0 + min(k, 10) * 5, 0.0) for k in range(21)]
+    summary, = summarize(samples, 60, Counter())
+    assert summary.growth_mb_per_h is not None and summary.growth_mb_per_h > 60
+    assert summary.late_growth_mb_per_h == pytest.approx(0.0)
 
 
 def test_a_process_that_ended_is_reported_and_fails_the_soak(tmp_path: Path) -> None:
