@@ -178,7 +178,7 @@ def test_wav_headers_that_lie_about_their_data_are_refused(asr: HttpService, hea
 def test_grpc_transcribe_bounds_the_decoded_size(asr: HttpService) -> None:
     """What gRPC itself holds of a message (docs/services.md) varies too much from call to
     call to measure the conversion beside it: tests/audio measures that on its own."""
-    data = bytes(36 * 1024 * 1024)  # 0.77 s at 384 kHz in 32 channels: 36 MB of samples
+    data = bytes(36 * 1024 * 1024)  # 1.5 s at 384 kHz in 32 channels: 36 MB of samples
     audio = speech_pb2.Audio(data=data, encoding="pcm_s16le", sample_rate=RATE, channels=32)
     many = speech_pb2.Audio(data=many_channel_wav(30), encoding="wav")  # 30 MB: decoded
     with grpc.insecure_channel(asr.grpc_address, options=CHANNEL_OPTIONS) as channel:
@@ -188,7 +188,7 @@ def test_grpc_transcribe_bounds_the_decoded_size(asr: HttpService) -> None:
         reply = stub.Transcribe(speech_pb2.TranscribeRequest(audio=many), timeout=60)
     assert refusal.value.code() == grpc.StatusCode.INVALID_ARGUMENT
     assert (refusal.value.details() or "").startswith(
-        "audio: 0.8 s at 384000 Hz in 32 channel(s), 36.0 MB of 16-bit samples, over the "
+        "audio: 1.5 s at 384000 Hz in 32 channel(s), 36.0 MB of 16-bit samples, over the "
         "limit of 32 MB (audio.max_decoded_mb)")
     assert reply.text == ""
     hears_the_question(asr)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import grpc
+import httpx
 import openai
 import pytest
 
@@ -155,30 +156,46 @@ def test_failover_from_llama_cpp_server_to_oricf_grpc_and_back(pipeline_for: Any
 
 def test_a_busy_server_is_retried_after_its_retry_after(tmp_path: Any, pipeline_for: Any
                                                         ) -> None:
-    """ORICF's language service over HTTP with one call slot, held by a client still sending
-    its body: the gateway's call gets 429 with Retry-After, waits, and is answered once the
-    slot is free again."""
+    """ORICF's language service over HTTP with one call slot, held by a long streamed answer:
+    the gateway's call gets 429 with Retry-After, waits, and is answered once the slot is
+    free again."""
     overlay = tmp_path / "one.yaml"
     overlay.write_text("server: {max_concurrent_rpcs: 1, retry_after_ms: 400}\n")
     with http_service("llm", "--overlay", str(overlay)) as llm:
         config = asking({"protocol": "openai", "address": f"{llm.base_url}/v1",
                          "model": "gemma3-270m", "retry": {"attempts": 10}})
         pipeline, outputs = pipeline_for(config)
-        holding = threading.Thread(target=_hold_the_slot, args=(llm, 2.0))
+        begun = threading.Event()
+        holding = threading.Thread(target=_hold_the_slot, args=(llm, 2.0, begun))
         holding.start()
-        time.sleep(0.5)
+        assert begun.wait(60), "the long answer did not begin"
         ask(pipeline)
         holding.join()
     assert pipeline.endpoints["llm"].retries >= 1
     assert pipeline.routes["ask"].stats.ok == 1 and outputs.values("answer") != [""]
 
 
-def _hold_the_slot(llm: HttpService, seconds: float) -> None:
-    """A request whose body never comes holds the service's only slot, until it goes."""
-    with socket.create_connection(("127.0.0.1", llm.port), timeout=10) as slow:
-        slow.sendall(b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
-                     b"Content-Type: application/json\r\nContent-Length: 100\r\n\r\n{")
-        time.sleep(seconds)
+# An answer of 20 numbers at least: long enough to hold the slot while the gateway asks.
+MANY_NUMBERS = {"type": "object", "required": ["numbers"], "properties": {
+    "numbers": {"type": "array", "items": {"type": "integer"}, "minItems": 20}}}
+
+
+def _hold_the_slot(llm: HttpService, seconds: float, begun: threading.Event) -> None:
+    """A streamed answer holds the service's only slot (a slot is taken once a request's
+    body is whole) until this client leaves, `seconds` after the answer began."""
+    body = {"model": "gemma3-270m", "stream": True, "max_tokens": 256, "temperature": 0,
+            "messages": [{"role": "user", "content": "List numbers in JSON."}],
+            "response_format": {"type": "json_schema",
+                                "json_schema": {"name": "numbers", "schema": MANY_NUMBERS}}}
+    with httpx.stream("POST", f"{llm.base_url}/v1/chat/completions", json=body,
+                      timeout=60) as stream:
+        lines = stream.iter_lines()
+        next(lines)
+        begun.set()
+        deadline = time.monotonic() + seconds
+        for _ in lines:
+            if time.monotonic() > deadline:
+                break
 
 
 def test_an_image_part_reaches_the_server_which_refuses_it_by_name(
