@@ -9,7 +9,10 @@ import re
 import subprocess
 import sys
 
+import pytest
 
+
+@pytest.mark.bench
 def test_a_short_run_measures_every_row_and_answers_the_frames() -> None:
     done = subprocess.run(
         [sys.executable, "-m", "oricf", "bench", "edge", "--robots", "1,2", "--gateways", "1",

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from oricf.bench.offload_report import PHASES, PLACEMENTS, SETS, SOURCES
 
 
@@ -19,6 +21,7 @@ def run_quick(out: Path) -> str:
     return done.stdout
 
 
+@pytest.mark.bench
 def test_quick_run_writes_table_2_and_figure_1(tmp_path: Path) -> None:
     stdout = run_quick(tmp_path)
     assert (tmp_path / "figure1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -7,6 +7,7 @@ import sys
 import pytest
 
 
+@pytest.mark.bench
 @pytest.mark.parametrize(("service", "options", "measures"), [
     ("llm", ["--questions", "8"], "first token ms"),
     ("asr", ["--voices", "en-us"], "transcript ms"),

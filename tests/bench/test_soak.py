@@ -34,6 +34,7 @@ from tests.support.processes import free_port
 PROCESSES = {"detector", "asr", "llm", "tts", "gateway", "viewer", "bench"}
 
 
+@pytest.mark.bench
 def test_a_short_soak_reports_every_process_and_every_question(tmp_path: Path) -> None:
     deployment = write_deployment(tmp_path, {
         "services": {name: service_entry(free_port()) for name in ("detector", "asr", "llm")},

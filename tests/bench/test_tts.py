@@ -4,7 +4,10 @@ audio transcribed (no timing asserted)."""
 import subprocess
 import sys
 
+import pytest
 
+
+@pytest.mark.bench
 def test_each_voice_is_measured_side_by_side() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "oricf", "--log-level", "WARNING", "bench", "tts",
