@@ -118,9 +118,11 @@ class SynthesisModel:
                 still_wanted()
             inference_ms = (time.perf_counter() - started) * 1e3
             last = i == len(job.sentences) - 1
-            if not last:
-                parts.append(pause)
+            if not last:  # the pause counts too: the audio never passes the limit
                 made += len(pause)
+                if made > limit:
+                    raise InvalidInput(self._too_long(job))
+                parts.append(pause)
             samples = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int16)
             yield SpokenSentence(i, sentence, samples, voice.sample_rate, inference_ms, last)
 
