@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import logging
 import re
-import threading
-import time
 
+from oricf.gateway.throttle import Throttle
 from oricf.logs import quoted
 
 # The SDK's loggers (its Rust modules' names through pyo3-log); a filter applies only to the
@@ -30,37 +29,8 @@ MISTAKE_LOG_INTERVAL_S = 10.0
 MAX_CLIENTS_TRACKED = 256  # beyond it, clients quiet for an interval are forgotten
 
 
-class MistakeThrottle:
-    """Per client: the first mistake at once, then at most one per interval."""
-
-    def __init__(self, interval_s: float = MISTAKE_LOG_INTERVAL_S) -> None:
-        self.interval_s = interval_s
-        self._lock = threading.Lock()
-        self._last: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
-
-    def admit(self, client: str) -> int | None:
-        """None to suppress this one; else how many of the client's were suppressed before."""
-        now = time.monotonic()
-        with self._lock:
-            last = self._last.get(client)
-            if last is not None and now - last < self.interval_s:
-                self._suppressed[client] = self._suppressed.get(client, 0) + 1
-                return None
-            if len(self._last) >= MAX_CLIENTS_TRACKED:
-                self._forget_quiet(now)
-            self._last[client] = now
-            return self._suppressed.pop(client, 0)
-
-    def _forget_quiet(self, now: float) -> None:
-        for client, last in list(self._last.items()):
-            if now - last >= self.interval_s:
-                del self._last[client]
-                self._suppressed.pop(client, None)
-
-
 class SafeSdkRecords(logging.Filter):
-    def __init__(self, throttle: MistakeThrottle) -> None:
+    def __init__(self, throttle: Throttle) -> None:
         super().__init__()
         self.throttle = throttle
 
@@ -81,7 +51,8 @@ class SafeSdkRecords(logging.Filter):
         return True
 
 
-_THROTTLE = MistakeThrottle()
+# Per client: its first mistake at once, then at most one per interval.
+_THROTTLE = Throttle(MISTAKE_LOG_INTERVAL_S, max_keys=MAX_CLIENTS_TRACKED)
 
 
 def make_sdk_logs_safe() -> None:
