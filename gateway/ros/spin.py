@@ -40,13 +40,10 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
     recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
     with stop_on_signals() as stop:
         rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
-        try:
-            node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
-            if stop.is_set():
-                node.shutdown()  # its threads, started last in its constructor
-                node.destroy_node()
-                raise Stopping
-        except Stopping:
+        node = GatewayRosNode(config, recorder=recorder)  # its log on /rosout
+        if stop.is_set():  # SIGINT or SIGTERM came while the node was being built
+            node.shutdown()  # its threads, started last in its constructor
+            node.destroy_node()
             log.info("gateway stopped while starting")
             if recorder is not None:
                 recorder.close()
@@ -69,7 +66,3 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
             node.destroy_node()
             rclpy.try_shutdown()
     return 0
-
-
-class Stopping(Exception):
-    """SIGINT or SIGTERM came while the node was being built."""
