@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,7 +13,7 @@ from oricf.bench.local import local_service, service_config
 from oricf.services.runtime import ServiceHost
 from oricf.store import ModelStore
 
-__all__ = ["RunningService", "running_service", "service_config"]
+__all__ = ["RunningService", "SharedServices", "running_service", "service_config"]
 
 CHANNEL_OPTIONS = [
     ("grpc.max_send_message_length", 64 * 1024 * 1024),
@@ -41,3 +41,23 @@ def running_service(name: str, overrides: dict[str, Any] | None = None, *, load:
             yield RunningService(host, channel)
         finally:
             channel.close()
+
+
+class SharedServices:
+    """Each service with its shipped settings, started the first time a test asks for it and
+    kept until the session ends: a model loads once, not once per test module. Tests that
+    change a service's settings, stop it, or load it to its limits start their own with
+    running_service()."""
+
+    def __init__(self) -> None:
+        self._stack = ExitStack()
+        self._started: dict[str, RunningService] = {}
+
+    def __getitem__(self, name: str) -> RunningService:
+        if name not in self._started:
+            self._started[name] = self._stack.enter_context(running_service(name))
+        return self._started[name]
+
+    def close(self) -> None:
+        self._stack.close()
+        self._started.clear()
