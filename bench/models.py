@@ -36,11 +36,11 @@ from oricf.config import config_dir
 from oricf.gateway.endpoints import CHANNEL_OPTIONS  # as the gateway's calls are made
 from oricf.imaging import decode_image, encode_image
 from oricf.models.declaration import ModelDeclaration, load_declaration
+from oricf.models.declared import DeclaredModel
 from oricf.models.heads import DetectionHead
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip_pb2
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
-from oricf.services.models.model import DeclaredModel
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 

@@ -1,6 +1,6 @@
 """The `oricf` command.
 
-    oricf serve detector|asr|llm|tts|models [--config FILE] [--overlay FILE ...]
+    oricf serve SERVICE [--config FILE] [--overlay FILE ...]
                 [--listen HOST:PORT] [--metrics-listen HOST:PORT] [--http-listen HOST:PORT]
     oricf models list | pull [NAME ...] [--all]
     oricf gateway --config PIPELINE.yaml [--overlay FILE ...]
@@ -11,7 +11,8 @@
     oricf bench detector|asr|llm|tts|voice|gateway|models|link|rtsp|offload|edge|tracking|soak
                 [...]
 
-Verbs with options of their own hand the rest of the command line to their module's main().
+SERVICE is one of oricf.services.SERVICES (`oricf serve --help` lists them). Verbs with
+options of their own hand the rest of the command line to their module's main().
 """
 
 from __future__ import annotations
@@ -23,16 +24,17 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from oricf.config import deep_merge, read_with_overlays, shipped_service_config, validate
+from oricf.config import deep_merge, read_with_overlays, validate
 from oricf.errors import ConfigError, ModelMissing
 from oricf.lifeline import follow_parent
 from oricf.logs import setup_logging
+from oricf.services import SERVICES
 
 log = logging.getLogger("oricf")
 
 # verb -> module whose main(argv) -> int handles it
 DELEGATED = {
-    "certs": "oricf.certs",
+    "certs": "oricf.launch.certs",
     "gateway": "oricf.gateway.main",
     "mcp": "oricf.gateway.agents.main",
     "up": "oricf.launch.up",
@@ -76,7 +78,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from oricf.store import ModelStore
 
     spec = load_spec(args.service)
-    path = Path(args.config or shipped_service_config(args.service))
+    path = Path(args.config or SERVICES[args.service].config)
     data, sources = read_with_overlays(path, args.overlay)
     data = deep_merge(data, security_overrides(args))
     data = deep_merge(data, metrics_overrides(args))
@@ -115,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbs = parser.add_subparsers(dest="verb", required=True)
 
     serve = verbs.add_parser("serve", help="run a model service")
-    serve.add_argument("service", choices=["detector", "asr", "llm", "tts", "models"])
+    serve.add_argument("service", choices=list(SERVICES))
     serve.add_argument("--config", type=Path,
                        help="service YAML (default configs/services/NAME.yaml)")
     serve.add_argument("--overlay", type=Path, action="append", default=[],
@@ -132,7 +134,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="serve Prometheus metrics at http://HOST:PORT/metrics "
                             "(docs/metrics.md)")
     serve.add_argument("--http-listen", metavar="HOST:PORT",
-                       help="also serve the OpenAI-compatible HTTP API there (llm, asr, tts; "
+                       help="also serve the OpenAI-compatible HTTP API there ("
+                            f"{', '.join(n for n, s in SERVICES.items() if s.http)}; "
                             "docs/openai.md)")
     serve.set_defaults(run=cmd_serve)
 

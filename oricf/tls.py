@@ -1,6 +1,6 @@
 """Transport security shared by the services, the gateway and the health probe: the YAML
 schemas for TLS and tokens, and gRPC credentials and Python SSL contexts from them. A
-deployment's own certificates come from `oricf certs` (oricf.certs)."""
+deployment's own certificates come from `oricf certs` (oricf.launch.certs)."""
 
 from __future__ import annotations
 

@@ -1,28 +1,34 @@
-"""The model services. Each one is a ServiceSpec, looked up by name without importing the others."""
+"""The model services: `SERVICES` is the one list of them, which the command line, the
+launcher and the deployment files read. A service's code (servicer, model, heavy model
+libraries) is imported only when it is served (`load_spec`)."""
 
 from __future__ import annotations
 
 import importlib
 from typing import TYPE_CHECKING
 
+from oricf.services.spec import ServiceSpec
+
 if TYPE_CHECKING:
-    from oricf.services.runtime.spec import ServiceSpec
+    from oricf.services.runtime.parts import ServiceParts
 
-# name -> "module:attribute" of its ServiceSpec; heavy model libraries load only when served.
-REGISTRY = {
-    "detector": "oricf.services.detector.service:SPEC",
-    "asr": "oricf.services.asr.service:SPEC",
-    "llm": "oricf.services.llm.service:SPEC",
-    "tts": "oricf.services.tts.service:SPEC",
-    "models": "oricf.services.models.service:SPEC",
-}
+SERVICES: dict[str, ServiceSpec] = {spec.name: spec for spec in (
+    ServiceSpec("detector", "oricf.v1.Detector", 50051),
+    ServiceSpec("asr", "oricf.v1.SpeechRecognizer", 50052, http=True),
+    ServiceSpec("llm", "oricf.v1.LanguageModel", 50053, http=True),
+    ServiceSpec("tts", "oricf.v1.SpeechSynthesizer", 50054, http=True),
+    # Declared models over the Open Inference Protocol, on its customary gRPC port.
+    ServiceSpec("models", "inference.GRPCInferenceService", 8001),
+)}
+
+__all__ = ["SERVICES", "ServiceSpec", "load_spec"]
 
 
-def load_spec(name: str) -> ServiceSpec:
+def load_spec(name: str) -> ServiceParts:
+    """The parts of the service `name` (its config schema, model and servicer), imported."""
     try:
-        target = REGISTRY[name]
+        spec = SERVICES[name]
     except KeyError:
-        raise KeyError(f"unknown service '{name}' (known: {', '.join(REGISTRY)})") from None
-    module, attribute = target.split(":")
-    spec: ServiceSpec = getattr(importlib.import_module(module), attribute)
-    return spec
+        raise KeyError(f"unknown service '{name}' (known: {', '.join(SERVICES)})") from None
+    parts: ServiceParts = importlib.import_module(spec.module).PARTS
+    return parts

@@ -108,10 +108,10 @@ def test_the_image_build_copies_what_the_wheel_is_built_from() -> None:
 def test_oricf_and_its_configs_come_from_the_installed_package(installed: Installed) -> None:
     code = ("import oricf, oricf.config as c; print(oricf.__file__); print(c.config_dir())\n"
             "from oricf.launch.deployment import load_deployment\n"
-            "from oricf.services import REGISTRY, load_spec\n"
+            "from oricf.services import SERVICES, load_spec\n"
             "for path in sorted((c.config_dir() / 'deployments').glob('*.yaml')):\n"
             "    load_deployment(path)\n"
-            "for name in REGISTRY:\n"
+            "for name in SERVICES:\n"
             "    c.load_config(c.shipped_service_config(name), load_spec(name).config_schema)\n")
     done = installed.run("python", "-c", code)
     assert done.returncode == 0, done.stderr

@@ -15,8 +15,14 @@ import subprocess
 import sys
 from collections.abc import Iterator
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 import pytest
 
+from oricf.config import REPO_ROOT
 from tests.support.scripts import load_script
 
 # Run in a fresh interpreter: grimp finds `oricf` with importlib, and this process has
@@ -112,3 +118,31 @@ def test_no_import_cycle(graph: Graph) -> None:
               for members in strongly_connected(graph)
               if len(members) > 1 or members[0] in graph.get(members[0], ())]
     assert not cycles, "import cycles:\n  " + "\n  ".join(cycles)
+
+
+
+def service_of(module: str, packages: set[str]) -> str | None:
+    return next((p for p in packages if module == p or module.startswith(p + ".")), None)
+
+
+def test_no_model_service_imports_another(graph: Graph) -> None:
+    """What two services share lives in services/runtime or the library (oricf.models)."""
+    from oricf.services import SERVICES
+
+    packages = {f"oricf.services.{name}" for name in SERVICES}
+    crossings = []
+    for module, imported in graph.items():
+        mine = service_of(module, packages)
+        crossings += [f"{module} -> {other}" for other in imported
+                      if mine and service_of(other, packages) not in (None, mine)]
+    assert not crossings, "a service imports another:\n  " + "\n  ".join(sorted(crossings))
+
+
+def test_the_independence_contract_names_every_service() -> None:
+    """pyproject.toml's contract for lint-imports lists the packages of SERVICES, no fewer."""
+    from oricf.services import SERVICES
+
+    pyproject = REPO_ROOT / "pyproject.toml"
+    contracts = tomllib.loads(pyproject.read_text())["tool"]["importlinter"]["contracts"]
+    independent = [set(c["modules"]) for c in contracts if c["type"] == "independence"]
+    assert independent == [{f"oricf.services.{name}" for name in SERVICES}]

@@ -13,16 +13,20 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
-from oricf.config import FilePath, Schema, check_address, load_config, shipped_service_config
+from oricf.config import FilePath, Schema, check_address, load_config
 from oricf.errors import ConfigError
+from oricf.services import SERVICES, load_spec
 from oricf.tls import ClientTls
 
-# the keys of oricf.services.REGISTRY (a test keeps the two in step)
-ServiceName = Literal["detector", "asr", "llm", "tts", "models"]
+# A `services:` key: one of SERVICES, a Literal so that a wrong key is refused naming them.
+if TYPE_CHECKING:
+    ServiceName = str
+else:
+    ServiceName = Literal[tuple(SERVICES)]
 
 
 class Restart(Schema):
@@ -125,13 +129,11 @@ def connect_address(listen: str) -> str:
 
 
 def service_config_path(name: str, entry: LocalService) -> Path:
-    return entry.config or shipped_service_config(name)
+    return entry.config or SERVICES[name].config
 
 
 def service_plan(name: str, entry: LocalService, deployment: Deployment) -> ProcessPlan:
     """The `oricf serve` command of one service; its config is validated here, before start."""
-    from oricf.services import load_spec
-
     path = service_config_path(name, entry)
     config = load_config(path, load_spec(name).config_schema, entry.overlays)
     listen = entry.listen or config.server.listen

@@ -6,13 +6,14 @@ from typing import Any
 
 import grpc
 
+from oricf.services import SERVICES
 from oricf.services.asr.config import AsrConfig
 from oricf.services.asr.model import SpeechModel
 from oricf.services.asr.recognizer import backend_class
 from oricf.services.asr.servicer import SpeechRecognizerServicer
-from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime import ModelSlot, ServiceParts
 from oricf.store import ModelStore
-from oricf.v1 import speech_pb2, speech_pb2_grpc
+from oricf.v1 import speech_pb2_grpc
 
 
 def create_model(config: AsrConfig, store: ModelStore) -> SpeechModel:
@@ -33,9 +34,8 @@ def http_routes(slot: ModelSlot[SpeechModel], config: AsrConfig) -> list[Any]:
     return routes(slot, config)
 
 
-SPEC = ServiceSpec(
-    name="asr",
-    service_name=speech_pb2.DESCRIPTOR.services_by_name["SpeechRecognizer"].full_name,
+PARTS = ServiceParts(
+    SERVICES["asr"],
     config_schema=AsrConfig,
     create_model=create_model,
     add_servicer=add_servicer,

@@ -6,17 +6,18 @@ import grpc
 
 from oricf.errors import ConfigError
 from oricf.models.declaration import DetectionTask, load_declaration
+from oricf.models.declared import DeclaredModel
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services import SERVICES
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
 from oricf.services.detector.servicer import DetectorServicer
-from oricf.services.models.model import DeclaredModel
-from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime import ModelSlot, ServiceParts
 from oricf.services.runtime.batching import Batcher
 from oricf.services.runtime.shared_memory import SharedMemoryRegistry
 from oricf.services.runtime.shared_memory_rpcs import SharedMemoryServicer
 from oricf.store import ModelStore
-from oricf.v1 import detector_pb2, detector_pb2_grpc
+from oricf.v1 import detector_pb2_grpc
 
 
 def create_model(config: DetectorConfig, store: ModelStore) -> DeclaredModel:
@@ -36,7 +37,7 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
     batcher = None
     if config.batching is not None:
         # The model object itself, loaded or not: the batcher drains before it closes.
-        batcher = Batcher(SPEC.name, config.batching, slot.peek().detect_batch,
+        batcher = Batcher(PARTS.name, config.batching, slot.peek().detect_batch,
                           config.server.retry_after_ms)
         slot.attach(batcher)
     registry = (SharedMemoryRegistry(config.shared_memory) if config.shared_memory.enabled
@@ -48,9 +49,8 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],
                                                             server)
 
 
-SPEC = ServiceSpec(
-    name="detector",
-    service_name=detector_pb2.DESCRIPTOR.services_by_name["Detector"].full_name,
+PARTS = ServiceParts(
+    SERVICES["detector"],
     config_schema=DetectorConfig,
     create_model=create_model,
     add_servicer=add_servicer,

@@ -19,11 +19,11 @@ import numpy as np
 
 from oricf.errors import InvalidInput, Overloaded
 from oricf.imaging import Detection, decode_image, decoded_bytes, image_size
+from oricf.models.declared import DeclaredModel, DetectArgs
 from oricf.models.heads import Detections, Prepared
 from oricf.models.shared_memory import SharedMemoryRef, check_region_name
 from oricf.services.detector.config import DetectorConfig
 from oricf.services.detector.labels import LabelSpace
-from oricf.services.models.model import DeclaredModel, DetectArgs
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.batch_calls import run_batched
 from oricf.services.runtime.batching import Batcher

@@ -6,13 +6,14 @@ from typing import Any
 
 import grpc
 
+from oricf.services import SERVICES
 from oricf.services.llm.config import LlmConfig, load_prompt
 from oricf.services.llm.decode import Sampling
 from oricf.services.llm.model import LlamaModel, LlamaSettings
 from oricf.services.llm.servicer import LanguageModelServicer
-from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime import ModelSlot, ServiceParts
 from oricf.store import ModelStore
-from oricf.v1 import language_pb2, language_pb2_grpc
+from oricf.v1 import language_pb2_grpc
 
 
 def create_model(config: LlmConfig, store: ModelStore) -> LlamaModel:
@@ -42,9 +43,8 @@ def http_routes(slot: ModelSlot[LlamaModel], config: LlmConfig) -> list[Any]:
     return routes(slot, config)
 
 
-SPEC = ServiceSpec(
-    name="llm",
-    service_name=language_pb2.DESCRIPTOR.services_by_name["LanguageModel"].full_name,
+PARTS = ServiceParts(
+    SERVICES["llm"],
     config_schema=LlmConfig,
     create_model=create_model,
     add_servicer=add_servicer,

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.services.models.model import DeclaredModel
+from oricf.models.declared import DeclaredModel
 
 Feeds = dict[str, np.ndarray]
 

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.models.declared import DeclaredModel
 from oricf.models.heads import DetectionHead, Prepared
 from oricf.models.wire import parameter_value
 from oricf.oip import open_inference_grpc_pb2 as oip
-from oricf.services.models.model import DeclaredModel
 
 DECODED = "decoded"
 COLUMNS = ("x_min", "y_min", "x_max", "y_max", "score", "class_id")

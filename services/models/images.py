@@ -18,8 +18,8 @@ import numpy as np
 
 from oricf.errors import InvalidInput
 from oricf.imaging import RAW_CHANNELS, decode_image, decoded_bytes, encoded_size, image_size
+from oricf.models.declared import DeclaredModel
 from oricf.models.heads import Prepared
-from oricf.services.models.model import DeclaredModel
 
 Feeds = dict[str, np.ndarray]
 # (bytes, what) -> a context holding that much of the server's memory budget

@@ -6,9 +6,9 @@ from collections.abc import Collection, Iterable
 
 from oricf.errors import ConfigError, NotFound
 from oricf.models.declaration import ModelDeclaration
+from oricf.models.declared import DeclaredModel
+from oricf.models.info import ModelInfo
 from oricf.models.tensors import clip
-from oricf.services.models.model import DeclaredModel
-from oricf.services.runtime.model import ModelInfo
 from oricf.store import ModelStore
 
 

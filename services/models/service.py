@@ -5,13 +5,13 @@ from __future__ import annotations
 import grpc
 
 from oricf.models.declaration import load_declaration
-from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
+from oricf.services import SERVICES
 from oricf.services.models.batching import batch_runner
 from oricf.services.models.config import ModelsConfig
 from oricf.services.models.repository import ModelRepository
 from oricf.services.models.servicer import InferenceServicer
-from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services.runtime import ModelSlot, ServiceParts
 from oricf.services.runtime.batching import Batcher
 from oricf.services.runtime.shared_memory import SharedMemoryRegistry
 from oricf.store import ModelStore
@@ -27,7 +27,7 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],
     batchers = {}
     for name, settings in config.batching.items():
         model = slot.peek().get(name)
-        batchers[name] = Batcher(f"{SPEC.name}/{name}", settings,
+        batchers[name] = Batcher(f"{PARTS.name}/{name}", settings,
                                  batch_runner(model, settings.max_batch_size),
                                  config.server.retry_after_ms)
         slot.attach(batchers[name])
@@ -37,9 +37,8 @@ def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],
         InferenceServicer(slot, config, batchers, registry), server)
 
 
-SPEC = ServiceSpec(
-    name="models",
-    service_name=oip.DESCRIPTOR.services_by_name["GRPCInferenceService"].full_name,
+PARTS = ServiceParts(
+    SERVICES["models"],
     config_schema=ModelsConfig,
     create_model=create_model,
     add_servicer=add_servicer,

@@ -19,6 +19,7 @@ import numpy as np
 
 from oricf import __version__
 from oricf.errors import InvalidInput, NotFound
+from oricf.models.declared import DeclaredModel
 from oricf.models.shared_memory import SharedMemoryRef, tensor_ref
 from oricf.models.tensors import clip
 from oricf.models.wire import (
@@ -33,7 +34,6 @@ from oricf.services.models.batching import Feeds, rows_of
 from oricf.services.models.config import ModelsConfig
 from oricf.services.models.decoded import decode_ask, decoded
 from oricf.services.models.images import image_feeds
-from oricf.services.models.model import DeclaredModel
 from oricf.services.models.repository import ModelRepository
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.batch_calls import run_batched

@@ -8,28 +8,17 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 from oricf.errors import NotReady
+from oricf.models.info import ModelInfo
 
 if TYPE_CHECKING:
     from oricf.services.runtime.batching import Batcher
 
 log = logging.getLogger(__name__)
 
-
-@dataclass(frozen=True)
-class ModelInfo:
-    """What a model is, for GetModelInfo and logs."""
-
-    model: str
-    runtime: str
-    providers: list[str] = field(default_factory=list)
-    license: str = ""
-    sha256: str = ""
-    labels: list[str] = field(default_factory=list)
-    parameters: dict[str, str] = field(default_factory=dict)
+__all__ = ["Model", "ModelInfo", "ModelSlot"]
 
 
 class Model(Protocol):

@@ -27,8 +27,8 @@ from oricf.services.runtime.errors import ErrorMappingInterceptor
 from oricf.services.runtime.limits import CallLimit
 from oricf.services.runtime.metrics import service_registry
 from oricf.services.runtime.model import Model, ModelSlot
+from oricf.services.runtime.parts import ServiceParts
 from oricf.services.runtime.probe import probe_server
-from oricf.services.runtime.spec import ServiceSpec
 from oricf.signals import stop_on_signals
 
 if TYPE_CHECKING:  # Starlette and uvicorn load only for a service that serves HTTP
@@ -47,7 +47,7 @@ STOP_MARGIN_S = 5.0
 class ServiceHost:
     """A gRPC server around one model: build, start, load, stop."""
 
-    def __init__(self, spec: ServiceSpec, config: ServiceConfig, model: Model,
+    def __init__(self, spec: ServiceParts, config: ServiceConfig, model: Model,
                  listen: str | None = None) -> None:
         self.spec = spec
         self.config = config
@@ -172,7 +172,7 @@ def _connection_age(age_s: float | None, grace_s: float) -> list[tuple[str, int]
             ("grpc.max_connection_age_grace_ms", int(grace_s * 1000))]
 
 
-def serve(spec: ServiceSpec, config: ServiceConfig, model: Model, listen: str | None) -> int:
+def serve(spec: ServiceParts, config: ServiceConfig, model: Model, listen: str | None) -> int:
     """Runs a service until SIGTERM/SIGINT; returns the process exit code."""
     with stop_on_signals() as stop:
         host = ServiceHost(spec, config, model, listen)

@@ -8,5 +8,5 @@ OpenAI's POST /v1/audio/speech).
     voices     what a voice engine is, and the registry of engines
     piper      Piper VITS voices on onnxruntime
     model      all declared voices, loaded once: text -> audio sentence by sentence
-    servicer   the gRPC servicer; openai_api the HTTP route; service the ServiceSpec
+    servicer   the gRPC servicer; openai_api the HTTP route; service its ServiceParts
 """

@@ -6,13 +6,14 @@ from typing import Any
 
 import grpc
 
-from oricf.services.runtime import ModelSlot, ServiceSpec
+from oricf.services import SERVICES
+from oricf.services.runtime import ModelSlot, ServiceParts
 from oricf.services.tts.config import TtsConfig
 from oricf.services.tts.model import SynthesisModel
 from oricf.services.tts.servicer import SpeechSynthesizerServicer
 from oricf.services.tts.voices import build_voice
 from oricf.store import ModelStore
-from oricf.v1 import synthesis_pb2, synthesis_pb2_grpc
+from oricf.v1 import synthesis_pb2_grpc
 
 
 def create_model(config: TtsConfig, store: ModelStore) -> SynthesisModel:
@@ -32,9 +33,8 @@ def http_routes(slot: ModelSlot[SynthesisModel], config: TtsConfig) -> list[Any]
     return routes(slot, config)
 
 
-SPEC = ServiceSpec(
-    name="tts",
-    service_name=synthesis_pb2.DESCRIPTOR.services_by_name["SpeechSynthesizer"].full_name,
+PARTS = ServiceParts(
+    SERVICES["tts"],
     config_schema=TtsConfig,
     create_model=create_model,
     add_servicer=add_servicer,

@@ -12,8 +12,8 @@ from typing import Any
 
 import yaml
 
-from oricf.certs import make_certificates
 from oricf.config import REPO_ROOT
+from oricf.launch.certs import make_certificates
 
 KUBERNETES = REPO_ROOT / "compose" / "kubernetes"
 KUSTOMIZATIONS = ("services", "kserve")

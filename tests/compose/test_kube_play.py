@@ -25,8 +25,8 @@ import yaml
 from google.protobuf import json_format
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
-from oricf.certs import make_certificates
 from oricf.config import REPO_ROOT, config_dir
+from oricf.launch.certs import make_certificates
 from oricf.tls import ClientTls
 from oricf.v1 import (
     detector_pb2,

@@ -21,9 +21,9 @@ from typing import Any
 import cv2
 import pytest
 
-from oricf.certs import make_certificates
 from oricf.config import config_dir
 from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
+from oricf.launch.certs import make_certificates
 from oricf.launch.health import free_port
 from tests.support.data import video_frames
 from tests.support.services import running_service

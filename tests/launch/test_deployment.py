@@ -21,14 +21,14 @@ from oricf.launch.deployment import (
     service_config_path,
 )
 from oricf.launch.launcher import Launcher
-from oricf.services import REGISTRY, load_spec
+from oricf.services import SERVICES, load_spec
 from tests.launch.helpers import shipped_pipeline, write_deployment, write_overlay
 
 DEPLOYMENTS = sorted((config_dir() / "deployments").glob("*.yaml"))
 
 
 def test_service_names_are_the_registry() -> None:
-    assert set(typing.get_args(ServiceName)) == set(REGISTRY)
+    assert set(typing.get_args(ServiceName)) == set(SERVICES)
 
 
 @pytest.mark.parametrize("path", DEPLOYMENTS, ids=lambda p: p.name)
@@ -75,7 +75,7 @@ def test_shipped_robot_deployment_starts_what_its_placement_puts_onboard() -> No
 def test_shipped_local_deployment_is_everything_on_loopback() -> None:
     deployment = load_deployment(config_dir() / "deployments" / "local.yaml")
     # The services the reference pipeline calls; `models` (declared models) is opt-in.
-    assert set(deployment.services) == set(REGISTRY) - {"models"}
+    assert set(deployment.services) == set(SERVICES) - {"models"}
     assert deployment.gateway is not None
     assert all(s.listen and s.listen.startswith("127.0.0.1:")
                for s in deployment.services.values())

@@ -184,7 +184,7 @@ def test_unreachable_remote_service_fails_the_launch_in_time(tmp_path: Path) -> 
 def secured(tmp_path: Path) -> tuple[Path, dict[str, str]]:
     """configs/services/overlays/tls.yaml with certificates of this test (from `oricf
     certs`'s own function), and the client side: the deployment's `tls:`."""
-    from oricf.certs import make_certificates
+    from oricf.launch.certs import make_certificates
 
     certs = tmp_path / "certs"
     make_certificates(certs, ["localhost", "127.0.0.1"])

@@ -15,7 +15,7 @@ from onnx import TensorProto, helper, numpy_helper
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError
 from oricf.models.declaration import ModelDeclaration, load_declaration
-from oricf.services.models.model import DeclaredModel
+from oricf.models.declared import DeclaredModel
 from oricf.store import ModelStore
 from tests.support.data import video_frames
 

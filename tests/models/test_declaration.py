@@ -11,7 +11,7 @@ import yaml
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
-from oricf.services.models.model import DeclaredModel
+from oricf.models.declared import DeclaredModel
 from oricf.store import ModelStore
 
 YOLOX = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
@@ -183,7 +183,7 @@ def test_a_back_end_that_is_not_installed_is_refused_naming_the_extra(tmp_path: 
     path = declared(tmp_path, {"backend": {"engine": "openvino"}})
     script = ("import sys; sys.modules['openvino'] = None\n"  # as if it were not installed
               "from oricf.models.declaration import load_declaration\n"
-              "from oricf.services.models.model import DeclaredModel\n"
+              "from oricf.models.declared import DeclaredModel\n"
               "from oricf.store import ModelStore\n"
               f"DeclaredModel(load_declaration({str(path)!r}), ModelStore()).load()\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,

@@ -11,8 +11,8 @@ import pytest
 
 from oricf.config import REPO_ROOT
 from oricf.models.declaration import load_declaration
+from oricf.models.declared import DeclaredModel
 from oricf.models.heads import ClassificationHead, DetectionHead
-from oricf.services.models.model import DeclaredModel
 from oricf.store import ModelStore
 from tests.support.data import image, text_crops
 

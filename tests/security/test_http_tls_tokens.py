@@ -17,7 +17,7 @@ import openai
 import pytest
 
 from oricf.audio import encode_wav
-from oricf.certs import make_certificates
+from oricf.launch.certs import make_certificates
 from oricf.launch.health import wait_serving
 from oricf.tls import ClientTls
 from tests.support.certs import local_certificates

@@ -16,8 +16,8 @@ import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection_pb2, reflection_pb2_grpc
 
-from oricf.certs import make_certificates
 from oricf.gateway.values import Frame
+from oricf.launch.certs import make_certificates
 from oricf.launch.health import status
 from oricf.tls import ClientTls
 from oricf.v1 import detector_pb2, detector_pb2_grpc

@@ -14,9 +14,9 @@ import pytest
 from oricf.config import REPO_ROOT
 from oricf.imaging import encode_image
 from oricf.models.declaration import load_declaration
+from oricf.models.declared import DeclaredModel
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
-from oricf.services.models.model import DeclaredModel
 from oricf.store import ModelStore
 from tests.support.data import image
 from tests.support.services import running_service

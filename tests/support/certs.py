@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from oricf.certs import make_certificates
+from oricf.launch.certs import make_certificates
 
 
 def local_certificates(factory: pytest.TempPathFactory, token: str | None = None) -> Path:

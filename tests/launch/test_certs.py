@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from oricf.certs import make_certificates
 from oricf.errors import ConfigError
+from oricf.launch.certs import make_certificates
 
 PRIVATE = ("ca.key", "server.key", "client.key", "tokens")
 

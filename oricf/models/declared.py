@@ -1,10 +1,11 @@
 """A declared model, loaded: its session, its tensors, and its task's head.
 
-The model class of every declared-model service (`load()`, `infer()`, `infer_batch()`,
-`close()`, `info()`); it knows nothing of gRPC. Inputs and outputs may be renamed or
-reshaped by the declaration: callers use the declared names, the session the file's own. A
-dimension declared free (-1) that the file fixes is freed in the graph (onnxruntime); a
-freed batch must then give what its items give alone, or the model is refused.
+The model class of the services that serve declared models (the detector, `oricf serve
+models`): `load()`, `infer()`, `infer_batch()`, `close()`, `info()`; it knows nothing of
+gRPC. Inputs and outputs may be renamed or reshaped by the declaration: callers use the
+declared names, the session the file's own. A dimension declared free (-1) that the file
+fixes is freed in the graph (onnxruntime); a freed batch must then give what its items give
+alone, or the model is refused.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from oricf.errors import ConfigError, InvalidInput, NotReady
 from oricf.models.backends import Session, open_session
 from oricf.models.declaration import ModelDeclaration, TensorOverride
 from oricf.models.heads import DetectionHead, Detections, Head, Prepared, make_head
+from oricf.models.info import ModelInfo
 from oricf.models.tensors import DATATYPES, TensorSpec, clip
-from oricf.services.runtime.model import ModelInfo
 from oricf.store import ModelStore, sha256_of
 
 log = logging.getLogger(__name__)
