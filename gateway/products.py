@@ -4,7 +4,7 @@ One route writes a product (`outputs: - {product: people_count, max_age_s: 5}`);
 read it as context for a call, or run on each new value (`input: {product: ...}`). A value
 older than max_age_s is stale: readers see that, it is never passed off as current.
 As call context a product goes with its age, and stale values are left out or flagged
-(calls.py turns the readings into oricf.v1.Fact messages).
+(methods/generate.py's `fact` turns the readings into oricf.v1.Fact messages).
 """
 
 from __future__ import annotations

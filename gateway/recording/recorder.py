@@ -4,9 +4,9 @@
 
 Every message a topic route takes in, and every message a route sends to a topic, becomes
 one MCAP message on the channel of its topic (the full ROS name, e.g. /camera/image_raw),
-schema encoding `ros2msg` (the complete definition, msgdefs.py), message encoding `cdr`,
+schema encoding `ros2msg` (the complete definition, definitions.py), message encoding `cdr`,
 profile `ros2`: `ros2 bag info` and `ros2 bag play`, mcap-ros2-support and Foxglove read it,
-and `oricf gateway --replay` plays it back without ROS (sources/replay.py).
+and `oricf gateway --replay` plays it back without ROS (replay.py).
 
 Times, in nanoseconds since the epoch:
 - an input: log_time = when the gateway received it; publish_time = when its publisher sent

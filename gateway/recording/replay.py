@@ -7,7 +7,7 @@ The file is a rosbag2 recording (`ros2 bag record -s mcap`), or one the gateway 
 route's topic as a ROS name: camera/image_raw is /camera/image_raw) goes to that route, the
 rest are skipped. Camera frames are read by oricf.gateway.recording.cdr as the ROS node reads them;
 text, numbers and audio are decoded by mcap-ros2-support from the definition in the file
-(or the gateway's own, msgdefs.py, if the file has none).
+(or the gateway's own, definitions.py, if the file has none).
 
 A camera frame's time (values.FRAME_TIME, what the track step measures time by) is its
 header's stamp, when the camera took it, or the log time, when it was recorded, for a

@@ -1,9 +1,9 @@
-"""Topic messages <-> route values, without ROS: what the ROS node (through convert.py) and
-recordings (record.py, sources/replay.py) share.
+"""Topic messages <-> route values, without ROS: what the ROS node (through ros/messages.py)
+and recordings (recorder.py, replay.py) share.
 
 Camera frames are read from their serialized bytes (cdr.py); text, numbers and audio from
 the `data` field of a decoded message, rclpy's or mcap-ros2-support's alike. Output values
-are serialized for recordings by cdr.py, the same messages convert.to_message builds.
+are serialized for recordings by cdr.py, the same messages ros/messages.to_message builds.
 
 Audio convention: std_msgs/Int16MultiArray, one complete utterance per message, int16 PCM
 samples interleaved by channel; the sample rate and channel count come from the route's YAML
