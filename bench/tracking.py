@@ -27,7 +27,7 @@ import numpy as np
 import yaml
 
 from oricf.bench.common import print_table, shipped_detector_model
-from oricf.bench.local import local_service, service_config
+from oricf.services.local import local_service, service_config
 from oricf.config import REPO_ROOT
 from oricf.gateway.methods.detect import detections
 from oricf.gateway.post import PostStep, chain

@@ -16,7 +16,7 @@ import jsonschema
 import openai
 import pytest
 
-from oricf.bench.local import local_service, service_config
+from oricf.services.local import local_service, service_config
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 from tests.support.metrics import scrape
 from tests.support.openai_http import HttpService, client, health, http_service, overlay

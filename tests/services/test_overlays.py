@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from oricf.bench.local import local_service, service_config
+from oricf.services.local import local_service, service_config
 from oricf.config import config_dir
 from oricf.imaging import encode_image
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc

@@ -9,7 +9,7 @@ from typing import Any
 
 import grpc
 
-from oricf.bench.local import local_service, service_config
+from oricf.services.local import local_service, service_config
 from oricf.services.runtime import ServiceHost
 from oricf.store import ModelStore
 

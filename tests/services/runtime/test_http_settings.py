@@ -3,7 +3,7 @@
 import pytest
 from pydantic import ValidationError
 
-from oricf.bench.local import local_service, service_config
+from oricf.services.local import local_service, service_config
 from oricf.errors import ConfigError
 from oricf.services.runtime.config import HttpSettings, ServerSettings
 
