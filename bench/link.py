@@ -36,6 +36,7 @@ from oricf.config import deep_merge
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
+from oricf.hosts import Address
 from oricf.launch.health import free_port, wait_serving
 
 FPS = 10
@@ -86,9 +87,9 @@ def served(argv: list[str], address: str) -> Iterator[subprocess.Popen[bytes]]:
 @contextmanager
 def relayed(upstream: str, delay_s: float, jitter_s: float) -> Iterator[str]:
     """The address of a delay relay process to `upstream` until the block ends."""
-    host, _, port = upstream.rpartition(":")
-    process = subprocess.Popen([sys.executable, "-c", RELAY, host, port, str(delay_s),
-                                str(jitter_s)], stdout=subprocess.PIPE)
+    address = Address.parse(upstream)
+    process = subprocess.Popen([sys.executable, "-c", RELAY, address.host, str(address.port),
+                                str(delay_s), str(jitter_s)], stdout=subprocess.PIPE)
     output = process.stdout
     assert output is not None
     try:

@@ -26,6 +26,7 @@ from oricf.bench.cpusets import CpuSet
 from oricf.bench.netns import EdgeHost
 from oricf.bench.relay import DelayRelay
 from oricf.config import config_dir, read_yaml
+from oricf.hosts import Address
 from oricf.launch.health import free_port, wait_serving
 
 log = logging.getLogger(__name__)
@@ -107,8 +108,9 @@ class Robot:
         """The address through a delaying relay if the link has a delay."""
         if not self.link.get("delay_s"):
             return address
-        host, _, port = address.rpartition(":")
-        relay = DelayRelay((host, int(port)), self.link["delay_s"], self.link.get("jitter_s", 0))
+        upstream = Address.parse(address)
+        relay = DelayRelay((upstream.host, upstream.port), self.link["delay_s"],
+                           self.link.get("jitter_s", 0))
         stack.callback(relay.close)
         return relay.address
 
@@ -160,13 +162,13 @@ def write_pipelines(folder: Path, camera: str, channel: str, counts: Path) -> di
 
 
 def wait_listening(address: str, process: subprocess.Popen[Any], timeout: float = 60) -> None:
-    host, _, port = address.rpartition(":")
+    channel = Address.parse(address)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if process.poll() is not None:
             raise RuntimeError(f"the gateway exited with {process.returncode}")
         try:
-            socket.create_connection((host, int(port)), timeout=1).close()
+            socket.create_connection((channel.host, channel.port), timeout=1).close()
             return
         except OSError:
             time.sleep(0.2)
@@ -192,12 +194,12 @@ class Questions:
     the order asked, so the n-th line answers the n-th question."""
 
     def __init__(self, address: str, every: float) -> None:
-        host, _, port = address.rpartition(":")
+        channel = Address.parse(address)
         self.every = every
         self.asked: list[float] = []     # Unix times
         self.answered: list[float] = []
         self.first_answer = ""
-        self._sock = socket.create_connection((host, int(port)), timeout=10)
+        self._sock = socket.create_connection((channel.host, channel.port), timeout=10)
         self._sock.settimeout(None)
         self._first = threading.Event()
         self._stop = threading.Event()

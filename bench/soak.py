@@ -43,6 +43,7 @@ from oricf.bench.soak_report import (
 )
 from oricf.demo.main import DEFAULT_QUESTIONS, pick_deployment, view_url
 from oricf.demo.run import DemoOptions, Result, ask, launched, wait_connected
+from oricf.hosts import Address
 from oricf.launch.health import free_port
 from oricf.launch.launcher import Launcher, LaunchFailed
 from oricf.launch.progress import ProgressLine
@@ -161,11 +162,11 @@ def with_ros(launcher: Launcher, options: DemoOptions, speech: list[Any],
 
 def wait_listening(url: str) -> None:
     """Until the live view accepts connections (it opens as the gateway starts)."""
-    host, port = url.removeprefix("ws://").rsplit(":", 1)
+    view = Address.parse(url.removeprefix("ws://"))
     deadline = time.monotonic() + VIEW_TIMEOUT_S
     while True:
         try:
-            socket.create_connection((host, int(port)), timeout=1).close()
+            socket.create_connection((view.host, view.port), timeout=1).close()
             return
         except OSError:
             if time.monotonic() > deadline:

@@ -2,6 +2,7 @@
 
     channels:
       questions: {listen: 127.0.0.1:7000}      # + tls: {cert, key, client_ca}, auth: {file}
+                                               # (both required beyond loopback)
 
 A client connects (e.g. `nc 127.0.0.1 7000`, or `openssl s_client` with TLS), sends
 questions one per line (UTF-8) and receives the lines routes write to the channel: the
@@ -30,23 +31,23 @@ import ssl
 import threading
 from collections.abc import Callable
 
-from pydantic import Field, field_validator
+from pydantic import Field
 
-from oricf.config import Schema, check_address
 from oricf.gateway.text_clients import Client
-from oricf.tls import ServerTls, TokenSource, token_matches
+from oricf.hosts import Address, ListenAddress
+from oricf.tls import ListenerConfig, token_matches
 
 log = logging.getLogger(__name__)
 
 
-class ChannelConfig(Schema):
+class ChannelConfig(ListenerConfig):
     """A line-based text channel on a TCP port: clients send questions as lines and receive
     the outputs written to the channel. TLS (mTLS with client_ca) and bearer tokens as for
-    the services; with `auth`, a client's first line is `authorization: Bearer TOKEN`."""
+    the services; with `auth`, a client's first line is `authorization: Bearer TOKEN`.
+    Beyond loopback, tls and auth are both required (oricf.tls.check_exposure)."""
 
-    listen: str = Field(description="host:port; 127.0.0.1 keeps it on this machine")
-    tls: ServerTls | None = None
-    auth: TokenSource | None = None
+    listen: ListenAddress = Field(description="host:port; 127.0.0.1 keeps it on this machine "
+                                              "(port 0 picks a free one)")
     max_clients: int = Field(16, ge=1, le=1024, description="authenticated clients at once")
     max_pending: int = Field(
         32, ge=1, le=1024, description="connections yet to send their token (with `auth`)")
@@ -55,11 +56,6 @@ class ChannelConfig(Schema):
     idle_timeout_s: float | None = Field(
         300.0, gt=0, description="a client that sends nothing this long is closed; null: never")
     max_line_bytes: int = Field(4096, ge=16, le=1 << 20)
-
-    @field_validator("listen")
-    @classmethod
-    def _host_port(cls, value: str) -> str:
-        return check_address(value)
 
 
 OnLine = Callable[[str, Client], None]
@@ -88,27 +84,18 @@ class TextChannel:
 
     def _server_context(self) -> ssl.SSLContext | None:
         tls = self.config.tls
-        if tls is None:
-            return None
-        context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
-        context.minimum_version = ssl.TLSVersion.TLSv1_2
-        context.load_cert_chain(tls.cert, tls.key)
-        if tls.client_ca is not None:
-            context.verify_mode = ssl.CERT_REQUIRED
-            context.load_verify_locations(tls.client_ca)
-        return context
+        return tls.ssl_context(f"channels.{self.name}.tls") if tls else None
 
     def start(self) -> None:
         """Binds the port (raising OSError if it cannot) and serves clients."""
-        host, _, port = self.config.listen.rpartition(":")
+        listen = self.config.listen
         self._thread.start()
         future = asyncio.run_coroutine_threadsafe(asyncio.start_server(
-            self._serve, host.strip("[]"), int(port), ssl=self._tls,
+            self._serve, listen.host, listen.port, ssl=self._tls,
             limit=self.config.max_line_bytes + 1,
             ssl_handshake_timeout=HANDSHAKE_TIMEOUT_S if self._tls else None), self._loop)
         self._server = future.result(timeout=10)
-        host, port = self._server.sockets[0].getsockname()[:2]
-        self.address = f"{host}:{port}"
+        self.address = str(Address(*self._server.sockets[0].getsockname()[:2]))
         security = ("TLS" if self._tls else "plaintext") + (", tokens" if self._tokens else "")
         log.info("text channel %s: listening on %s (%s)", self.name, self.address, security)
 

@@ -71,14 +71,6 @@ FilePath = Annotated[Path, BeforeValidator(resolve_path)]
 T = TypeVar("T", bound=BaseModel)
 
 
-def check_address(value: str) -> str:
-    """A host:port network address (host may be a name, an IPv4 or a [bracketed] IPv6)."""
-    host, sep, port = value.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"'{value}' is not host:port with a port 1-65535")
-    return value
-
-
 def config_dir() -> Path:
     """Where the default configs live: $ORICF_CONFIG_DIR; else, running from a checkout, its
     configs/; else the copy a wheel installs inside the package (oricf/configs). Raises

@@ -24,7 +24,7 @@ import socket
 import ssl
 import threading
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 from wsgiref.simple_server import WSGIRequestHandler
 
 from prometheus_client import (
@@ -35,11 +35,11 @@ from prometheus_client import (
 )
 from prometheus_client.exposition import ThreadingWSGIServer
 from prometheus_client.process_collector import ProcessCollector
-from pydantic import Field, field_validator
+from pydantic import Field
 
-from oricf.config import Schema
 from oricf.errors import ConfigError
-from oricf.tls import ServerTls
+from oricf.hosts import Address, ListenAddress
+from oricf.tls import Exposure, Listener, ServerTls
 
 log = logging.getLogger(__name__)
 
@@ -49,15 +49,6 @@ LATENCY_BUCKETS_S = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10
 # A connection that neither completes its TLS handshake nor sends its request in this time
 # is closed (a scrape takes milliseconds).
 CONNECTION_TIMEOUT_S = 10.0
-
-
-def split_listen(value: str) -> tuple[str, int]:
-    """`host:port` (a bracketed IPv6 host allowed) -> (host, port); port 0 picks a free one."""
-    host, sep, port = value.rpartition(":")
-    host = host.strip("[]")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) < 65536:
-        raise ValueError(f"'{value}' is not host:port with a port 0-65535")
-    return host, int(port)
 
 
 def new_registry() -> CollectorRegistry:
@@ -72,17 +63,13 @@ def new_registry() -> CollectorRegistry:
     return registry
 
 
-class MetricsConfig(Schema):
-    listen: str = Field(description="host:port of the /metrics endpoint (127.0.0.1: this "
-                                    "machine only; port 0 picks a free port)")
-    tls: ServerTls | None = Field(
-        None, description="serve HTTPS (client certificates required with client_ca)")
+class MetricsConfig(Listener):
+    """Open to any address (Exposure.OPEN): a scrape is counts, no secrets; compose and
+    Kubernetes scrape the services across their networks."""
 
-    @field_validator("listen")
-    @classmethod
-    def _host_port(cls, value: str) -> str:
-        split_listen(value)
-        return value
+    listen: ListenAddress = Field(description="host:port of the /metrics endpoint (127.0.0.1: "
+                                              "this machine only; port 0 picks a free port)")
+    exposure: ClassVar[Exposure] = Exposure.OPEN
 
 
 class _Handler(WSGIRequestHandler):
@@ -120,17 +107,16 @@ class MetricsServer:
     """Serves a registry at /metrics until closed."""
 
     def __init__(self, config: MetricsConfig, registry: CollectorRegistry) -> None:
-        host, port = split_listen(config.listen)
         context = _ssl_context(config.tls) if config.tls else None
         try:
-            self._server = _Server((host, port), context)
+            self._server = _Server((config.listen.host, config.listen.port), context)
         except OSError as exc:
             raise ConfigError(f"metrics: cannot listen on {config.listen}: "
                               f"{exc.strerror or exc}") from None
         self._server.set_app(make_wsgi_app(registry))
         self.port: int = self._server.server_address[1]
-        self.url = f"{'https' if context else 'http'}://{config.listen.rpartition(':')[0]}:" \
-                   f"{self.port}/metrics"
+        bound = Address(config.listen.host, self.port)
+        self.url = f"{'https' if context else 'http'}://{bound}/metrics"
         self._thread = threading.Thread(target=self._server.serve_forever, daemon=True,
                                         name="metrics-http")
         self._thread.start()

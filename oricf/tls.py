@@ -8,13 +8,17 @@ import hmac
 import os
 import ssl
 from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
+from typing import ClassVar
 
 import grpc
 from pydantic import Field, model_validator
 
 from oricf.config import FilePath, Schema
 from oricf.errors import ConfigError
+from oricf.hosts import Address, ListenTarget, UnixSocket
 
 
 def _read(path: Path, what: str) -> bytes:
@@ -117,3 +121,74 @@ def open_channel(address: str, tls: ClientTls | None,
     if tls is None:
         return grpc.insecure_channel(address, options=list(options))
     return tls.channel(address, list(options))
+
+
+class Exposure(Enum):
+    """What a listener asks of a client beyond the address it listens on."""
+
+    # Beyond loopback, TLS and bearer tokens; on loopback, whatever is configured.
+    SECURED = "secured"
+    # As SECURED, and bearer tokens on every TCP address, loopback included: any local user
+    # could otherwise use it (the control API drives the robot's agent targets).
+    TOKENS_ON_TCP = "tokens on tcp"
+    # Any address, TLS optional: what it serves is no secret (metrics are counts, scraped
+    # across the network by compose and Kubernetes).
+    OPEN = "open"
+
+
+@dataclass(frozen=True)
+class ListenerKeys:
+    """How a listener's settings are named where the user gives them (YAML keys or flags)."""
+
+    listen: str = "listen"
+    tls: str = "tls"
+    auth: str = "auth"
+
+
+def check_exposure(listen: Address | UnixSocket, *, tls: bool, tokens: bool,
+                   exposure: Exposure, keys: ListenerKeys = ListenerKeys()) -> None:
+    """The one rule for every listener: whatever is reachable from other machines needs TLS
+    and bearer tokens. A Unix socket and a loopback address are this machine only.
+    ValueError naming the keys to set otherwise."""
+    if exposure is Exposure.OPEN or isinstance(listen, UnixSocket):
+        return
+    if not listen.is_loopback and not (tls and tokens):
+        raise ValueError(f"{keys.listen} {listen} is reachable from other machines: it needs "
+                         f"{keys.auth} and {keys.tls}; set both {keys.tls} and {keys.auth}, "
+                         f"or listen on 127.0.0.1")
+    if exposure is Exposure.TOKENS_ON_TCP and not tokens:
+        raise ValueError(f"{keys.listen} {listen}: a TCP address needs {keys.auth} (bearer "
+                         f"tokens): any local user could otherwise use it")
+
+
+class Listener(Schema):
+    """Where a server listens and its TLS, checked against its exposure (check_exposure).
+    A subclass narrows `listen` (most take host:port only) and gives its default."""
+
+    listen: ListenTarget
+    tls: ServerTls | None = Field(None, description="serve TLS (client certificates required "
+                                                    "with client_ca)")
+    exposure: ClassVar[Exposure] = Exposure.SECURED
+    keys: ClassVar[ListenerKeys] = ListenerKeys()
+
+    @property
+    def token_source(self) -> TokenSource | None:
+        return None
+
+    @model_validator(mode="after")
+    def _exposure(self) -> Listener:
+        check_exposure(self.listen, tls=self.tls is not None,
+                       tokens=self.token_source is not None, exposure=self.exposure,
+                       keys=self.keys)
+        return self
+
+
+class ListenerConfig(Listener):
+    """A listener with bearer tokens: the live view, the control API, MCP over HTTP, and
+    the text channels."""
+
+    auth: TokenSource | None = Field(None, description="bearer tokens")
+
+    @property
+    def token_source(self) -> TokenSource | None:
+        return self.auth

@@ -1,23 +1,25 @@
 """MCP over streamable HTTP (the SDK's Starlette app on uvicorn): loopback by default;
-bearer tokens and TLS, both required for any other address; a cap on request bodies; the
-SDK's DNS-rebinding protection on loopback; a deadline for request headers and room for a
-client that asks when every connection is taken (oricf.http_connections)."""
+bearer tokens and TLS, both required for any other address (oricf.tls.check_exposure); a
+cap on request bodies; the SDK's DNS-rebinding protection on loopback; a deadline for
+request headers and room for a client that asks when every connection is taken
+(oricf.http_connections)."""
 
 from __future__ import annotations
 
 import argparse
 import logging
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from mcp.server.mcpserver import MCPServer
+from pydantic import ValidationError
+from pydantic_core import ErrorDetails
 
 from oricf.errors import ConfigError
 from oricf.gateway.control.server import BearerTokens
-from oricf.hosts import is_loopback
+from oricf.hosts import ListenAddress
 from oricf.http_connections import guarded_h11
-from oricf.metrics import split_listen
-from oricf.tls import ServerTls, TokenSource
+from oricf.tls import ListenerConfig, ListenerKeys, ServerTls
 
 log = logging.getLogger(__name__)
 
@@ -26,6 +28,34 @@ MAX_CONNECTIONS = 64
 # A connection whose request headers are not complete this long after it opened (or after
 # its last answer) is closed: no client needs long to send a few hundred bytes of headers.
 HEADER_TIMEOUT_S = 10.0
+
+
+class McpListener(ListenerConfig):
+    """MCP's listener, given as flags (oricf.tls.check_exposure names them)."""
+
+    listen: ListenAddress
+    keys: ClassVar[ListenerKeys] = ListenerKeys(
+        listen="--listen", tls="--tls-cert/--tls-key", auth="--auth-token-file")
+
+    @classmethod
+    def from_flags(cls, args: argparse.Namespace) -> McpListener:
+        try:
+            return cls.model_validate({
+                "listen": args.listen,
+                "tls": {"cert": args.tls_cert, "key": args.tls_key} if args.tls_cert else None,
+                "auth": {"file": args.auth_token_file} if args.auth_token_file else None})
+        except ValidationError as exc:
+            raise ConfigError("\n".join(cls._flag_message(e) for e in exc.errors())) from None
+
+    @classmethod
+    def _flag_message(cls, error: ErrorDetails) -> str:
+        """A schema error as the command line says it (`--listen: ...`); the exposure rule's
+        own message names its flags already."""
+        message = str(error["msg"]).removeprefix("Value error, ")
+        if not error["loc"]:
+            return message
+        flags = {"listen": cls.keys.listen, "tls": cls.keys.tls, "auth": cls.keys.auth}
+        return f"{flags.get(str(error['loc'][0]), error['loc'][0])}: {message}"
 
 
 @dataclass(frozen=True)
@@ -38,21 +68,15 @@ class HttpSettings:
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> HttpSettings:
-        try:
-            host, port = split_listen(args.listen)
-        except ValueError as exc:
-            raise ConfigError(f"--listen: {exc}") from None
-        tokens = (tuple(t.encode() for t in TokenSource(file=args.auth_token_file).tokens())
-                  if args.auth_token_file else ())
         if (args.tls_cert is None) != (args.tls_key is None):
             raise ConfigError("--tls-cert and --tls-key go together")
-        tls = ServerTls(cert=args.tls_cert, key=args.tls_key) if args.tls_cert else None
-        if not is_loopback(host) and not (tokens and tls):
-            raise ConfigError(f"--listen {args.listen}: beyond this machine, MCP needs "
-                              f"--auth-token-file and --tls-cert/--tls-key")
+        listener = McpListener.from_flags(args)
+        tokens = (tuple(t.encode() for t in listener.auth.tokens())
+                  if listener.auth else ())
         if not 1024 <= args.max_request_bytes <= 256 * 1024 * 1024:
             raise ConfigError("--max-request-bytes: from 1024 to 268435456")
-        return cls(host, port, tokens, tls, args.max_request_bytes)
+        return cls(listener.listen.host, listener.listen.port, tokens, listener.tls,
+                   args.max_request_bytes)
 
 
 def http_app(app: MCPServer, settings: HttpSettings) -> Any:

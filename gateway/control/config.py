@@ -3,25 +3,27 @@
     control:
       listen: unix:/run/oricf/control.sock   # or 127.0.0.1:7100 (loopback by default)
       auth: {file: control.tokens}           # bearer tokens; required on TCP
-      tls: {cert: gw.pem, key: gw.key}       # for an address beyond this machine
+      tls: {cert: gw.pem, key: gw.key}       # required beyond this machine
       approvers: {file: approver.tokens}     # the MCP servers that relay a person's approval
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import ClassVar
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field
 
-from oricf.config import Schema
-from oricf.metrics import split_listen
-from oricf.tls import ServerTls, TokenSource
-
-UNIX = "unix:"
+from oricf.hosts import Address, ListenTarget, UnixSocket
+from oricf.tls import Exposure, ListenerConfig, ServerTls, TokenSource
 
 
-class ControlConfig(Schema):
-    listen: str = Field("127.0.0.1:7100", description="host:port, or unix:PATH")
+class ControlConfig(ListenerConfig):
+    """Bearer tokens on every TCP address, TLS beyond loopback too (oricf.tls.check_exposure);
+    a Unix socket is this user's only (mode 0600)."""
+
+    listen: ListenTarget = Field(Address("127.0.0.1", 7100),
+                                 description="host:port, or unix:PATH")
     auth: TokenSource | None = Field(None, description="bearer tokens (required on TCP)")
     tls: ServerTls | None = None
     approvers: TokenSource | None = Field(
@@ -39,24 +41,8 @@ class ControlConfig(Schema):
     body_timeout_s: float = Field(
         30.0, gt=0, le=3600, description="a request body not complete this long after its "
                                          "headers is answered 408")
-
-    @field_validator("listen")
-    @classmethod
-    def _address(cls, value: str) -> str:
-        if value.startswith(UNIX):
-            if not value[len(UNIX):]:
-                raise ValueError("unix: needs a path")
-        else:
-            split_listen(value)
-        return value
-
-    @model_validator(mode="after")
-    def _token_on_tcp(self) -> ControlConfig:
-        if self.socket_path is None and self.auth is None:
-            raise ValueError("a TCP listen address needs auth (bearer tokens): any local "
-                             "user could otherwise drive the robot's agent targets")
-        return self
+    exposure: ClassVar[Exposure] = Exposure.TOKENS_ON_TCP
 
     @property
     def socket_path(self) -> Path | None:
-        return Path(self.listen[len(UNIX):]) if self.listen.startswith(UNIX) else None
+        return self.listen.path if isinstance(self.listen, UnixSocket) else None

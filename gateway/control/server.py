@@ -41,8 +41,8 @@ from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.api import Gateway, Json
 from oricf.gateway.control.config import ControlConfig
+from oricf.hosts import Address
 from oricf.http_connections import guarded_h11
-from oricf.metrics import split_listen
 from oricf.tls import token_matches
 
 log = logging.getLogger(__name__)
@@ -212,8 +212,9 @@ class ControlServer:
         self._thread: threading.Thread | None = None
 
     def _socket(self) -> socket.socket:
-        path = self.config.socket_path
-        if path is not None:
+        listen = self.config.listen
+        if not isinstance(listen, Address):
+            path = listen.path
             if path.is_socket():
                 path.unlink()  # left by a gateway that did not stop cleanly
             sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -222,16 +223,15 @@ class ControlServer:
                 sock.bind(str(path))
             finally:
                 os.umask(old)
-            self.address = f"unix:{path}"
+            self.address = str(listen)
             return sock
-        host, port = split_listen(self.config.listen)
-        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        family = socket.AF_INET6 if ":" in listen.host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind((host.strip("[]"), port))
+        sock.bind((listen.host, listen.port))
         scheme = "https" if self.config.tls else "http"
-        shown = f"[{host}]" if ":" in host else host  # an IPv6 address in a URL
-        self.address = f"{scheme}://{shown}:{sock.getsockname()[1]}"
+        bound = Address(listen.host, sock.getsockname()[1])  # an IPv6 host in brackets
+        self.address = f"{scheme}://{bound}"
         return sock
 
     def _app(self) -> ASGIApp:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import ipaddress
 import json
 
-from oricf.config import check_address
+from oricf.hosts import Address
 
 SCHEMES = ("dns:", "ipv4:", "ipv6:")
 # The ORICF services take up to 16 MB per message; gRPC keeps a request for a retry only
@@ -40,14 +40,12 @@ FORMS = ("host:port, dns:///host:port, ipv4:IP:PORT,IP:PORT,... or "
 
 
 def _literal(address: str, version: int) -> str:
-    check_address(address)
-    host = address.rpartition(":")[0]
-    if version == 6:
-        if not (host.startswith("[") and host.endswith("]")):
-            raise ValueError(f"'{address}': an ipv6: address is [IP]:PORT")
-        host = host[1:-1]
+    host = Address.parse(address).host
+    bracketed = address.startswith("[")  # gRPC reads an IPv6 literal only in brackets
+    if version == 6 and not bracketed:
+        raise ValueError(f"'{address}': an ipv6: address is [IP]:PORT")
     try:
-        if ipaddress.ip_address(host).version == version:
+        if ipaddress.ip_address(host).version == version and bracketed == (version == 6):
             return address
     except ValueError:
         pass
@@ -61,11 +59,12 @@ def check_target(value: str) -> str:
     if not value.startswith(SCHEMES):
         if "://" in value:
             raise ValueError(f"'{value}': the scheme '{scheme}' is not one of {FORMS}")
-        return check_address(value)
+        Address.parse(value)
+        return value
     if scheme == "dns":
         # dns:host:port, dns:///host:port, or dns://DNS-SERVER/host:port
         name = rest.split("/", 3)[3] if rest.startswith("//") and rest.count("/") >= 3 else rest
-        check_address(name)
+        Address.parse(name)
         return value
     addresses = rest.split(",")
     for address in addresses:

@@ -10,18 +10,18 @@
 
 from __future__ import annotations
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field
 
-from oricf.config import Schema
-from oricf.hosts import is_loopback
-from oricf.metrics import split_listen
-from oricf.tls import ServerTls, TokenSource
+from oricf.hosts import Address, ListenAddress
+from oricf.tls import ListenerConfig, ServerTls, TokenSource
 
 
-class LiveViewConfig(Schema):
-    """The live view's listener and its limits."""
+class LiveViewConfig(ListenerConfig):
+    """The live view's listener and its limits; beyond loopback, tls and auth are both
+    required (oricf.tls.check_exposure)."""
 
-    listen: str = Field("127.0.0.1:8765", description="host:port (port 0 picks a free one)")
+    listen: ListenAddress = Field(Address("127.0.0.1", 8765),
+                                  description="host:port (port 0 picks a free one)")
     max_fps: float = Field(5.0, gt=0, le=60, description="frames sent per camera route per "
                                                          "second at most")
     jpeg_quality: int = Field(75, ge=10, le=100, description="raw frames encoded for the view")
@@ -34,17 +34,3 @@ class LiveViewConfig(Schema):
     backlog: int = Field(
         64, ge=4, le=4096, description="messages queued per viewer; a slow viewer loses the "
                                        "oldest frames beyond it")
-
-    @field_validator("listen")
-    @classmethod
-    def _host_port(cls, value: str) -> str:
-        split_listen(value)
-        return value
-
-    @model_validator(mode="after")
-    def _secure_beyond_loopback(self) -> LiveViewConfig:
-        host, _ = split_listen(self.listen)
-        if not is_loopback(host) and (self.tls is None or self.auth is None):
-            raise ValueError(f"listen: {self.listen} is reachable from other machines: set "
-                             f"both tls and auth, or listen on 127.0.0.1")
-        return self

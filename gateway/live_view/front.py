@@ -36,7 +36,6 @@ from websockets.typing import Subprotocol
 from oricf.errors import ConfigError
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.throttle import ThrottledLog
-from oricf.metrics import split_listen
 from oricf.tls import token_matches
 
 log = logging.getLogger(__name__)
@@ -64,7 +63,7 @@ CLIENT_MESSAGE_DATA = 0x01
 class Front:
     def __init__(self, config: LiveViewConfig, sdk_port: int) -> None:
         self.config = config
-        self.host, self.port = split_listen(config.listen)
+        self.host, self.port = config.listen.host, config.listen.port
         self._sdk_url = f"ws://127.0.0.1:{sdk_port}"
         self._tokens = [t.encode() for t in config.auth.tokens()] if config.auth else []
         self._ssl = config.tls.ssl_context("foxglove.tls") if config.tls else None

@@ -17,8 +17,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
-from oricf.config import FilePath, Schema, check_address, load_config
+from oricf.config import FilePath, Schema, load_config
 from oricf.errors import ConfigError
+from oricf.hosts import Address
 from oricf.services import SERVICES, load_spec
 from oricf.tls import ClientTls
 
@@ -48,7 +49,9 @@ class LocalService(Schema):
     @field_validator("listen")
     @classmethod
     def _listen(cls, value: str | None) -> str | None:
-        return value if value is None else check_address(value)
+        if value is not None:
+            Address.parse(value)
+        return value
 
 
 class Gateway(Schema):
@@ -122,10 +125,7 @@ def load_deployment(path: Path | str) -> Deployment:
 
 def connect_address(listen: str) -> str:
     """Where a client on this machine reaches a server listening on `listen`."""
-    host, _, port = listen.rpartition(":")
-    if host in ("0.0.0.0", "[::]", "::", ""):
-        host = "127.0.0.1"
-    return f"{host}:{port}"
+    return str(Address.parse(listen, any_port=True).reached_here())
 
 
 def service_config_path(name: str, entry: LocalService) -> Path:
@@ -137,8 +137,11 @@ def service_plan(name: str, entry: LocalService, deployment: Deployment) -> Proc
     path = service_config_path(name, entry)
     config = load_config(path, load_spec(name).config_schema, entry.overlays)
     listen = entry.listen or config.server.listen
-    port = listen.rpartition(":")[2]
-    if port == "0":
+    try:
+        port = Address.parse(listen, any_port=True).port
+    except ValueError as exc:
+        raise ConfigError(f"{path}: server.listen: {exc}") from None
+    if port == 0:
         raise ConfigError(f"{path}: server.listen: port 0 cannot be used in a deployment")
     argv = [sys.executable, "-m", "oricf", "serve", name, "--config", str(path)]
     for overlay in entry.overlays:

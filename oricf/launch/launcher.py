@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from oricf.hosts import Address
 from oricf.launch import health
 from oricf.launch.deployment import Deployment, ProcessPlan, gateway_plan, service_plan
 from oricf.launch.process import LineSink, ManagedProcess, describe_exit, restart, wants_restart
@@ -188,9 +189,9 @@ def _refuse_ports_in_use(plans: list[ProcessPlan]) -> None:
     for plan in plans:
         if not plan.health:
             continue
-        host, _, port = plan.health.rpartition(":")
+        address = Address.parse(plan.health)
         try:
-            with socket.create_connection((host.strip("[]"), int(port)), timeout=0.5):
+            with socket.create_connection((address.host, address.port), timeout=0.5):
                 pass
         except OSError:
             continue

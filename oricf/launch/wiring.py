@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from oricf.errors import ConfigError
-from oricf.hosts import host_of, is_loopback_address
+from oricf.hosts import Address, host_of, is_loopback_address
 from oricf.launch.deployment import Deployment
 
 if TYPE_CHECKING:
@@ -116,5 +116,5 @@ def edge_host_endpoints(deployment: Deployment, host: str) -> dict[str, dict[str
         for slot, target in endpoint.targets.items():
             value = target.address
             if target.protocol == "grpc" and not is_loopback_address(value):
-                moved.setdefault(name, {})[slot] = f"{host}:{value.rpartition(':')[2]}"
+                moved.setdefault(name, {})[slot] = f"{host}:{Address.parse(value).port}"
     return moved

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pydantic import Field, field_validator
 
 from oricf.config import Schema
-from oricf.metrics import MetricsConfig, split_listen
+from oricf.hosts import Address
+from oricf.metrics import MetricsConfig
 from oricf.tls import ServerTls, TokenSource
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
@@ -38,7 +39,7 @@ class HttpSettings(Schema):
         if isinstance(value, int) or (isinstance(value, str) and value.isdigit()):
             value = f"127.0.0.1:{value}"  # loopback unless a host is named
         if isinstance(value, str):
-            split_listen(value)
+            Address.parse(value, any_port=True)
         return value
 
     @property

@@ -31,8 +31,8 @@ import h11
 import uvicorn
 
 from oricf.errors import ConfigError
+from oricf.hosts import Address
 from oricf.http_connections import GuardedH11Protocol, guarded_h11
-from oricf.metrics import split_listen
 from oricf.services.runtime.config import HttpSettings
 from oricf.tls import ServerTls
 
@@ -118,7 +118,8 @@ class LingeringH11Protocol(GuardedH11Protocol):
 
 
 def _bind(listen: str) -> socket.socket:
-    host, port = split_listen(listen)
+    address = Address.parse(listen, any_port=True)
+    host, port = address.host, address.port
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
