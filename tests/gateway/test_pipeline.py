@@ -15,7 +15,7 @@ from oricf.gateway.sinks import Outlets
 from oricf.gateway.values import Frame, Record
 from tests.support.data import video_frames
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService, running_service
 
 FRAMES = [0, 400, 440]
 
@@ -68,9 +68,8 @@ def test_the_routes_see_the_speaking_state_of_the_outlets_that_play_speech() -> 
         outlets.close()
 
 
-def test_route_calls_post_processes_and_sends() -> None:
-    with running_service("detector") as detector:
-        pipeline, outputs = run_frames(pipeline_config(detector.address), FRAMES)
+def test_route_calls_post_processes_and_sends(detector: RunningService) -> None:
+    pipeline, outputs = run_frames(pipeline_config(detector.address), FRAMES)
     # frame 0: four detections, one of them (the post) under 0.5 after filtering
     assert outputs.sent[:2] == [("/human_counter", 4), ("/summary", "4 people in view")]
     counts = [v for topic, v in outputs.sent if topic == "/human_counter"]
@@ -79,11 +78,10 @@ def test_route_calls_post_processes_and_sends() -> None:
     assert reading is not None and reading.value == counts[-1] and not reading.stale
 
 
-def test_jpeg_transport_counts_like_raw() -> None:
+def test_jpeg_transport_counts_like_raw(detector: RunningService) -> None:
     jpeg = {"endpoints": {"detector": {"image": {"transport": "jpeg", "jpeg_quality": 85}}}}
-    with running_service("detector") as detector:
-        _, raw_out = run_frames(pipeline_config(detector.address), FRAMES)
-        _, jpeg_out = run_frames(pipeline_config(detector.address, jpeg), FRAMES)
+    _, raw_out = run_frames(pipeline_config(detector.address), FRAMES)
+    _, jpeg_out = run_frames(pipeline_config(detector.address, jpeg), FRAMES)
     raw_counts = [v for t, v in raw_out.sent if t == "/human_counter"]
     jpeg_counts = [v for t, v in jpeg_out.sent if t == "/human_counter"]
     assert all(abs(a - b) <= 1 for a, b in zip(raw_counts, jpeg_counts, strict=True))

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -18,7 +17,7 @@ from oricf.gateway.values import Frame, Record
 from oricf.services.llm.domain import Fact, GenerationRequest, StillWanted
 from oricf.v1 import common_pb2
 from tests.support.data import video_frames
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 
 class Clock:
@@ -126,9 +125,9 @@ QUESTION = "How many people do you see?"
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[tuple[RunningService, RunningService]]:
-    with running_service("detector") as detector, running_service("llm") as llm:
-        yield detector, llm
+def services(detector: RunningService, llm: RunningService
+             ) -> tuple[RunningService, RunningService]:
+    return detector, llm
 
 
 class Answers:

@@ -8,14 +8,14 @@ import pytest
 
 from oricf.launch import health
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService, running_service
 
 
-def test_probe_says_serving_for_a_loaded_service(capsys: pytest.CaptureFixture[str]) -> None:
-    with running_service("detector") as service:
-        assert health.main([service.address]) == 0
-        assert health.main([service.address, "--service", "oricf.v1.Detector"]) == 0
-    assert f"{service.address}: SERVING" in capsys.readouterr().out
+def test_probe_says_serving_for_a_loaded_service(capsys: pytest.CaptureFixture[str],
+                                                 detector: RunningService) -> None:
+    assert health.main([detector.address]) == 0
+    assert health.main([detector.address, "--service", "oricf.v1.Detector"]) == 0
+    assert f"{detector.address}: SERVING" in capsys.readouterr().out
 
 
 def test_probe_fails_while_the_model_loads(capsys: pytest.CaptureFixture[str]) -> None:

@@ -2,20 +2,11 @@
 
 import base64
 import json
-from collections.abc import Iterator
-
-import pytest
 
 from oricf.audio import encode_wav
 from tests.support.grpcurl import grpcurl
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
-
-
-@pytest.fixture(scope="module")
-def asr() -> Iterator[RunningService]:
-    with running_service("asr") as service:
-        yield service
 
 
 def test_list_shows_the_service(asr: RunningService) -> None:

@@ -33,12 +33,6 @@ def chunks(samples: np.ndarray, rate: int = 16000, channels: int = 1,
         yield speech_pb2.TranscribeStreamRequest(audio=audio)
 
 
-@pytest.fixture(scope="module")
-def asr() -> Iterator[RunningService]:
-    with running_service("asr") as service:
-        yield service
-
-
 @pytest.fixture
 def stub(asr: RunningService) -> speech_pb2_grpc.SpeechRecognizerStub:
     return speech_pb2_grpc.SpeechRecognizerStub(asr.channel)

@@ -3,7 +3,6 @@
 import queue
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -16,13 +15,7 @@ from oricf.services.detector.config import DetectorConfig
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image, video_frames
 from tests.support.detections import count
-from tests.support.services import RunningService, running_service
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
-    with running_service("detector") as service:
-        yield service
+from tests.support.services import RunningService
 
 
 @pytest.fixture

@@ -2,19 +2,10 @@
 
 import base64
 import json
-from collections.abc import Iterator
-
-import pytest
 
 from tests.support.data import image
 from tests.support.grpcurl import grpcurl
-from tests.support.services import RunningService, running_service
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
-    with running_service("detector") as service:
-        yield service
+from tests.support.services import RunningService
 
 
 def test_list_shows_the_services(detector: RunningService) -> None:
@@ -44,20 +35,20 @@ def test_health_check(detector: RunningService) -> None:
     assert answer["status"] == "SERVING"
 
 
-def test_declared_models_answer_grpcurl_over_the_open_inference_protocol() -> None:
-    with running_service("models") as models:
-        assert "inference.GRPCInferenceService" in grpcurl(models.address, "list").split()
-        meta = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelMetadata",
-                                  data='{"name": "yolox-nano"}'))
-        # The declaration frees the batch dimension (so the service can batch): -1.
-        assert meta["inputs"] == [{"name": "images", "datatype": "FP32",
-                                   "shape": ["-1", "3", "416", "416"]}]
-        # An encoded photo as one BYTES element: the server pre-processes it.
-        body = json.dumps({"model_name": "yolox-nano", "inputs": [{
-            "name": "images", "datatype": "BYTES", "shape": [1],
-            "contents": {"bytes_contents": [
-                base64.b64encode(image("person.jpg").read_bytes()).decode()]}}]})
-        answer = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelInfer",
-                                    data=body))
-        assert answer["outputs"][0]["shape"] == ["1", "3549", "85"]
-        assert len(base64.b64decode(answer["raw_output_contents"][0])) == 3549 * 85 * 4
+def test_declared_models_answer_grpcurl_over_the_open_inference_protocol(
+        models: RunningService) -> None:
+    assert "inference.GRPCInferenceService" in grpcurl(models.address, "list").split()
+    meta = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelMetadata",
+                              data='{"name": "yolox-nano"}'))
+    # The declaration frees the batch dimension (so the service can batch): -1.
+    assert meta["inputs"] == [{"name": "images", "datatype": "FP32",
+                               "shape": ["-1", "3", "416", "416"]}]
+    # An encoded photo as one BYTES element: the server pre-processes it.
+    body = json.dumps({"model_name": "yolox-nano", "inputs": [{
+        "name": "images", "datatype": "BYTES", "shape": [1],
+        "contents": {"bytes_contents": [
+            base64.b64encode(image("person.jpg").read_bytes()).decode()]}}]})
+    answer = json.loads(grpcurl(models.address, "inference.GRPCInferenceService/ModelInfer",
+                                data=body))
+    assert answer["outputs"][0]["shape"] == ["1", "3549", "85"]
+    assert len(base64.b64decode(answer["raw_output_contents"][0])) == 3549 * 85 * 4

@@ -5,7 +5,7 @@ progressive scans, and decoding that outlasts the caller's deadline."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -22,7 +22,7 @@ from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
 from tests.support.detections import count
 from tests.support.jpegs import progressive, slow_to_decode, with_orientation, with_repeated_scans
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 PERSON = image("person.jpg")  # 640x424, one person
 
@@ -31,18 +31,6 @@ def person_pixels() -> np.ndarray:
     pixels = cv2.imread(str(PERSON))
     assert pixels is not None
     return pixels
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
-    with running_service("detector") as service:
-        yield service
-
-
-@pytest.fixture(scope="module")
-def models() -> Iterator[RunningService]:
-    with running_service("models") as service:
-        yield service
 
 
 def detect(service: RunningService, data: bytes, timeout: float = 30

@@ -19,12 +19,6 @@ from tests.support.services import RunningService, running_service
 DEADLINE_S = 30
 
 
-@pytest.fixture(scope="module")
-def llm() -> Iterator[RunningService]:
-    with running_service("llm") as service:
-        yield service
-
-
 @pytest.fixture
 def stub(llm: RunningService) -> language_pb2_grpc.LanguageModelStub:
     return language_pb2_grpc.LanguageModelStub(llm.channel)

@@ -27,9 +27,9 @@ WAIT_S = 60
 
 
 @pytest.fixture(scope="module")
-def unbatched() -> Iterator[RunningService]:
-    with running_service("models") as service:
-        yield service
+def unbatched(models: RunningService) -> RunningService:
+    """The session's models service: its shipped settings batch nothing."""
+    return models
 
 
 @pytest.fixture(scope="module")

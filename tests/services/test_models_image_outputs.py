@@ -19,16 +19,15 @@ from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.store import ModelStore
 from tests.support.data import image
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 YOLOX = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
 DECODED = {"output": {"decoded": True}}
 
 
 @pytest.fixture(scope="module")
-def stub() -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
-    with running_service("models") as models:
-        yield oip_grpc.GRPCInferenceServiceStub(models.channel)
+def stub(models: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
+    return oip_grpc.GRPCInferenceServiceStub(models.channel)
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ or typed, get INVALID_ARGUMENT naming the input, with one log line and no traceb
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
 
 import grpc
 import numpy as np
@@ -13,13 +12,12 @@ import pytest
 from oricf.models.wire import infer_request
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 
 @pytest.fixture(scope="module")
-def stub() -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
-    with running_service("models") as service:
-        yield oip_grpc.GRPCInferenceServiceStub(service.channel)
+def stub(models: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
+    return oip_grpc.GRPCInferenceServiceStub(models.channel)
 
 
 def raw(model: str, name: str, shape: list[int], data: bytes) -> oip.ModelInferRequest:

@@ -18,7 +18,7 @@ from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames
 from tests.support.detections import count
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService, running_service
 
 DETECTOR = METHODS["Detect"]
 
@@ -139,17 +139,17 @@ def test_a_primary_is_returned_to_once_serving_and_not_before(
 
 
 def test_deadline_exceeded_fails_over(hung_address: str, request_0: detector_pb2.DetectRequest,
-                                      caplog: pytest.LogCaptureFixture) -> None:
-    with running_service("detector") as fallback:
-        ep = endpoint(hung_address, fallback.address, deadline_ms=300)
-        started = time.monotonic()
-        assert count(ep.call("Detect", request_0)) == 4
-        # The hung primary had its whole deadline (no earlier give-up); how long a
-        # failover takes is `oricf bench link`'s figure (the longest gap between counts).
-        assert time.monotonic() - started >= 0.3
-        assert ep.active is ep.fallback
-        assert "failed (DEADLINE_EXCEEDED: Deadline Exceeded); using fallback" in caplog.text
-        ep.close()
+                                      caplog: pytest.LogCaptureFixture,
+                                      detector: RunningService) -> None:
+    ep = endpoint(hung_address, detector.address, deadline_ms=300)
+    started = time.monotonic()
+    assert count(ep.call("Detect", request_0)) == 4
+    # The hung primary had its whole deadline (no earlier give-up); how long a
+    # failover takes is `oricf bench link`'s figure (the longest gap between counts).
+    assert time.monotonic() - started >= 0.3
+    assert ep.active is ep.fallback
+    assert "failed (DEADLINE_EXCEEDED: Deadline Exceeded); using fallback" in caplog.text
+    ep.close()
 
 
 def _busy_detector_call(attempts: int, request_0: detector_pb2.DetectRequest,

@@ -28,7 +28,7 @@ from oricf.imaging import decode_image
 from tests.support.data import video_frames
 from tests.support.llama_server import LlamaServer, llama_server
 from tests.support.openai_http import HttpService, http_service
-from tests.support.services import running_service
+from tests.support.services import RunningService
 from tests.support.speech import speech
 
 QUESTION = "How many people do you see?"
@@ -117,19 +117,19 @@ def test_a_streamed_answer_is_the_whole_answer(llama: LlamaServer, pipeline_for:
     assert streamed_out.values("answer") == plain_out.values("answer") != [""]
 
 
-def test_grpc_streaming_joins_to_the_unary_answer(pipeline_for: Any) -> None:
-    with running_service("llm") as llm:
-        plain, plain_out = pipeline_for(asking({"address": llm.address}))
-        streamed, streamed_out = pipeline_for(asking({"address": llm.address}, stream=True))
-        ask(plain)
-        ask(streamed)
+def test_grpc_streaming_joins_to_the_unary_answer(pipeline_for: Any, llm: RunningService) -> None:
+    plain, plain_out = pipeline_for(asking({"address": llm.address}))
+    streamed, streamed_out = pipeline_for(asking({"address": llm.address}, stream=True))
+    ask(plain)
+    ask(streamed)
     assert streamed_out.values("answer") == plain_out.values("answer")
     assert "4" in plain_out.values("answer")[0]
 
 
-def test_failover_from_llama_cpp_server_to_oricf_grpc_and_back(pipeline_for: Any) -> None:
-    with running_service("llm") as oricf_llm, llama_server() as server:
-        config = asking(openai_endpoint(server, fallback={"address": oricf_llm.address},
+def test_failover_from_llama_cpp_server_to_oricf_grpc_and_back(pipeline_for: Any,
+                                                               llm: RunningService) -> None:
+    with llama_server() as server:
+        config = asking(openai_endpoint(server, fallback={"address": llm.address},
                                         probe_interval_s=0.5))
         pipeline, outputs = pipeline_for(config)
         endpoint = pipeline.endpoints["llm"]
@@ -161,12 +161,12 @@ def test_a_busy_server_is_retried_after_its_retry_after(tmp_path: Any, pipeline_
     free again."""
     overlay = tmp_path / "one.yaml"
     overlay.write_text("server: {max_concurrent_rpcs: 1, retry_after_ms: 400}\n")
-    with http_service("llm", "--overlay", str(overlay)) as llm:
-        config = asking({"protocol": "openai", "address": f"{llm.base_url}/v1",
+    with http_service("llm", "--overlay", str(overlay)) as http_llm:
+        config = asking({"protocol": "openai", "address": f"{http_llm.base_url}/v1",
                          "model": "gemma3-270m", "retry": {"attempts": 10}})
         pipeline, outputs = pipeline_for(config)
         begun = threading.Event()
-        holding = threading.Thread(target=_hold_the_slot, args=(llm, 2.0, begun))
+        holding = threading.Thread(target=_hold_the_slot, args=(http_llm, 2.0, begun))
         holding.start()
         assert begun.wait(60), "the long answer did not begin"
         ask(pipeline)
@@ -202,8 +202,8 @@ def test_an_image_part_reaches_the_server_which_refuses_it_by_name(
         tmp_path: Any, pipeline_for: Any) -> None:
     """ORICF's own language service has no vision: the frame the gateway attached arrives as
     an image_url part and is refused with a 400 that names it."""
-    with http_service("llm") as llm:
-        config = asking({"protocol": "openai", "address": f"{llm.base_url}/v1",
+    with http_service("llm") as http_llm:
+        config = asking({"protocol": "openai", "address": f"{http_llm.base_url}/v1",
                          "model": "gemma3-270m"}, context=False,
                         image={"product": "people_count"})
         pipeline, outputs = pipeline_for(config)
@@ -240,7 +240,7 @@ def test_transcribe_through_an_openai_transcriptions_server(pipeline_for: Any) -
 
 
 def test_a_hung_server_costs_one_deadline_then_the_fallback_answers(
-        pipeline_for: Any) -> None:
+        pipeline_for: Any, llm: RunningService) -> None:
     listener = socket.socket()
     listener.bind(("127.0.0.1", 0))
     listener.listen(8)
@@ -248,14 +248,13 @@ def test_a_hung_server_costs_one_deadline_then_the_fallback_answers(
     threading.Thread(target=lambda: held.extend([listener.accept()[0] for _ in range(8)]),
                      daemon=True).start()
     try:
-        with running_service("llm") as oricf_llm:
-            config = asking({"protocol": "openai", "model": "m", "deadline_ms": 1500,
-                             "address": f"http://127.0.0.1:{listener.getsockname()[1]}/v1",
-                             "fallback": {"address": oricf_llm.address}})
-            pipeline, outputs = pipeline_for(config)
-            started = time.monotonic()
-            ask(pipeline)
-            assert time.monotonic() - started >= 1.5
+        config = asking({"protocol": "openai", "model": "m", "deadline_ms": 1500,
+                         "address": f"http://127.0.0.1:{listener.getsockname()[1]}/v1",
+                         "fallback": {"address": llm.address}})
+        pipeline, outputs = pipeline_for(config)
+        started = time.monotonic()
+        ask(pipeline)
+        assert time.monotonic() - started >= 1.5
     finally:
         listener.close()
     endpoint = pipeline.endpoints["llm"]
@@ -283,8 +282,8 @@ def test_the_token_goes_in_the_header_and_never_into_the_log(
     overlay = tmp_path / "auth.yaml"
     overlay.write_text(f"server: {{auth: {{file: {tokens}}}}}\n")
     monkeypatch.setenv("LLM_TOKEN", "s3cret-token")
-    with http_service("llm", "--overlay", str(overlay)) as llm:
-        base = {"protocol": "openai", "address": f"{llm.base_url}/v1", "model": "gemma3-270m"}
+    with http_service("llm", "--overlay", str(overlay)) as http_llm:
+        base = {"protocol": "openai", "address": f"{http_llm.base_url}/v1", "model": "gemma3-270m"}
         good, good_out = pipeline_for(asking({**base, "token": {"env": "LLM_TOKEN"}}))
         bad, _ = pipeline_for(asking(base))
         ask(good)

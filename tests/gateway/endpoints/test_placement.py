@@ -24,7 +24,7 @@ from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame
 from tests.gateway.test_pipeline import Outputs, pipeline_config
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 BUDGET_MS = 1000
 
@@ -39,53 +39,52 @@ def wait_for(condition: Any, timeout: float) -> bool:
 
 
 def test_calls_move_over_budget_and_return_once_back_within_it(
-        caplog: pytest.LogCaptureFixture) -> None:
+        caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     frame = Frame.from_pixels(video_frames([0])[0])
-    with running_service("detector") as detector:
-        host, _, port = detector.address.rpartition(":")
-        relay = DelayRelay((host, int(port)), delay_s=0.0)
-        pipeline = Pipeline(pipeline_config(relay.address, {"endpoints": {"detector": {
-            "fallback": detector.address, "deadline_ms": 10_000,
-            "placement": {"latency_budget_ms": BUDGET_MS, "window": 5, "hysteresis_s": 1.0,
-                          "probe_interval_s": 0.2}}}}), Outputs())
-        endpoint = pipeline.endpoints["detector"]
-        placement = endpoint.placement
-        assert placement is not None
+    host, _, port = detector.address.rpartition(":")
+    relay = DelayRelay((host, int(port)), delay_s=0.0)
+    pipeline = Pipeline(pipeline_config(relay.address, {"endpoints": {"detector": {
+        "fallback": detector.address, "deadline_ms": 10_000,
+        "placement": {"latency_budget_ms": BUDGET_MS, "window": 5, "hysteresis_s": 1.0,
+                      "probe_interval_s": 0.2}}}}), Outputs())
+    endpoint = pipeline.endpoints["detector"]
+    placement = endpoint.placement
+    assert placement is not None
 
-        def frames(count: int) -> None:
-            for _ in range(count):
-                pipeline.submit("people", lambda: {"image": frame})
-                assert pipeline.idle(30)
+    def frames(count: int) -> None:
+        for _ in range(count):
+            pipeline.submit("people", lambda: {"image": frame})
+            assert pipeline.idle(30)
 
-        pipeline.start()
-        try:
-            frames(6)  # a clean link: the primary, within budget
-            assert endpoint.active is endpoint.primary and not placement.decisions
-            relay.delay_s = 0.6  # each way: every call about 1.2 s, over the budget
-            with caplog.at_level(logging.WARNING, "oricf.gateway.endpoints.placement"):
-                frames(5)
-                assert endpoint.active is endpoint.fallback
-                assert placement.decisions == {"over_budget": 1}
-                assert "over the budget of 1000 ms" in caplog.text
-                started = time.monotonic()
-                frames(1)  # on the fallback: fast again
-                assert time.monotonic() - started < 1.0
-                assert endpoint.failovers == 0  # nothing failed: moved by the budget
-                time.sleep(3)  # the probes still see the slow path: calls stay
-                assert endpoint.active is endpoint.fallback
-                relay.delay_s = 0.0
-                assert wait_for(lambda: endpoint.active is endpoint.primary, 30)
-            assert placement.decisions == {"over_budget": 1, "back_within_budget": 1}
-            assert "within the budget for 1 s" in caplog.text
-            frames(1)
-            assert pipeline.routes["people"].stats.ok == 13
-            metrics = generate_latest(pipeline_registry(pipeline)).decode()
-            for reason in ("over_budget", "back_within_budget"):
-                assert (f'oricf_gateway_endpoint_placements_total{{endpoint="detector",'
-                        f'reason="{reason}"}} 1.0') in metrics
-        finally:
-            pipeline.stop()
-            relay.close()
+    pipeline.start()
+    try:
+        frames(6)  # a clean link: the primary, within budget
+        assert endpoint.active is endpoint.primary and not placement.decisions
+        relay.delay_s = 0.6  # each way: every call about 1.2 s, over the budget
+        with caplog.at_level(logging.WARNING, "oricf.gateway.endpoints.placement"):
+            frames(5)
+            assert endpoint.active is endpoint.fallback
+            assert placement.decisions == {"over_budget": 1}
+            assert "over the budget of 1000 ms" in caplog.text
+            started = time.monotonic()
+            frames(1)  # on the fallback: fast again
+            assert time.monotonic() - started < 1.0
+            assert endpoint.failovers == 0  # nothing failed: moved by the budget
+            time.sleep(3)  # the probes still see the slow path: calls stay
+            assert endpoint.active is endpoint.fallback
+            relay.delay_s = 0.0
+            assert wait_for(lambda: endpoint.active is endpoint.primary, 30)
+        assert placement.decisions == {"over_budget": 1, "back_within_budget": 1}
+        assert "within the budget for 1 s" in caplog.text
+        frames(1)
+        assert pipeline.routes["people"].stats.ok == 13
+        metrics = generate_latest(pipeline_registry(pipeline)).decode()
+        for reason in ("over_budget", "back_within_budget"):
+            assert (f'oricf_gateway_endpoint_placements_total{{endpoint="detector",'
+                    f'reason="{reason}"}} 1.0') in metrics
+    finally:
+        pipeline.stop()
+        relay.close()
 
 
 def send(pipeline: Pipeline, frame: Frame, count: int) -> None:
@@ -95,46 +94,45 @@ def send(pipeline: Pipeline, frame: Frame, count: int) -> None:
 
 
 def test_prefer_fallback_spills_to_the_address_and_returns(
-        caplog: pytest.LogCaptureFixture) -> None:
+        caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     """Onboard preferred (the fallback, slow behind the relay), the edge (the address) when
     it is over budget or fails."""
     frame = Frame.from_pixels(video_frames([0])[0])
-    with running_service("detector") as detector:
-        host, _, port = detector.address.rpartition(":")
-        relay = DelayRelay((host, int(port)), delay_s=0.0)
-        pipeline = Pipeline(pipeline_config(detector.address, {"endpoints": {"detector": {
-            "fallback": relay.address, "deadline_ms": 10_000,
-            "placement": {"latency_budget_ms": BUDGET_MS, "prefer": "fallback", "window": 5,
-                          "hysteresis_s": 1.0, "probe_interval_s": 0.2}}}}), Outputs())
-        endpoint = pipeline.endpoints["detector"]
-        placement = endpoint.placement
-        assert placement is not None
-        pipeline.start()
-        try:
-            send(pipeline, frame, 6)
-            assert endpoint.active is endpoint.fallback
-            assert endpoint.answered == {"primary": 0, "fallback": 6}
-            relay.delay_s = 0.6
-            with caplog.at_level(logging.WARNING, "oricf.gateway.endpoints.placement"):
-                send(pipeline, frame, 1)  # a window of 5: its p90 is its slowest call
-                assert endpoint.active is endpoint.primary
-                assert placement.decisions == {"over_budget": 1}
-                assert "calls move to its address: p90" in caplog.text
-                send(pipeline, frame, 2)
-                assert endpoint.answered == {"primary": 2, "fallback": 7}
-                relay.delay_s = 0.0
-                assert wait_for(lambda: endpoint.active is endpoint.fallback, 30)
-                assert "calls move to its fallback: estimated p90" in caplog.text
-                relay.close()  # the preferred place goes away: the call is answered anyway
-                send(pipeline, frame, 2)
+    host, _, port = detector.address.rpartition(":")
+    relay = DelayRelay((host, int(port)), delay_s=0.0)
+    pipeline = Pipeline(pipeline_config(detector.address, {"endpoints": {"detector": {
+        "fallback": relay.address, "deadline_ms": 10_000,
+        "placement": {"latency_budget_ms": BUDGET_MS, "prefer": "fallback", "window": 5,
+                      "hysteresis_s": 1.0, "probe_interval_s": 0.2}}}}), Outputs())
+    endpoint = pipeline.endpoints["detector"]
+    placement = endpoint.placement
+    assert placement is not None
+    pipeline.start()
+    try:
+        send(pipeline, frame, 6)
+        assert endpoint.active is endpoint.fallback
+        assert endpoint.answered == {"primary": 0, "fallback": 6}
+        relay.delay_s = 0.6
+        with caplog.at_level(logging.WARNING, "oricf.gateway.endpoints.placement"):
+            send(pipeline, frame, 1)  # a window of 5: its p90 is its slowest call
             assert endpoint.active is endpoint.primary
-            assert placement.decisions == {"over_budget": 1, "back_within_budget": 1,
-                                           "failed": 1}
-            assert "a call to its fallback failed (UNAVAILABLE)" in caplog.text
-            assert pipeline.routes["people"].stats.ok == 11 and endpoint.failovers == 0
-        finally:
-            pipeline.stop()
-            relay.close()
+            assert placement.decisions == {"over_budget": 1}
+            assert "calls move to its address: p90" in caplog.text
+            send(pipeline, frame, 2)
+            assert endpoint.answered == {"primary": 2, "fallback": 7}
+            relay.delay_s = 0.0
+            assert wait_for(lambda: endpoint.active is endpoint.fallback, 30)
+            assert "calls move to its fallback: estimated p90" in caplog.text
+            relay.close()  # the preferred place goes away: the call is answered anyway
+            send(pipeline, frame, 2)
+        assert endpoint.active is endpoint.primary
+        assert placement.decisions == {"over_budget": 1, "back_within_budget": 1,
+                                       "failed": 1}
+        assert "a call to its fallback failed (UNAVAILABLE)" in caplog.text
+        assert pipeline.routes["people"].stats.ok == 11 and endpoint.failovers == 0
+    finally:
+        pipeline.stop()
+        relay.close()
 
 
 def test_a_placement_needs_a_fallback() -> None:

@@ -98,17 +98,16 @@ def person_request() -> detector_pb2.DetectRequest:
 
 
 def test_a_call_failing_unavailable_is_answered_by_another_replica(
-        dying_replica: tuple[str, DiesUnderEveryCall]) -> None:
+        dying_replica: tuple[str, DiesUnderEveryCall], detector: RunningService) -> None:
     address, dying = dying_replica
-    with running_service("detector") as live:
-        config = EndpointConfig(address=f"ipv4:{address},{live.address}", deadline_ms=5000)
-        endpoint = Endpoint("detector", config, METHODS["Detect"])
-        try:
-            request = person_request()  # a raw 768x576 frame: over gRPC's default retry buffer
-            for _ in range(6):
-                assert count(endpoint.call("Detect", request)) == 4
-        finally:
-            endpoint.close()
+    config = EndpointConfig(address=f"ipv4:{address},{detector.address}", deadline_ms=5000)
+    endpoint = Endpoint("detector", config, METHODS["Detect"])
+    try:
+        request = person_request()  # a raw 768x576 frame: over gRPC's default retry buffer
+        for _ in range(6):
+            assert count(endpoint.call("Detect", request)) == 4
+    finally:
+        endpoint.close()
     assert dying.calls >= 2  # round robin sent it calls; each one was retried elsewhere
 
 

@@ -8,26 +8,18 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
 import yaml
 
 from tests.gateway.live_view.processes import gateway_with_view
 from tests.gateway.live_view.viewers import official_client
 from tests.gateway.recording.test_replay_times import pipeline, record
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 MAX_FPS = 4.0
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[str]:
-    with running_service("detector") as service:
-        yield service.address
 
 
 def viewed_pipeline(folder: Path, detector: str) -> Path:
@@ -55,8 +47,8 @@ def boxes_of(lines: list[str]) -> list[set[tuple[float, ...]]]:
     return found
 
 
-def test_a_replay_is_watched_live(detector: str, tmp_path: Path) -> None:
-    config, recording = viewed_pipeline(tmp_path, detector), tmp_path / "camera.mcap"
+def test_a_replay_is_watched_live(detector: RunningService, tmp_path: Path) -> None:
+    config, recording = viewed_pipeline(tmp_path, detector.address), tmp_path / "camera.mcap"
     record(recording)
     with gateway_with_view(tmp_path, "--config", str(config), "--replay", str(recording),
                            "--rate", "1") as gateway:

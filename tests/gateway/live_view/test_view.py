@@ -19,15 +19,9 @@ from tests.gateway.live_view.support import (
     video_pipeline,
 )
 from tests.gateway.live_view.viewers import official_client, stalled_viewer, watch
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 MAX_FPS = 4.0
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
-    with running_service("detector") as service:
-        yield service
 
 
 @pytest.fixture()

@@ -13,7 +13,7 @@ from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, parse_pipeline
 from tests.gateway.test_pipeline import FRAMES, Outputs, pipeline_config, run_frames
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 YOLOX = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
 
@@ -34,38 +34,36 @@ def counts(outputs: Outputs) -> list[int]:
     return [v for topic, v in outputs.sent if topic == "/human_counter"]
 
 
-def test_infer_counts_exactly_as_detect_on_the_same_declaration() -> None:
-    with running_service("detector") as detector, running_service("models") as models:
-        _, by_detect = run_frames(pipeline_config(detector.address), FRAMES)
-        pipeline, by_infer = run_frames(infer_config(models.address), FRAMES)
+def test_infer_counts_exactly_as_detect_on_the_same_declaration(
+        detector: RunningService, models: RunningService) -> None:
+    _, by_detect = run_frames(pipeline_config(detector.address), FRAMES)
+    pipeline, by_infer = run_frames(infer_config(models.address), FRAMES)
     assert counts(by_infer) == counts(by_detect) and counts(by_infer)[0] == 4
     assert by_infer.sent[1] == ("/summary", "4 people in view")
     assert pipeline.routes["people"].stats.ok == len(FRAMES)
 
 
-def test_jpeg_transport_sends_encoded_frames_the_server_pre_processes() -> None:
+def test_jpeg_transport_sends_encoded_frames_the_server_pre_processes(
+        models: RunningService) -> None:
     jpeg = {"endpoints": {"models": {"image": {"transport": "jpeg", "jpeg_quality": 85}}}}
-    with running_service("models") as models:
-        _, raw = run_frames(infer_config(models.address), FRAMES)
-        _, encoded = run_frames(infer_config(models.address, jpeg), FRAMES)
+    _, raw = run_frames(infer_config(models.address), FRAMES)
+    _, encoded = run_frames(infer_config(models.address, jpeg), FRAMES)
     assert all(abs(a - b) <= 1 for a, b in zip(counts(raw), counts(encoded), strict=True))
 
 
-def test_infer_fails_over_to_the_fallback_and_deadlines_apply() -> None:
+def test_infer_fails_over_to_the_fallback_and_deadlines_apply(models: RunningService) -> None:
     dead = f"127.0.0.1:{free_port()}"
-    with running_service("models") as models:
-        config = infer_config(dead, {"endpoints": {"models": {
-            "fallback": models.address, "deadline_ms": 5000}}})
-        pipeline, outputs = run_frames(config, FRAMES)
+    config = infer_config(dead, {"endpoints": {"models": {
+        "fallback": models.address, "deadline_ms": 5000}}})
+    pipeline, outputs = run_frames(config, FRAMES)
     assert counts(outputs)[0] == 4 and len(counts(outputs)) == len(FRAMES)
     assert pipeline.endpoints["models"].failovers == 1
 
 
-def test_unknown_model_on_the_server_is_a_logged_call_error() -> None:
-    with running_service("models") as models:
-        pipeline, outputs = run_frames(
-            infer_config(models.address, {"routes": {"people": {"call": {
-                "model_name": "no-such-model"}}}}), FRAMES[:1])
+def test_unknown_model_on_the_server_is_a_logged_call_error(models: RunningService) -> None:
+    pipeline, outputs = run_frames(
+        infer_config(models.address, {"routes": {"people": {"call": {
+            "model_name": "no-such-model"}}}}), FRAMES[:1])
     assert outputs.sent == []
     assert pipeline.routes["people"].stats.errors == {"NOT_FOUND": 1}
 
@@ -98,7 +96,7 @@ def test_a_declaration_without_task_is_refused(tmp_path: Path) -> None:
                                                                      "labels": []}}}})
 
 
-def test_infer_on_a_classifier_adds_label_classes_and_score() -> None:
+def test_infer_on_a_classifier_adds_label_classes_and_score(models: RunningService) -> None:
     import cv2
 
     from oricf.gateway.pipeline import Pipeline
@@ -113,18 +111,17 @@ def test_infer_on_a_classifier_adds_label_classes_and_score() -> None:
                 "outputs": [{"topic": "/direction", "type": "std_msgs/String",
                              "from": "label"}]}}}
     crops = text_crops()[:6]
-    with running_service("models") as models:
-        data["endpoints"]["models"]["address"] = models.address
-        outputs = Outputs()
-        pipeline = Pipeline(parse_pipeline(data, "classifier pipeline"), outputs)
-        pipeline.start()
-        records = []
-        for crop in crops + [cv2.rotate(c, cv2.ROTATE_180) for c in crops]:
-            frame = Frame.from_pixels(crop)
-            records.append(pipeline.routes["direction"].run({"image": frame}))
-            pipeline.submit("direction", lambda f=frame: {"image": f})
-            assert pipeline.idle(10)
-        pipeline.stop()
+    data["endpoints"]["models"]["address"] = models.address
+    outputs = Outputs()
+    pipeline = Pipeline(parse_pipeline(data, "classifier pipeline"), outputs)
+    pipeline.start()
+    records = []
+    for crop in crops + [cv2.rotate(c, cv2.ROTATE_180) for c in crops]:
+        frame = Frame.from_pixels(crop)
+        records.append(pipeline.routes["direction"].run({"image": frame}))
+        pipeline.submit("direction", lambda f=frame: {"image": f})
+        assert pipeline.idle(10)
+    pipeline.stop()
     labels = [r["label"] for r in records]
     assert labels[:6].count("0") >= 5 and labels[6:].count("180") >= 5, labels
     assert all(len(r["classes"]) == 1 and 0.5 <= r["score"] <= 1 for r in records)

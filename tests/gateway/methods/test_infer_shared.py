@@ -4,7 +4,6 @@ and asked again later when the server could not answer this time."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from types import SimpleNamespace
 
 import grpc
@@ -13,13 +12,7 @@ import pytest
 from oricf.gateway.methods.infer_shared import NotNow, output_bytes
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from tests.support.processes import free_port
-from tests.support.services import RunningService, running_service
-
-
-@pytest.fixture(scope="module")
-def models() -> Iterator[RunningService]:
-    with running_service("models") as service:
-        yield service
+from tests.support.services import RunningService
 
 
 def target(channel: grpc.Channel) -> SimpleNamespace:

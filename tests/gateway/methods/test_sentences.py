@@ -11,7 +11,7 @@ from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.methods.sentences import SentenceCutter, sentences
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Record
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 
 def test_a_sentence_ends_at_its_mark_and_white_space() -> None:
@@ -79,27 +79,26 @@ def asking(address: str) -> Any:
         "test")
 
 
-def test_each_sentence_goes_out_before_the_whole_answer_and_is_part_of_it() -> None:
+def test_each_sentence_goes_out_before_the_whole_answer_and_is_part_of_it(
+        llm: RunningService) -> None:
     outputs = Outputs()
-    with running_service("llm") as llm:
-        pipeline = Pipeline(asking(llm.address), outputs)
-        pipeline.start()
-        pipeline.submit("ask", lambda: {"text": "Describe a busy street in two sentences."})
-        assert pipeline.idle(120)
-        pipeline.stop()
+    pipeline = Pipeline(asking(llm.address), outputs)
+    pipeline.start()
+    pipeline.submit("ask", lambda: {"text": "Describe a busy street in two sentences."})
+    assert pipeline.idle(120)
+    pipeline.stop()
     said = outputs.values("sentence")
     assert said and [source for source, _ in outputs.sent][-1] == "answer"
     assert " ".join(said).split() == outputs.values("answer")[0].split()
 
 
-def test_a_barge_in_ends_the_answer_and_drops_what_it_would_still_say() -> None:
+def test_a_barge_in_ends_the_answer_and_drops_what_it_would_still_say(llm: RunningService) -> None:
     outputs = Outputs()
-    with running_service("llm") as llm:
-        pipeline = Pipeline(asking(llm.address), outputs)
-        outputs.on = lambda source: pipeline.speaking.interrupt("test")
-        pipeline.start()
-        pipeline.submit("ask", lambda: {"text": "Describe a busy street in two sentences."})
-        assert pipeline.idle(120)
-        pipeline.stop()
+    pipeline = Pipeline(asking(llm.address), outputs)
+    outputs.on = lambda source: pipeline.speaking.interrupt("test")
+    pipeline.start()
+    pipeline.submit("ask", lambda: {"text": "Describe a busy street in two sentences."})
+    assert pipeline.idle(120)
+    pipeline.stop()
     assert [source for source, _ in outputs.sent] == ["sentence"]  # no more, and no answer
     assert pipeline.routes["ask"].stats.skipped == 1

@@ -11,8 +11,6 @@ import re
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +30,7 @@ from oricf.gateway.recording import definitions as msgdefs
 from tests.gateway.ros.gateway_node import Probe, running_probe
 from tests.support.data import video_frames
 from tests.support.processes import oricf_process
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 FRAMES = [0, 80, 160, 240, 320, 400, 480, 560]
 QUESTION = "How many people do you see?"
@@ -40,10 +38,9 @@ FRAME_PERIOD_NS = 100_000_000  # the rosbag2-style recording: a 10 fps camera
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, str]]:
-    with ExitStack() as stack:
-        yield {name: stack.enter_context(running_service(name)).address
-               for name in ("detector", "asr", "llm")}
+def services(detector: RunningService, asr: RunningService, llm: RunningService
+             ) -> dict[str, str]:
+    return {"detector": detector.address, "asr": asr.address, "llm": llm.address}
 
 
 def pipeline_file(folder: Path, routes: list[str], services: dict[str, str]) -> Path:

@@ -8,11 +8,10 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Container, Iterator
+from collections.abc import Container
 from pathlib import Path
 
 import cv2
-import pytest
 import yaml
 from mcap_ros2.writer import Writer
 
@@ -23,7 +22,7 @@ from oricf.gateway.recording.topic_values import image_record, timed
 from oricf.gateway.values import FRAME_TIME
 from tests.gateway.recording.test_record_replay import gateway_without_ros
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 # Every other frame of the first 16 s of vtest.avi (10 fps): a camera at 5 fps. The first
 # comes LEAD_NS before the rest: the detector's first call is slow (its connection, its
@@ -33,12 +32,6 @@ PERIOD_NS = 200_000_000
 LEAD_NS = 2_000_000_000
 START_NS = 1_700_000_000_000_000_000
 WINDOW_S = 4
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[str]:
-    with running_service("detector") as service:
-        yield service.address
 
 
 def pipeline(folder: Path, detector: str) -> Path:
@@ -101,8 +94,9 @@ def replay(folder: Path, config: Path, recording: Path, rate: str
     return values, float(played[1])
 
 
-def test_replays_at_any_rate_track_on_recorded_time(detector: str, tmp_path: Path) -> None:
-    config, recording = pipeline(tmp_path, detector), tmp_path / "camera.mcap"
+def test_replays_at_any_rate_track_on_recorded_time(detector: RunningService,
+                                                    tmp_path: Path) -> None:
+    config, recording = pipeline(tmp_path, detector.address), tmp_path / "camera.mcap"
     stamps = record(recording)
     fast, fast_s = replay(tmp_path, config, recording, "0")
     paced, paced_s = replay(tmp_path, config, recording, "1")

@@ -14,15 +14,14 @@ from oricf.gateway.ros.messages import to_message
 from oricf.gateway.values import SpokenAudio
 from tests.gateway.sinks.voice import local_gateway
 from tests.support.services import RunningService
-from tests.support.tts import tts_service  # noqa: F401 (a fixture)
 
 ANSWER = "I can see 4 people. Two of them are walking to the left."
 
 
 def test_every_sentence_is_appended_to_one_wav_file(
-        tts_service: RunningService, tmp_path: Path) -> None:  # noqa: F811
+        tts: RunningService, tmp_path: Path) -> None:
     path = tmp_path / "answers" / "spoken.wav"
-    pipeline = {"endpoints": {"tts": {"address": tts_service.address, "deadline_ms": 30000}},
+    pipeline = {"endpoints": {"tts": {"address": tts.address, "deadline_ms": 30000}},
                 "routes": {"say": {"input": {"text": "-"},
                                    "call": {"service": "tts", "method": "Synthesize",
                                             "text": "{text}", "voice": "espeak"},
@@ -53,9 +52,9 @@ def test_speech_on_a_topic_is_16_khz_mono_int16() -> None:
 
 
 def test_text_the_synthesizer_refuses_is_counted_and_the_route_goes_on(
-        tts_service: RunningService, tmp_path: Path) -> None:  # noqa: F811
+        tts: RunningService, tmp_path: Path) -> None:
     path = tmp_path / "spoken.wav"
-    pipeline = {"endpoints": {"tts": {"address": tts_service.address, "deadline_ms": 30000}},
+    pipeline = {"endpoints": {"tts": {"address": tts.address, "deadline_ms": 30000}},
                 "routes": {"say": {"input": {"text": "-"},
                                    "call": {"service": "tts", "method": "Synthesize",
                                             "text": "{text}", "voice": "espeak"},

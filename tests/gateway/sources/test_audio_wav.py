@@ -19,7 +19,7 @@ from oricf.gateway.config import InputConfig, load_pipeline
 from oricf.gateway.sources.audio import AudioSource
 from oricf.gateway.values import AudioClip
 from tests.gateway.sources.audio import gateway
-from tests.support.services import running_service
+from tests.support.services import RunningService
 from tests.support.speech import QUESTION, QUESTION_WORDS, words
 
 SECOND_QUESTION = "What is in front of you"
@@ -48,23 +48,22 @@ def cut(path: Path | str) -> list[AudioClip]:
 
 
 def test_questions_in_a_wav_file_are_transcribed_and_the_route_ends_without_ros(
-        questions: Path, tmp_path: Path) -> None:
+        questions: Path, tmp_path: Path, asr: RunningService) -> None:
     no_ros = tmp_path / "no_ros" / "rclpy"
     no_ros.mkdir(parents=True)
     (no_ros / "__init__.py").write_text("raise ImportError('rclpy must not be imported')\n")
     (tmp_path / "questions.wav").write_bytes(questions.read_bytes())
-    with running_service("asr") as asr:
-        config = tmp_path / "wav.yaml"
-        config.write_text(yaml.safe_dump({
-            "endpoints": {"asr": {"address": asr.address, "deadline_ms": 10000}},
-            "routes": {"speech": {
-                "input": {"audio": "questions.wav"},  # beside the YAML file
-                "call": {"service": "asr", "method": "Transcribe", "language": "en"},
-                "outputs": [{"jsonl": "-", "from": "transcript"}]}}}))
-        env = {"PYTHONPATH": str(no_ros.parent), "PATH": "/usr/bin:/bin",
-               "HOME": str(Path.home())}
-        with gateway(["--config", str(config)], env) as running:
-            assert running.process.wait(timeout=120) == 0, running.stderr
+    config = tmp_path / "wav.yaml"
+    config.write_text(yaml.safe_dump({
+        "endpoints": {"asr": {"address": asr.address, "deadline_ms": 10000}},
+        "routes": {"speech": {
+            "input": {"audio": "questions.wav"},  # beside the YAML file
+            "call": {"service": "asr", "method": "Transcribe", "language": "en"},
+            "outputs": [{"jsonl": "-", "from": "transcript"}]}}}))
+    env = {"PYTHONPATH": str(no_ros.parent), "PATH": "/usr/bin:/bin",
+           "HOME": str(Path.home())}
+    with gateway(["--config", str(config)], env) as running:
+        assert running.process.wait(timeout=120) == 0, running.stderr
     heard = [running.lines.get(timeout=5)["transcript"] for _ in range(2)]
     assert set(QUESTION_WORDS) <= set(words(heard[0])), heard
     assert {"what", "front", "you"} <= set(words(heard[1])), heard

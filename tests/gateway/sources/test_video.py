@@ -18,25 +18,25 @@ from oricf.config import config_dir
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.video import VideoSource
 from tests.support.data import video_path
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
 
 
-def test_people_video_pipeline_writes_counts_as_json_lines_without_ros(tmp_path: Path) -> None:
+def test_people_video_pipeline_writes_counts_as_json_lines_without_ros(
+        tmp_path: Path, detector: RunningService) -> None:
     no_ros = tmp_path / "no_ros" / "rclpy"
     no_ros.mkdir(parents=True)
     (no_ros / "__init__.py").write_text("raise ImportError('rclpy must not be imported')\n")
-    with running_service("detector") as detector:
-        overlay = tmp_path / "here.yaml"
-        overlay.write_text(yaml.safe_dump({
-            "endpoints": {"detector": {"address": detector.address}},
-            "routes": {"people": {"input": {"url": str(video_path()), "fps": 100}}}}))
-        result = subprocess.run(
-            [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
-             "--overlay", str(overlay)], capture_output=True, text=True, timeout=300,
-            env={"PYTHONPATH": str(no_ros.parent), "PATH": "/usr/bin:/bin",
-                 "HOME": str(Path.home())}, check=False)
+    overlay = tmp_path / "here.yaml"
+    overlay.write_text(yaml.safe_dump({
+        "endpoints": {"detector": {"address": detector.address}},
+        "routes": {"people": {"input": {"url": str(video_path()), "fps": 100}}}}))
+    result = subprocess.run(
+        [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
+         "--overlay", str(overlay)], capture_output=True, text=True, timeout=300,
+        env={"PYTHONPATH": str(no_ros.parent), "PATH": "/usr/bin:/bin",
+             "HOME": str(Path.home())}, check=False)
     assert result.returncode == 0, result.stderr
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     assert len(lines) >= 20, result.stderr
@@ -54,21 +54,21 @@ def test_a_missing_file_ends_its_route_with_a_clear_error(caplog: object) -> Non
     assert "cannot open /nowhere/video.mp4; the route ends" in caplog.text  # type: ignore[attr-defined]
 
 
-def test_annotated_frames_go_to_a_folder_a_video_and_a_latest_image(tmp_path: Path) -> None:
+def test_annotated_frames_go_to_a_folder_a_video_and_a_latest_image(
+        tmp_path: Path, detector: RunningService) -> None:
     """--set replaces the route's post-processing and outputs (YAML values, validated)."""
     folder, video, latest = tmp_path / "frames", tmp_path / "out.avi", tmp_path / "latest.jpg"
-    with running_service("detector") as detector:
-        result = subprocess.run(
-            [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
-             "--set", f"endpoints.detector.address={detector.address}",
-             "--set", f"routes.people.input.url={video_path()}",
-             "--set", "routes.people.input.fps=100",
-             "--set", "routes.people.post=[{count: {label: person}}, {annotate: {}}]",
-             "--set", f"routes.people.outputs=[{{jsonl: '-', from: count}}, "
-                      f"{{frames: '{folder}', from: annotated}}, "
-                      f"{{frames: '{video}', from: annotated}}, "
-                      f"{{frames: '{latest}', from: annotated}}]"],
-            capture_output=True, text=True, timeout=300, check=False)
+    result = subprocess.run(
+        [sys.executable, "-m", "oricf", "gateway", "--config", str(PIPELINE),
+         "--set", f"endpoints.detector.address={detector.address}",
+         "--set", f"routes.people.input.url={video_path()}",
+         "--set", "routes.people.input.fps=100",
+         "--set", "routes.people.post=[{count: {label: person}}, {annotate: {}}]",
+         "--set", f"routes.people.outputs=[{{jsonl: '-', from: count}}, "
+                  f"{{frames: '{folder}', from: annotated}}, "
+                  f"{{frames: '{video}', from: annotated}}, "
+                  f"{{frames: '{latest}', from: annotated}}]"],
+        capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     counted = len(result.stdout.splitlines())
     images = sorted(folder.glob("people-*.jpg"))

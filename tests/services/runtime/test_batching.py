@@ -65,10 +65,10 @@ def boxes(response: detector_pb2.DetectResponse) -> list[tuple[str, float, tuple
 
 
 @pytest.fixture(scope="module")
-def unbatched(requests: list[detector_pb2.DetectRequest]) -> list[detector_pb2.DetectResponse]:
-    with running_service("detector") as service:
-        stub = detector_pb2_grpc.DetectorStub(service.channel)
-        return [stub.Detect(r, timeout=WAIT_S) for r in requests]
+def unbatched(requests: list[detector_pb2.DetectRequest], detector: RunningService
+              ) -> list[detector_pb2.DetectResponse]:
+    stub = detector_pb2_grpc.DetectorStub(detector.channel)
+    return [stub.Detect(r, timeout=WAIT_S) for r in requests]
 
 
 def test_concurrent_callers_share_one_batch_and_get_their_own_answers(

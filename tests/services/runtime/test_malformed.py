@@ -4,14 +4,13 @@ traceback per request), on every RPC; a huge echoed value still gets INVALID_ARG
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
 
 import grpc
 import pytest
 
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 # Field 1 as a length-delimited value that runs past the end: no message parses this.
 GARBAGE = b"\x0a\xff\xff\xff\x0f" + b"\x00" * 20
@@ -28,9 +27,9 @@ RPCS = {
 
 
 @pytest.fixture(scope="module", params=list(RPCS))
-def service(request: pytest.FixtureRequest) -> Iterator[tuple[str, RunningService]]:
-    with running_service(request.param) as running:
-        yield request.param, running
+def service(request: pytest.FixtureRequest) -> tuple[str, RunningService]:
+    """Each service of RPCS: the session's, with its shipped settings."""
+    return request.param, request.getfixturevalue(request.param)
 
 
 def test_undecodable_requests_are_invalid_argument_on_every_rpc(
@@ -51,15 +50,14 @@ def test_undecodable_requests_are_invalid_argument_on_every_rpc(
     assert not [r for r in caplog.records if r.exc_info or "Traceback" in r.getMessage()]
 
 
-def test_a_huge_echoed_label_is_cut_and_still_invalid_argument() -> None:
-    with running_service("detector") as detector:
-        stub = detector_pb2_grpc.DetectorStub(detector.channel)
-        request = detector_pb2.DetectRequest(
-            image=common_pb2.Image(data=image("person.jpg").read_bytes(), encoding="jpeg"),
-            labels=["x" * 1_000_000])
-        with pytest.raises(grpc.RpcError) as error:
-            stub.Detect(request, timeout=10)
-        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
-        details = error.value.details() or ""
-        assert details.startswith("unknown label 'xxx") and details.endswith("... (cut)")
-        assert len(details) < 1100
+def test_a_huge_echoed_label_is_cut_and_still_invalid_argument(detector: RunningService) -> None:
+    stub = detector_pb2_grpc.DetectorStub(detector.channel)
+    request = detector_pb2.DetectRequest(
+        image=common_pb2.Image(data=image("person.jpg").read_bytes(), encoding="jpeg"),
+        labels=["x" * 1_000_000])
+    with pytest.raises(grpc.RpcError) as error:
+        stub.Detect(request, timeout=10)
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    details = error.value.details() or ""
+    assert details.startswith("unknown label 'xxx") and details.endswith("... (cut)")
+    assert len(details) < 1100
