@@ -20,70 +20,70 @@ from tests.gateway.pipelines import PEOPLE_QA
 from tests.gateway.ros.gateway_node import running_probe, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import free_port, oricf_process
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 
 def test_gateway_process_counts_people_and_stops_on_sigterm(
-        ros_context: Context, ros_env: dict[str, str], tmp_path: Path) -> None:
+        ros_context: Context, ros_env: dict[str, str], tmp_path: Path,
+        detector: RunningService) -> None:
     overlay = tmp_path / "here.yaml"
     frames = video_frames([0, 400])
-    with running_service("detector") as detector:
-        overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
-            "address": detector.address}}}))
-        with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay", str(overlay),
-                           "--ros-args", "-r", "__node:=gateway_under_test",
-                           env=ros_env) as gateway, running_probe(ros_context) as probe:
-            probe.wait_connected(timeout=30)
-            wait_for(lambda: "gateway_under_test" in probe.node.get_node_names())
-            probe.warm_up(frames[1])
-            counts = []
-            for frame in frames:
-                probe.publish_frame(frame)
-                counts.append(probe.next("/human_counter", timeout=10).data)
-            gateway.send_signal(signal.SIGTERM)
-            assert gateway.wait(timeout=15) == 0
-            assert gateway.stdout is not None
-            log = gateway.stdout.read()
+    overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
+        "address": detector.address}}}))
+    with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay", str(overlay),
+                       "--ros-args", "-r", "__node:=gateway_under_test",
+                       env=ros_env) as gateway, running_probe(ros_context) as probe:
+        probe.wait_connected(timeout=30)
+        wait_for(lambda: "gateway_under_test" in probe.node.get_node_names())
+        probe.warm_up(frames[1])
+        counts = []
+        for frame in frames:
+            probe.publish_frame(frame)
+            counts.append(probe.next("/human_counter", timeout=10).data)
+        gateway.send_signal(signal.SIGTERM)
+        assert gateway.wait(timeout=15) == 0
+        assert gateway.stdout is not None
+        log = gateway.stdout.read()
     assert counts == [4, 4]
     assert f"endpoint detector: {detector.address}" in log
     assert re.search(r"route people: (\d+) received, 0 dropped as stale, \1 ok", log)
 
 
 def test_gateway_process_stops_cleanly_while_frames_stream(
-        ros_context: Context, ros_env: dict[str, str], tmp_path: Path) -> None:
+        ros_context: Context, ros_env: dict[str, str], tmp_path: Path,
+        detector: RunningService) -> None:
     """SIGTERM lands while the camera thread is mid-frame and the executor is spinning."""
     overlay = tmp_path / "here.yaml"
     frame = video_frames([0])[0]
-    with running_service("detector") as detector:
-        overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
-            "address": detector.address}}}))
-        with running_probe(ros_context) as probe:
-            for _ in range(2):
-                with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay",
-                                   str(overlay), env=ros_env) as gateway:
-                    probe.wait_connected(timeout=30)
-                    probe.warm_up(frame)
-                    stop_publishing = threading.Event()
+    overlay.write_text(yaml.safe_dump({"endpoints": {"detector": {
+        "address": detector.address}}}))
+    with running_probe(ros_context) as probe:
+        for _ in range(2):
+            with oricf_process("gateway", "--config", str(PEOPLE_QA), "--overlay",
+                               str(overlay), env=ros_env) as gateway:
+                probe.wait_connected(timeout=30)
+                probe.warm_up(frame)
+                stop_publishing = threading.Event()
 
-                    def stream(stop: threading.Event) -> None:
-                        while not stop.wait(0.03):
-                            probe.publish_frame(frame)
+                def stream(stop: threading.Event) -> None:
+                    while not stop.wait(0.03):
+                        probe.publish_frame(frame)
 
-                    publisher = threading.Thread(target=stream, args=(stop_publishing,),
-                                                 daemon=True)
-                    publisher.start()
-                    try:
-                        wait_for(lambda: probe.next("/human_counter", timeout=5).data == 4)
-                        gateway.send_signal(signal.SIGTERM)
-                        code = gateway.wait(timeout=15)
-                    finally:
-                        stop_publishing.set()
-                        publisher.join()
-                    assert gateway.stdout is not None
-                    log = gateway.stdout.read()
-                assert code == 0, log
-                assert "Traceback" not in log
-                assert re.search(r"route people: \d+ received, \d+ dropped as stale", log)
+                publisher = threading.Thread(target=stream, args=(stop_publishing,),
+                                             daemon=True)
+                publisher.start()
+                try:
+                    wait_for(lambda: probe.next("/human_counter", timeout=5).data == 4)
+                    gateway.send_signal(signal.SIGTERM)
+                    code = gateway.wait(timeout=15)
+                finally:
+                    stop_publishing.set()
+                    publisher.join()
+                assert gateway.stdout is not None
+                log = gateway.stdout.read()
+            assert code == 0, log
+            assert "Traceback" not in log
+            assert re.search(r"route people: \d+ received, \d+ dropped as stale", log)
 
 
 # `oricf gateway`, with a SIGTERM sent to itself while its node is being built (once the node

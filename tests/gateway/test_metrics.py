@@ -166,9 +166,9 @@ def test_metrics_are_off_without_the_key() -> None:
     assert config.metrics is None and p.metrics_server is None
 
 
-def test_oricf_gateway_metrics_listen() -> None:
+def test_oricf_gateway_metrics_listen(detector: RunningService) -> None:
     metrics = f"127.0.0.1:{free_port()}"
-    with running_service("detector") as detector, oricf_process(
+    with oricf_process(
             "gateway", "--config", str(config_dir() / "pipelines" / "people_video.yaml"),
             "--set", f"endpoints.detector.address={detector.address}",
             "--set", f"routes.people.input.url={video_path()}",

@@ -22,7 +22,7 @@ import pytest
 from oricf.config import config_dir
 from oricf.launch.health import free_port
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService, running_service
 
 PIPELINE = config_dir() / "pipelines" / "people_tracked.yaml"
 PROMPT = config_dir() / "prompts" / "gemma3-270m-tracks.yaml"
@@ -30,9 +30,8 @@ FRAMES = 60
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, str]]:
-    with running_service("detector") as detector, \
-            running_service("llm", {"prompts": {"gemma3-270m": str(PROMPT)}}) as llm:
+def services(detector: RunningService) -> Iterator[dict[str, str]]:
+    with running_service("llm", {"prompts": {"gemma3-270m": str(PROMPT)}}) as llm:
         yield {"detector": detector.address, "llm": llm.address}
 
 

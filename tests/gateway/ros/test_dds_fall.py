@@ -10,22 +10,22 @@ from oricf.config import config_dir
 from tests.gateway.pipelines import shipped_pipeline
 from tests.gateway.ros.gateway_node import running_gateway
 from tests.support.data import image
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 PIPELINE = config_dir() / "pipelines" / "fall_alert.yaml"
 
 
-def test_a_fallen_person_is_counted_and_announced(ros_context: Context) -> None:
+def test_a_fallen_person_is_counted_and_announced(
+        ros_context: Context, models: RunningService) -> None:
     standing = cv2.imread(str(image("person.jpg")))
     lying = cv2.rotate(standing, cv2.ROTATE_90_CLOCKWISE)
-    with running_service("models") as models:
-        config = shipped_pipeline(PIPELINE, models=models.address)
-        with running_gateway(config, ros_context) as (gateway, probe):
-            seen = []
-            for frame in (standing, lying, standing):
-                probe.publish_frame(frame)
-                seen.append((probe.next("/people_fallen", timeout=10).data,
-                             probe.next("/fall_alert", timeout=10).data))
+    config = shipped_pipeline(PIPELINE, models=models.address)
+    with running_gateway(config, ros_context) as (gateway, probe):
+        seen = []
+        for frame in (standing, lying, standing):
+            probe.publish_frame(frame)
+            seen.append((probe.next("/people_fallen", timeout=10).data,
+                         probe.next("/fall_alert", timeout=10).data))
     assert seen[0] == (0, "1 people standing, 0 fallen")
     assert seen[1][0] >= 1 and seen[1][1].startswith("0 people standing")
     assert seen[2] == seen[0]

@@ -13,15 +13,15 @@ from tests.gateway.ros.gateway_node import running_gateway
 from tests.support.data import video_frames
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 FRAMES = [0, 80, 160, 400, 440, 560]
 
 
-def test_vtest_frames_give_plausible_counts(ros_context: Context) -> None:
+def test_vtest_frames_give_plausible_counts(ros_context: Context,
+                                            detector: RunningService) -> None:
     frames = video_frames(FRAMES)
-    with running_service("detector") as detector, \
-            running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
+    with running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
         counts, annotated = [], []
         for i, frame in enumerate(frames):
             probe.publish_frame(frame, frame_id="front_camera", stamp_s=1000 + i)
@@ -42,12 +42,12 @@ def test_vtest_frames_give_plausible_counts(ros_context: Context) -> None:
     assert gw.pipeline.products.read("people_count").value == counts[-1]
 
 
-def test_rgb8_and_mono8_frames_are_counted(ros_context: Context) -> None:
+def test_rgb8_and_mono8_frames_are_counted(ros_context: Context,
+                                           detector: RunningService) -> None:
     import cv2
 
     frame = video_frames([0])[0]
-    with running_service("detector") as detector, \
-            running_gateway(people_qa(detector=detector.address), ros_context) as (_, probe):
+    with running_gateway(people_qa(detector=detector.address), ros_context) as (_, probe):
         probe.publish_frame(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB), "rgb8")
         rgb = probe.next("/human_counter", timeout=10).data
         probe.publish_frame(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), "mono8")
@@ -56,7 +56,7 @@ def test_rgb8_and_mono8_frames_are_counted(ros_context: Context) -> None:
     assert 2 <= mono <= 6
 
 
-def test_compressed_images_are_counted(ros_context: Context) -> None:
+def test_compressed_images_are_counted(ros_context: Context, detector: RunningService) -> None:
     from sensor_msgs.msg import CompressedImage
 
     from oricf.imaging import encode_image
@@ -64,15 +64,14 @@ def test_compressed_images_are_counted(ros_context: Context) -> None:
     compressed = {"routes": {"people": {"input": {"topic": "camera/compressed",
                                                   "type": "sensor_msgs/CompressedImage"}}}}
     frame = video_frames([0])[0]
-    with running_service("detector") as detector:
-        config = people_qa(compressed, detector=detector.address)
-        with running_gateway(config, ros_context) as (_, probe):
-            for fmt, encoding in (("jpeg", "jpeg"), ("bgr8; png compressed bgr8", "png")):
-                msg = CompressedImage(format=fmt)
-                msg.data = encode_image(frame, encoding)
-                probe.compressed.publish(msg)
-                assert probe.next("/human_counter", timeout=10).data == 4
-            annotated = probe.next("/camera/image_annotated", timeout=10)
+    config = people_qa(compressed, detector=detector.address)
+    with running_gateway(config, ros_context) as (_, probe):
+        for fmt, encoding in (("jpeg", "jpeg"), ("bgr8; png compressed bgr8", "png")):
+            msg = CompressedImage(format=fmt)
+            msg.data = encode_image(frame, encoding)
+            probe.compressed.publish(msg)
+            assert probe.next("/human_counter", timeout=10).data == 4
+        annotated = probe.next("/camera/image_annotated", timeout=10)
     assert (annotated.width, annotated.height) == (768, 576)
 
 

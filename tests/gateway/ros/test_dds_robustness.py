@@ -14,7 +14,7 @@ from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_frames
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService, running_service
 
 
 def bad_image(encoding: str, width: int, height: int, size: int) -> Image:
@@ -37,10 +37,9 @@ def count_one_frame(probe: Probe) -> int:
 
 
 def test_bad_messages_are_logged_and_the_gateway_keeps_working(
-        ros_context: Context, caplog: pytest.LogCaptureFixture) -> None:
+        ros_context: Context, caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     caplog.set_level(logging.INFO)
-    with running_service("detector") as detector, \
-            running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
+    with running_gateway(people_qa(detector=detector.address), ros_context) as (gw, probe):
         for msg, message in BAD_IMAGES:
             probe.camera.publish(msg)
             wait_for(logged(caplog, message))

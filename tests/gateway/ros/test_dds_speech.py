@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -18,7 +18,7 @@ from oricf.gateway.ros.node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 QUESTION = "How many people do you see?"
 # people_count goes stale after 2 s here, so the stale case needs no long wait.
@@ -28,10 +28,9 @@ FAST_STALE = {"routes": {"people": {"outputs": [
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, str]]:
-    with ExitStack() as stack:
-        yield {name: stack.enter_context(running_service(name)).address
-               for name in ("detector", "asr", "llm")}
+def services(detector: RunningService, asr: RunningService, llm: RunningService
+             ) -> dict[str, str]:
+    return {"detector": detector.address, "asr": asr.address, "llm": llm.address}
 
 
 @contextmanager

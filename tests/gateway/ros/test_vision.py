@@ -12,7 +12,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +22,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 from tests.support.vision_msgs import build, environment
 
 TOPIC = "/people/detections"
@@ -50,12 +49,6 @@ SUBSCRIBER = textwrap.dedent(f"""
 @pytest.fixture(scope="module")
 def vision_env() -> dict[str, str]:
     return environment(build())
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[str]:
-    with running_service("detector") as service:
-        yield service.address
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +97,8 @@ def as_rows(detections: list[dict[str, Any]]) -> list[list[Any]]:
 
 
 def test_tracked_detections_reach_a_subscriber_as_the_json_lines_carry_them(
-        vision_env: dict[str, str], ros_env: dict[str, str], detector: str, clip: Path,
-        tmp_path: Path) -> None:
+        vision_env: dict[str, str], ros_env: dict[str, str], detector: RunningService,
+        clip: Path, tmp_path: Path) -> None:
     env = {**vision_env, **ros_env}
     probe = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], env=env, text=True,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -114,7 +107,8 @@ def test_tracked_detections_reach_a_subscriber_as_the_json_lines_carry_them(
         assert probe.stdout is not None and probe.stdout.readline().strip() == "ready"
         gateway = subprocess.Popen(
             [sys.executable, "-m", "oricf", "gateway", "--config",
-             str(pipeline(tmp_path, detector, clip)), "--record", str(tmp_path / "run.mcap")],
+             str(pipeline(tmp_path, detector.address, clip)), "--record",
+             str(tmp_path / "run.mcap")],
             env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         received = json.loads(probe.communicate(timeout=180)[0].splitlines()[-1])
     finally:
@@ -143,10 +137,10 @@ def test_tracked_detections_reach_a_subscriber_as_the_json_lines_carry_them(
 
 
 def test_without_vision_msgs_the_pipeline_is_refused_saying_what_to_install(
-        ros_env: dict[str, str], detector: str, clip: Path, tmp_path: Path) -> None:
+        ros_env: dict[str, str], detector: RunningService, clip: Path, tmp_path: Path) -> None:
     gateway = subprocess.run(
         [sys.executable, "-m", "oricf", "gateway", "--config",
-         str(pipeline(tmp_path, detector, clip))],
+         str(pipeline(tmp_path, detector.address, clip))],
         env={**os.environ, **ros_env}, text=True, capture_output=True,
         timeout=120)
     assert gateway.returncode == 2, gateway.stderr[-2000:]
