@@ -7,7 +7,10 @@ from collections.abc import Iterator
 
 import pytest
 
+from tests.support.certs import certs
 from tests.support.services import RunningService, SharedServices
+
+__all__ = ["certs"]  # the session's TLS certificates, a fixture
 
 
 @pytest.fixture(scope="session")

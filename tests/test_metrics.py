@@ -16,13 +16,7 @@ from oricf.config import validate
 from oricf.errors import ConfigError
 from oricf.metrics import LatencyHistogram, MetricsConfig, MetricsServer
 from oricf.services.runtime.config import ServiceConfig
-from tests.support.certs import local_certificates
 from tests.support.metrics import scrape
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory)
 
 
 def registry_with_a_count() -> CollectorRegistry:

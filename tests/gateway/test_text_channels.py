@@ -23,19 +23,17 @@ import pytest
 
 from oricf.config import config_dir
 from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
-from oricf.launch.certs import make_certificates
 from oricf.launch.health import free_port
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 PIPELINE = config_dir() / "pipelines" / "text_questions.yaml"
 QUESTION = "How many people do you see?"
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, str]]:
-    with running_service("detector") as detector, running_service("llm") as llm:
-        yield {"detector": detector.address, "llm": llm.address}
+def services(detector: RunningService, llm: RunningService) -> dict[str, str]:
+    return {"detector": detector.address, "llm": llm.address}
 
 
 @pytest.fixture(scope="module")
@@ -137,19 +135,13 @@ def test_questions_from_standard_input_are_answered_on_standard_output(
 
 
 @pytest.fixture
-def certs(tmp_path: Path) -> Path:
-    make_certificates(tmp_path, ["localhost", "127.0.0.1"])
-    return tmp_path
-
-
-@pytest.fixture
-def secure_channel(certs: Path) -> Iterator[TextChannel]:
-    (certs / "channel-tokens").write_text("s3cret-token\n")
+def secure_channel(certs: Path, tmp_path: Path) -> Iterator[TextChannel]:
+    (tmp_path / "channel-tokens").write_text("s3cret-token\n")
     config = ChannelConfig.model_validate({
         "listen": f"127.0.0.1:{free_port()}", "max_clients": 2, "max_line_bytes": 64,
         "tls": {"cert": certs / "server.pem", "key": certs / "server.key",
                 "client_ca": certs / "ca.pem"},
-        "auth": {"file": certs / "channel-tokens"}})
+        "auth": {"file": tmp_path / "channel-tokens"}})
     channel = TextChannel("questions", config)
     channel.start()
 

@@ -23,9 +23,9 @@ from oricf.gateway.sources.text import Question, TextSource
 from oricf.gateway.text_channels import ChannelConfig, Channels, Client, TextChannel
 from oricf.gateway.worker import RouteWorker
 from oricf.launch.health import free_port
-from tests.support.certs import local_certificates
+from tests.support.certs import TOKEN as SECRET
 
-TOKEN = b"authorization: Bearer s3cret-token\n"
+TOKEN = f"authorization: Bearer {SECRET}\n".encode()
 
 
 def open_channel(config: dict[str, Any], answer_after_s: float = 0.0) -> TextChannel:
@@ -39,11 +39,6 @@ def open_channel(config: dict[str, Any], answer_after_s: float = 0.0) -> TextCha
 
     channel.read_by(echo)
     return channel
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory, token="s3cret-token")
 
 
 def secure(certs: Path, **config: Any) -> dict[str, Any]:

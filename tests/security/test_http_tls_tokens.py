@@ -20,17 +20,11 @@ from oricf.audio import encode_wav
 from oricf.launch.certs import make_certificates
 from oricf.launch.health import wait_serving
 from oricf.tls import ClientTls
-from tests.support.certs import local_certificates
+from tests.support.certs import TOKEN
 from tests.support.openai_http import HttpService, client, http_service
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
-TOKEN = "s3cret-token-for-the-http-api"
 MODEL = "whisper-tiny-en"
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory, TOKEN)
 
 
 @pytest.fixture(scope="module")

@@ -22,18 +22,11 @@ from oricf.launch.health import status
 from oricf.tls import ClientTls
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.test_pipeline import FRAMES, pipeline_config, run_frames
-from tests.support.certs import local_certificates
+from tests.support.certs import TOKEN
 from tests.support.data import video_frames
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 from tests.support.services import RunningService, running_service
-
-TOKEN = "s3cret-token-for-the-detector"
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory, TOKEN)
 
 
 @pytest.fixture(scope="module")

@@ -13,15 +13,8 @@ import pytest
 
 from oricf.tls import ClientTls
 from oricf.v1 import synthesis_pb2, synthesis_pb2_grpc
-from tests.support.certs import local_certificates
+from tests.support.certs import TOKEN
 from tests.support.services import RunningService, running_service
-
-TOKEN = "token-for-the-voice"
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory, TOKEN)
 
 
 @pytest.fixture(scope="module")

@@ -31,7 +31,6 @@ from tests.gateway.agents.session import (
     wait_product,
     warm_up,
 )
-from tests.support.certs import local_certificates
 from tests.support.processes import free_port
 
 APPROVER = "attach-approver-5"
@@ -129,8 +128,7 @@ def test_attach_over_a_unix_socket(socket_gateway: Path, driver: RosListener) ->
 
 
 def test_control_on_tcp_needs_tls_and_the_token(pipeline: Path, tmp_path: Path,
-                                        tmp_path_factory: pytest.TempPathFactory) -> None:
-    certs = local_certificates(tmp_path_factory)
+                                                certs: Path) -> None:
     tokens = tmp_path / "control.tokens"
     tokens.write_text("control-secret-9\n")
     port = free_port()

@@ -26,10 +26,8 @@ from tests.gateway.agents.session import (
     wait_product,
     warm_up,
 )
-from tests.support.certs import local_certificates
+from tests.support.certs import TOKEN
 from tests.support.processes import free_port
-
-TOKEN = "agent-test-token-5f1c"
 
 
 @contextmanager
@@ -108,9 +106,7 @@ def test_http_with_tokens(server: str, driver: RosListener) -> None:
     anyio.run(scenario)
 
 
-def test_https_with_tokens(pipeline: Path, tmp_path: Path,
-                           tmp_path_factory: pytest.TempPathFactory) -> None:
-    certs = local_certificates(tmp_path_factory, TOKEN)
+def test_https_with_tokens(pipeline: Path, tmp_path: Path, certs: Path) -> None:
     port = free_port()
     log = tmp_path / "mcp.log"
     with mcp_http("--config", str(pipeline), "--listen", f"127.0.0.1:{port}",

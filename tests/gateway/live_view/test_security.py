@@ -18,20 +18,13 @@ from oricf.errors import ConfigError
 from oricf.gateway.live_view.config import LiveViewConfig
 from tests.gateway.live_view.support import Running, running, video_pipeline
 from tests.gateway.live_view.viewers import official_client
-from tests.support.certs import local_certificates
-from tests.support.services import running_service
-
-TOKEN = "a-token-for-the-live-view"
+from tests.support.certs import TOKEN
+from tests.support.services import RunningService, running_service
 
 
 @pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory, TOKEN)
-
-
-@pytest.fixture(scope="module")
-def secured(certs: Path) -> Iterator[Running]:
-    with running_service("detector") as detector, running(video_pipeline(
+def secured(certs: Path, detector: RunningService) -> Iterator[Running]:
+    with running(video_pipeline(
             detector.address, {"tls": {"cert": str(certs / "server.pem"),
                                        "key": str(certs / "server.key")},
                                "auth": {"file": str(certs / "tokens")}})) as run:

@@ -25,7 +25,8 @@ from oricf.gateway.sources.video import VideoSource
 from oricf.gateway.values import Frame
 from oricf.launch.health import free_port
 from tests.gateway.sources.test_rtsp import counts, gateway
-from tests.support.services import running_service
+from tests.support.services import RunningService
+from tests.support.waiting import wait_for
 
 JPEGS = encode_frames(3)
 PNG = cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))[1].tobytes()
@@ -151,7 +152,7 @@ def test_credentials_open_the_camera_and_never_reach_the_log(
     assert "wrong" not in caplog.text and "s3cret" not in caplog.text
 
 
-def test_people_are_counted_from_an_mjpeg_camera_that_restarts() -> None:
+def test_people_are_counted_from_an_mjpeg_camera_that_restarts(detector: RunningService) -> None:
     """bench/mjpeg_camera.py (vtest.avi as MJPEG at 10 fps) through the gateway; the camera
     is killed and started again on the same port."""
     port = free_port()
@@ -164,11 +165,12 @@ def test_people_are_counted_from_an_mjpeg_camera_that_restarts() -> None:
 
     url = f"http://127.0.0.1:{port}/"
     first = camera()
-    with running_service("detector") as detector, gateway(detector.address, url) as (lines, log):
+    with gateway(detector.address, url) as (lines, log):
         before = counts(lines, 10, timeout=60)
         first.kill()
         first.wait()
-        time.sleep(3)
+        wait_for(lambda: f"{url} stopped sending; reconnecting" in "".join(log), timeout=60,
+                 what="the gateway noticing the camera gone")
         second = camera()
         try:
             while not lines.empty():

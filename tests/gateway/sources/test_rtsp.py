@@ -22,7 +22,8 @@ from oricf.bench.rtsp_camera import RtspCamera
 from oricf.config import config_dir
 from oricf.launch.health import free_port
 from tests.support.data import video_path
-from tests.support.services import running_service
+from tests.support.services import RunningService
+from tests.support.waiting import wait_for
 
 PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
 
@@ -71,14 +72,16 @@ def drain(lines: queue.Queue[str]) -> None:
         lines.get_nowait()
 
 
-def test_people_are_counted_from_an_rtsp_camera_that_restarts() -> None:
-    with running_service("detector") as detector, RtspCamera() as camera:
+def test_people_are_counted_from_an_rtsp_camera_that_restarts(detector: RunningService) -> None:
+    with RtspCamera() as camera:
         camera.play_file(video_path())
         with gateway(detector.address, camera.url) as (lines, log):
             before = counts(lines, 10, timeout=60)
             assert len(before) == 10 and all(1 <= c <= 15 for c in before), "".join(log)
             camera.stop_server()
-            time.sleep(4)  # the gateway notices, and retries while the server is away
+            # the gateway notices, and retries while the server is away
+            wait_for(lambda: f"cannot open {camera.url}; trying again in" in "".join(log),
+                     timeout=60, what="a retry while the server is away")
             drain(lines)
             camera.start_server()
             after = counts(lines, 10, timeout=60)
@@ -89,9 +92,10 @@ def test_people_are_counted_from_an_rtsp_camera_that_restarts() -> None:
     assert text.count(f"{camera.url} opened") >= 2
 
 
-def test_an_address_where_no_camera_answers_is_retried_and_the_gateway_stays() -> None:
+def test_an_address_where_no_camera_answers_is_retried_and_the_gateway_stays(
+        detector: RunningService) -> None:
     url = f"rtsp://127.0.0.1:{free_port()}/cam"
-    with running_service("detector") as detector, gateway(detector.address, url) as (_, log):
+    with gateway(detector.address, url) as (_, log):
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and "".join(log).count("cannot open") < 3:
             time.sleep(0.5)
@@ -100,7 +104,8 @@ def test_an_address_where_no_camera_answers_is_retried_and_the_gateway_stays() -
     assert "Traceback" not in text
 
 
-def test_people_are_counted_from_an_hls_stream_over_http(tmp_path: Path) -> None:
+def test_people_are_counted_from_an_hls_stream_over_http(tmp_path: Path,
+                                                         detector: RunningService) -> None:
     """FFmpeg cuts vtest.avi into HLS segments; a real HTTP server serves them."""
     subprocess.run(["ffmpeg", "-hide_banner", "-loglevel", "error", "-t", "10", "-i",
                     str(video_path()), "-an", "-c:v", "libx264", "-preset", "ultrafast",
@@ -111,8 +116,7 @@ def test_people_are_counted_from_an_hls_stream_over_http(tmp_path: Path) -> None
                                "127.0.0.1", "--directory", str(tmp_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        with running_service("detector") as detector, \
-                gateway(detector.address, f"http://127.0.0.1:{port}/cam.m3u8") as (lines, log):
+        with gateway(detector.address, f"http://127.0.0.1:{port}/cam.m3u8") as (lines, log):
             found = counts(lines, 10, timeout=60)
     finally:
         server.kill()

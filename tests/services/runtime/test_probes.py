@@ -16,19 +16,14 @@ from oricf.errors import ConfigError
 from oricf.tls import ClientTls
 from oricf.v1 import detector_pb2_grpc
 from tests.services.runtime.test_lifecycle import person_request
-from tests.support.certs import local_certificates
 from tests.support.detections import count
 from tests.support.metrics import scrape
 from tests.support.processes import free_port
 from tests.support.services import running_service
+from tests.support.waiting import wait_for
 
 SERVING = health_pb2.HealthCheckResponse.SERVING
 NOT_SERVING = health_pb2.HealthCheckResponse.NOT_SERVING
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return local_certificates(tmp_path_factory)
 
 
 def check(address: str, service: str = "") -> int:
@@ -135,7 +130,13 @@ def test_connections_are_closed_at_their_max_age() -> None:
         states = next(states_of)
         stub = detector_pb2_grpc.DetectorStub(service.channel)
         assert count(stub.Detect(person_request(), timeout=5), "person") == 1
-        time.sleep(1.5)
+
+        def closed_after_ready() -> bool:
+            ready = grpc.ChannelConnectivity.READY
+            return ready in states and grpc.ChannelConnectivity.IDLE in states[
+                states.index(ready):]
+
+        wait_for(closed_after_ready, timeout=10, what="the connection closed at its max age")
         assert grpc.ChannelConnectivity.IDLE in states[states.index(
             grpc.ChannelConnectivity.READY):]
         assert count(stub.Detect(person_request(), timeout=5), "person") == 1
