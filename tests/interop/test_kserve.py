@@ -23,7 +23,7 @@ from oricf.store import ModelStore
 from tests.gateway.methods.test_infer import counts, infer_config
 from tests.gateway.test_pipeline import FRAMES, run_frames
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 SERVER = Path(__file__).with_name("kserve_server.py")
 
@@ -58,11 +58,11 @@ def kserve_address() -> Iterator[str]:
         stop(process)
 
 
-def test_gateway_counts_people_through_kserve_as_through_oricf(kserve_address: str) -> None:
+def test_gateway_counts_people_through_kserve_as_through_oricf(
+        kserve_address: str, models: RunningService) -> None:
     at_kserve = {"routes": {"people": {"call": {"model_name": "kserve-yolox"}}}}
     pipeline, through_kserve = run_frames(infer_config(kserve_address, at_kserve), FRAMES)
-    with running_service("models") as models:
-        _, through_oricf = run_frames(infer_config(models.address), FRAMES)
+    _, through_oricf = run_frames(infer_config(models.address), FRAMES)
     assert counts(through_kserve) == counts(through_oricf)
     assert counts(through_kserve)[0] == 4
     assert pipeline.routes["people"].stats.ok == len(FRAMES)

@@ -8,14 +8,13 @@ from pathlib import Path
 import pytest
 
 from tests.gateway.agents.scene import RosListener, pipeline_yaml, ros_listener
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 
 @pytest.fixture(scope="module")
-def services() -> Iterator[dict[str, RunningService]]:
-    with running_service("detector") as detector, running_service("llm") as llm, \
-            running_service("asr") as asr:
-        yield {"detector": detector, "llm": llm, "asr": asr}
+def services(detector: RunningService, llm: RunningService, asr: RunningService
+             ) -> dict[str, RunningService]:
+    return {"detector": detector, "llm": llm, "asr": asr}
 
 
 @pytest.fixture(scope="module")

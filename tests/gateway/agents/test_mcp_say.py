@@ -13,17 +13,16 @@ import yaml
 from oricf.audio.wav import parse_wav
 from tests.gateway.agents.session import stdio_session, text_of
 from tests.support.processes import free_port
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 from tests.support.speech import words
-from tests.support.tts import tts_service  # noqa: F401  (a fixture)
 
 
-def test_say_speaks_through_the_pipeline(tts_service: RunningService,  # noqa: F811
-                                         tmp_path: Path) -> None:
+def test_say_speaks_through_the_pipeline(tts: RunningService,
+                                         tmp_path: Path, asr: RunningService) -> None:
     wav = tmp_path / "spoken.wav"
     config = tmp_path / "voice.yaml"
     config.write_text(yaml.safe_dump({
-        "endpoints": {"tts": {"address": tts_service.address, "deadline_ms": 30000}},
+        "endpoints": {"tts": {"address": tts.address, "deadline_ms": 30000}},
         "channels": {"typed": {"listen": f"127.0.0.1:{free_port()}"}},
         "routes": {"voice": {"input": {"text": "typed"},
                              "call": {"service": "tts", "method": "Synthesize",
@@ -45,10 +44,9 @@ def test_say_speaks_through_the_pipeline(tts_service: RunningService,  # noqa: F
     assert audio.samples.shape[0] / audio.sample_rate > 0.5
     from oricf.v1 import speech_pb2, speech_pb2_grpc
 
-    with running_service("asr") as asr:
-        heard = speech_pb2_grpc.SpeechRecognizerStub(asr.channel).Transcribe(
-            speech_pb2.TranscribeRequest(audio=speech_pb2.Audio(
-                data=audio.samples.astype("<i2").tobytes(), encoding="pcm_s16le",
-                sample_rate=audio.sample_rate, channels=audio.channels), language="en"),
-            timeout=60)
+    heard = speech_pb2_grpc.SpeechRecognizerStub(asr.channel).Transcribe(
+        speech_pb2.TranscribeRequest(audio=speech_pb2.Audio(
+            data=audio.samples.astype("<i2").tobytes(), encoding="pcm_s16le",
+            sample_rate=audio.sample_rate, channels=audio.channels), language="en"),
+        timeout=60)
     assert {"hallway", "clear"} <= set(words(heard.text)), heard.text
