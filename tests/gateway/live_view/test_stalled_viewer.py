@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
 import yaml
 
 from oricf.config import config_dir
@@ -20,7 +18,7 @@ from oricf.gateway.live_view.front import RELAY_QUEUE, WRITE_LIMIT_BYTES
 from tests.gateway.live_view.processes import gateway_with_view
 from tests.gateway.live_view.viewers import stalled_viewer, watch_images
 from tests.support.data import video_path
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 PIPELINE = config_dir() / "pipelines" / "people_video.yaml"
 FPS = 25          # frames of the video handed to the route per second, at most
@@ -34,12 +32,6 @@ MEASURE_S = 20.0
 # in steps of a few MiB.
 MARGIN_BYTES = 12 << 20
 MiB = 1 << 20
-
-
-@pytest.fixture(scope="module")
-def detector() -> Iterator[str]:
-    with running_service("detector") as service:
-        yield service.address
 
 
 def overlay(folder: Path, detector: str) -> Path:
@@ -59,9 +51,9 @@ def rss_bytes(pid: int) -> int:
 
 
 def test_a_stalled_viewer_holds_no_more_than_the_configuration_allows(
-        detector: str, tmp_path: Path) -> None:
+        detector: RunningService, tmp_path: Path) -> None:
     with gateway_with_view(tmp_path, "--config", str(PIPELINE), "--overlay",
-                           str(overlay(tmp_path, detector))) as gateway, \
+                           str(overlay(tmp_path, detector.address))) as gateway, \
             stalled_viewer(gateway.url, "/people/image"):
         time.sleep(WARM_UP_S)
         pid, counted, start = gateway.process.pid, len(gateway.out), time.monotonic()

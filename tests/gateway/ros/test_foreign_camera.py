@@ -38,7 +38,7 @@ from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_
 from tests.gateway.ros.matching import MATCH_TIMEOUT_S
 from tests.support.data import video_path
 from tests.support.processes import oricf_process
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 REPOSITORY = Path(__file__).resolve().parents[3]
 SENT = 50  # frames, 5 s at 10 fps
@@ -90,11 +90,11 @@ def run_camera(reliability: str, env: dict[str, str]) -> int:
 
 
 @contextmanager
-def gateway_for_a_foreign_camera(context: Context) -> Iterator[tuple[GatewayNode, Probe]]:
+def gateway_for_a_foreign_camera(context: Context, detector: RunningService
+                                 ) -> Iterator[tuple[GatewayNode, Probe]]:
     """The gateway (with its Fast DDS profile, like `oricf gateway`) and the real detector in
     this process; the camera in the other process will be the topic's only publisher."""
-    with running_service("detector") as detector, \
-            running_gateway(people_qa(detector=detector.address), context) as (gateway, probe):
+    with running_gateway(people_qa(detector=detector.address), context) as (gateway, probe):
         probe.node.destroy_publisher(probe.camera)
         yield gateway, probe
 
@@ -120,9 +120,9 @@ def warnings(caplog: pytest.LogCaptureFixture, text: str) -> list[str]:
 
 
 def test_a_reliable_camera_of_another_process_gets_its_frames_counted(
-        ros_context: Context, caplog: pytest.LogCaptureFixture) -> None:
+        ros_context: Context, caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     caplog.set_level(logging.INFO)
-    with gateway_for_a_foreign_camera(ros_context) as (gateway, probe):
+    with gateway_for_a_foreign_camera(ros_context, detector) as (gateway, probe):
         sent = run_camera("reliable", foreign_env())
         counts = counted(gateway, probe)
         stats = gateway.pipeline.workers["people"].stats
@@ -141,9 +141,9 @@ def test_a_reliable_camera_of_another_process_gets_its_frames_counted(
 
 
 def test_a_best_effort_camera_losing_frames_gets_one_warning_naming_the_fix(
-        ros_context: Context, caplog: pytest.LogCaptureFixture) -> None:
+        ros_context: Context, caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     caplog.set_level(logging.INFO)
-    with gateway_for_a_foreign_camera(ros_context) as (gateway, _):
+    with gateway_for_a_foreign_camera(ros_context, detector) as (gateway, _):
         # A camera streams until stopped: sooner or later a frame arrives behind a gap.
         with camera("best_effort", foreign_env(), frames=10 * SENT) as process:
             wait_for(logged(caplog, LOST), timeout=60)
@@ -162,14 +162,14 @@ def test_a_best_effort_camera_losing_frames_gets_one_warning_naming_the_fix(
 
 
 def test_a_publisher_that_never_matches_is_named_in_a_warning(
-        ros_context: Context, caplog: pytest.LogCaptureFixture) -> None:
+        ros_context: Context, caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     """Compressed frames on a topic the pipeline reads as sensor_msgs/Image: no frame, so no
     lost frame, would ever show it."""
     caplog.set_level(logging.INFO)
     other = Context()  # a participant of its own: one participant holds one type per topic
     rclpy.init(context=other)
     try:
-        with gateway_for_a_foreign_camera(ros_context):
+        with gateway_for_a_foreign_camera(ros_context, detector):
             compressed = Node("compressed_camera", context=other)
             compressed.create_publisher(CompressedImage, CAMERA, qos_profile_sensor_data)
             wait_for(logged(caplog, UNMATCHED), timeout=20)
@@ -183,7 +183,7 @@ def test_a_publisher_that_never_matches_is_named_in_a_warning(
 
 @pytest.mark.parametrize("tcp", [True, False], ids=["tcp profile", "default profile"])
 def test_a_camera_with_fast_dds_large_data_transports_reaches_the_gateway_on_tcp(
-        tcp: bool) -> None:
+        tcp: bool, detector: RunningService) -> None:
     """FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA, Fast DDS's own answer to large samples: its
     participants discover each other over UDP multicast (ROS's default discovery range, not
     LOCALHOST, under which rmw_fastrtps replaces the builtin transports), then talk over TCP
@@ -200,11 +200,9 @@ def test_a_camera_with_fast_dds_large_data_transports_reaches_the_gateway_on_tcp
               "ROS_DOMAIN_ID": str(random.randint(101, 200))}
     large_data = {**subnet, "FASTDDS_BUILTIN_TRANSPORTS":
                   "LARGE_DATA?max_msg_size=1MB&sockets_size=1MB"}
-    with running_service("detector") as detector, \
-            oricf_process("gateway", "--set",
-                          f'endpoints.detector.address="{detector.address}"',
-                          env={**subnet, "FASTRTPS_DEFAULT_PROFILES_FILE":
-                               str(dds_profile(tcp))}) as gateway:
+    with oricf_process("gateway", "--set", f'endpoints.detector.address="{detector.address}"',
+                       env={**subnet, "FASTRTPS_DEFAULT_PROFILES_FILE":
+                            str(dds_profile(tcp))}) as gateway:
         if tcp:
             sent = run_camera("best_effort", foreign_env(**large_data))
             time.sleep(2.0)  # the last frames through the detector

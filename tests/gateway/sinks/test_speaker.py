@@ -33,9 +33,9 @@ from tests.gateway.sinks.voice import (
 )
 from tests.gateway.sources.audio import PulseServer
 from tests.support.metrics import scrape
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 from tests.support.speech import QUESTION, speech
-from tests.support.tts import VOICES, stub, tts_service  # noqa: F401 (a fixture)
+from tests.support.tts import VOICES, stub
 
 log = logging.getLogger(__name__)
 
@@ -69,12 +69,6 @@ def pulse(tmp_path_factory: pytest.TempPathFactory) -> Iterator[PulseServer]:
         server.close()
 
 
-@pytest.fixture(scope="module")
-def asr() -> Iterator[RunningService]:
-    with running_service("asr") as service:
-        yield service
-
-
 @pytest.fixture()
 def pulse_env(pulse: PulseServer, monkeypatch: pytest.MonkeyPatch) -> PulseServer:
     """PortAudio in this process talks to the test's PulseAudio server."""
@@ -103,10 +97,10 @@ def mic_route(pipeline: dict[str, object], asr: str, mic: str, while_speaking: s
 
 @pytest.mark.parametrize("voice", VOICES)
 def test_played_answers_are_heard_back_word_for_word(
-        voice: str, pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        voice: str, pulse_env: PulseServer, tts: RunningService,
         asr: RunningService, tmp_path: Path) -> None:
     errors = total = 0
-    with local_gateway(tmp_path, say_route(tts_service.address, voice, SPEAKER)) as gateway:
+    with local_gateway(tmp_path, say_route(tts.address, voice, SPEAKER)) as gateway:
         for index, answer in enumerate(ANSWERS):
             recorder = Recorder(pulse_env, SPEAKER, tmp_path / f"answer-{index}.raw")
             gateway.say("say", answer)
@@ -122,9 +116,9 @@ def test_played_answers_are_heard_back_word_for_word(
 
 
 def test_the_first_sentence_plays_while_the_rest_is_synthesized(
-        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        pulse_env: PulseServer, tts: RunningService,
         tmp_path: Path) -> None:
-    pipeline = say_route(tts_service.address, "joe", SPEAKER)
+    pipeline = say_route(tts.address, "joe", SPEAKER)
     done = tmp_path / "spoken.jsonl"
     pipeline["routes"]["say"]["outputs"].append(  # type: ignore[index]
         {"jsonl": str(done), "from": "spoken"})
@@ -158,9 +152,9 @@ def test_every_stream_sounds_from_its_first_sample(pulse_env: PulseServer,
 
 
 def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
-        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        pulse_env: PulseServer, tts: RunningService,
         asr: RunningService, tmp_path: Path) -> None:
-    pipeline = mic_route(say_route(tts_service.address, "espeak", SPEAKER), asr.address, MIC,
+    pipeline = mic_route(say_route(tts.address, "espeak", SPEAKER), asr.address, MIC,
                          "barge_in", tmp_path / "heard.jsonl")
     pipeline["metrics"] = {"listen": "127.0.0.1:0"}
     question = np.concatenate([speech(QUESTION), np.zeros(RATE, np.int16)])
@@ -189,7 +183,7 @@ def test_a_new_utterance_stops_the_answer_and_drops_what_is_pending(
         == speaker.stats.dropped
     played = voiced(recording)
     played_s = (played[-1] - played[0]) / RATE
-    whole_s = stub(tts_service).Synthesize(synthesis_pb2.SynthesizeRequest(
+    whole_s = stub(tts).Synthesize(synthesis_pb2.SynthesizeRequest(
         text=LONG_ANSWER, voice="espeak"), timeout=30).duration_s
     log.info("barge-in: playback stopped %.0f ms after the question began; %.1f s of %.1f s "
              "played", stopped_after * 1000, played_s, whole_s)
@@ -221,12 +215,12 @@ class PlayLater:
 
 
 def test_a_muted_microphone_does_not_take_the_answer_for_a_question(
-        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        pulse_env: PulseServer, tts: RunningService,
         asr: RunningService, tmp_path: Path) -> None:
     """The speaker plays into the room the microphone hears: muted while speaking, the
     route transcribes nothing; the same speech played by someone else is transcribed."""
     heard = tmp_path / "heard.jsonl"
-    pipeline = mic_route(say_route(tts_service.address, "espeak", ROOM), asr.address, ROOM,
+    pipeline = mic_route(say_route(tts.address, "espeak", ROOM), asr.address, ROOM,
                          "mute", heard)
     with local_gateway(tmp_path, pipeline) as gateway:
         gateway.say("say", "How many people do you see")
@@ -264,10 +258,10 @@ def test_a_speaker_key_of_the_wrong_kind_is_an_error_naming_the_file_and_key(
 
 
 def test_a_speaker_that_vanishes_while_playing_plays_again_once_it_is_back(
-        pulse_env: PulseServer, tts_service: RunningService,  # noqa: F811
+        pulse_env: PulseServer, tts: RunningService,
         asr: RunningService, tmp_path: Path) -> None:
     module = pulse_env.add_sink(GONE)
-    with local_gateway(tmp_path, say_route(tts_service.address, "espeak", GONE)) as gateway:
+    with local_gateway(tmp_path, say_route(tts.address, "espeak", GONE)) as gateway:
         speaker = gateway.speaker()
         gateway.say("say", LONG_ANSWER)
         deadline = time.monotonic() + 30

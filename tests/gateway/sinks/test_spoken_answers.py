@@ -19,9 +19,8 @@ from oricf.config import config_dir
 from tests.gateway.sinks.voice import RATE, Recorder, spoken_words, transcribe, voiced, word_errors
 from tests.gateway.sources.audio import PulseServer, gateway
 from tests.support.data import video_path
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 from tests.support.speech import QUESTION, speech
-from tests.support.tts import tts_service  # noqa: F401 (a fixture)
 
 log = logging.getLogger(__name__)
 
@@ -41,32 +40,31 @@ def pulse(tmp_path_factory: pytest.TempPathFactory) -> Iterator[PulseServer]:
 
 
 def test_the_microphone_example_speaks_its_answer(
-        pulse: PulseServer, tts_service: RunningService, tmp_path: Path) -> None:  # noqa: F811
-    with running_service("detector") as detector, running_service("asr") as asr, \
-            running_service("llm") as llm:
-        overlay = tmp_path / "here.yaml"
-        overlay.write_text(yaml.safe_dump({
-            "endpoints": {"detector": {"address": detector.address},
-                          "asr": {"address": asr.address}, "llm": {"address": llm.address},
-                          "tts": {"address": tts_service.address}},
-            "routes": {"speech": {"input": {"audio": f"{MIC}.monitor"}},
-                       "voice": {"outputs": [{"audio": {"device": SPEAKER},
-                                              "from": "speech"}]},
-                       "people": {"input": {"url": str(video_path())}, "outputs": [
-                           {"product": "people_count", "from": "count", "max_age_s": 5},
-                           {"jsonl": "-", "from": "count"}]}}}))
-        with gateway(["--config", str(PIPELINE), "--overlay", str(overlay)],
-                     pulse.env()) as running:
-            running.wait_log(f"speaker: PulseAudio sink '{SPEAKER}'", 60)
-            running.next_line("people", 60)  # the context is there
-            pulse.play(MIC, np.zeros(RATE // 2, np.int16))  # an idle sink starts late once
-            recorder = Recorder(pulse, SPEAKER, tmp_path / "answer.raw")
-            pulse.play(MIC, np.concatenate([speech(QUESTION), np.zeros(RATE, np.int16)]))
-            answer = running.next_line("answer", 60)["answer"]
-            time.sleep(2 + len(answer.split()) * 0.5)  # spoken by now
-            recording = recorder.samples()
-            assert running.stop() == 0, running.stderr
-        heard = transcribe(asr.channel, recording)
+        pulse: PulseServer, tts: RunningService, detector: RunningService, asr: RunningService,
+        llm: RunningService, tmp_path: Path) -> None:
+    overlay = tmp_path / "here.yaml"
+    overlay.write_text(yaml.safe_dump({
+        "endpoints": {"detector": {"address": detector.address},
+                      "asr": {"address": asr.address}, "llm": {"address": llm.address},
+                      "tts": {"address": tts.address}},
+        "routes": {"speech": {"input": {"audio": f"{MIC}.monitor"}},
+                   "voice": {"outputs": [{"audio": {"device": SPEAKER},
+                                          "from": "speech"}]},
+                   "people": {"input": {"url": str(video_path())}, "outputs": [
+                       {"product": "people_count", "from": "count", "max_age_s": 5},
+                       {"jsonl": "-", "from": "count"}]}}}))
+    with gateway(["--config", str(PIPELINE), "--overlay", str(overlay)],
+                 pulse.env()) as running:
+        running.wait_log(f"speaker: PulseAudio sink '{SPEAKER}'", 60)
+        running.next_line("people", 60)  # the context is there
+        pulse.play(MIC, np.zeros(RATE // 2, np.int16))  # an idle sink starts late once
+        recorder = Recorder(pulse, SPEAKER, tmp_path / "answer.raw")
+        pulse.play(MIC, np.concatenate([speech(QUESTION), np.zeros(RATE, np.int16)]))
+        answer = running.next_line("answer", 60)["answer"]
+        time.sleep(2 + len(answer.split()) * 0.5)  # spoken by now
+        recording = recorder.samples()
+        assert running.stop() == 0, running.stderr
+    heard = transcribe(asr.channel, recording)
     assert len(voiced(recording)), f"nothing played for {answer!r}:\n{running.stderr}"
     reference = spoken_words(answer)
     errors = word_errors(reference, spoken_words(heard))
