@@ -34,12 +34,6 @@ def median_ms(seconds: Sequence[float]) -> float:
     return statistics.median(seconds) * 1e3
 
 
-def p90(values: Sequence[float]) -> float:
-    """The 90th percentile, interpolated between ranks (numpy's default), in the values' unit:
-    one definition for every benchmark's table."""
-    return float(np.percentile(values, 90))
-
-
 @contextmanager
 def served(service: str, *args: str) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
     """`oricf serve SERVICE` in a child process on a free local port, stopped on exit."""

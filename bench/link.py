@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from oricf.bench.common import load_frames, p90, print_table, stop
+from oricf.bench.common import load_frames, print_table, stop
 from oricf.bench.gateway import cpu_seconds
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.config import deep_merge
@@ -38,6 +38,7 @@ from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
 from oricf.hosts import Address
 from oricf.launch.health import free_port, wait_serving
+from oricf.stats import p90
 
 FPS = 10
 EDGE_PORT = 50051

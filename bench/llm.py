@@ -28,10 +28,10 @@ from typing import Any
 
 import grpc
 
-from oricf.bench.common import p90
-from oricf.services.local import local_service, service_config
 from oricf.bench.protocols import parse_protocols
 from oricf.config import shipped_service_config
+from oricf.services.local import local_service, service_config
+from oricf.stats import p90
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 
 MODELS = ("gemma3-270m", "smollm2-135m-instruct")

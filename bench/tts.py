@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 import grpc
 
 from oricf.bench.asr import word_errors
-from oricf.bench.common import median_ms, p90, print_table, served
+from oricf.bench.common import median_ms, print_table, served
 from oricf.services.tts.text import normalise
+from oricf.stats import p90
 from oricf.v1 import speech_pb2, speech_pb2_grpc, synthesis_pb2, synthesis_pb2_grpc
 
 SHORT = [

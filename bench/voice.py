@@ -49,6 +49,7 @@ from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sinks import Outlets
 from oricf.gateway.sources.audio import Utterances, shared_vad
 from oricf.gateway.sources.video import VideoSource
+from oricf.stats import p90
 
 PIPELINE = config_dir() / "pipelines" / "mic_questions.yaml"
 # The last two pause at their comma (160-260 ms as espeak-ng says them), as people do: an end
@@ -197,7 +198,7 @@ def summary(turns: list[Turn]) -> dict[str, tuple[float, float]]:
                   for s in stages if stage == "total" or stage in s]
         if values:
             table[stage] = (float(np.median(values)) * 1000,
-                            float(np.percentile(values, 90)) * 1000)
+                            p90(values) * 1000)
     return table
 
 

@@ -37,10 +37,10 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from oricf.config import Schema
+from oricf.stats import p90
 
 log = logging.getLogger(__name__)
 
-PERCENTILE = 90
 MIN_SAMPLES = 5  # a decision needs at least this many latencies
 Place = Literal["address", "fallback"]
 PROC_STAT = Path("/proc/stat")
@@ -84,11 +84,6 @@ class PlacementConfig(Schema):
     @property
     def other(self) -> Place:
         return "fallback" if self.prefer == "address" else "address"
-
-
-def p90(values: deque[float]) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(len(ordered) * PERCENTILE / 100))]
 
 
 class RobotCpu:
