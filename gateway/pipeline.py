@@ -67,7 +67,7 @@ class Pipeline:
     def _drop_pending_speech(self) -> None:
         """Barge-in: sentences waiting to be synthesized are dropped."""
         for name, rc in self.config.routes.items():
-            if rc.call.method == "Synthesize":
+            if METHODS[rc.call.method].speaks:
                 self.workers[name].clear()
 
     def _feeder(self, route: str) -> Callable[[Any], None]:

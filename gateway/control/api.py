@@ -14,7 +14,6 @@ from typing import Any, Protocol
 MAX_IMAGE_BYTES = 8 * 1024 * 1024
 MAX_AUDIO_BYTES = 16 * 1024 * 1024
 MAX_TEXT_CHARS = 4000
-IMAGE_METHODS = ("Detect", "Infer")  # the call methods of routes that take camera frames
 
 Json = dict[str, Any]
 

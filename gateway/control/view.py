@@ -10,6 +10,7 @@ and no output: an agent's image never reaches a topic or a tracker.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import grpc
@@ -21,7 +22,6 @@ from oricf.gateway.agents.audit import AuditLog
 from oricf.gateway.agents.messages import nested
 from oricf.gateway.agents.policy import Refused
 from oricf.gateway.control.api import (
-    IMAGE_METHODS,
     MAX_AUDIO_BYTES,
     MAX_IMAGE_BYTES,
     MAX_TEXT_CHARS,
@@ -29,7 +29,7 @@ from oricf.gateway.control.api import (
 )
 from oricf.gateway.control.names import known_product
 from oricf.gateway.control.tensors import tensor_inputs, tensor_json
-from oricf.gateway.methods import METHODS
+from oricf.gateway.methods import METHODS, Method
 from oricf.gateway.methods.base import Skip
 from oricf.gateway.methods.generate import context_readings
 from oricf.gateway.methods.infer import InferCall
@@ -40,6 +40,11 @@ from oricf.imaging import Detection, draw_detections, encode_image, encoded_size
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
 from oricf.models.wire import infer_request, response_outputs
+
+
+def takes_images(method: Method) -> bool:
+    """Routes that take camera frames (look, detect, infer an image)."""
+    return method.image_transport
 
 
 class PipelineView:
@@ -76,7 +81,7 @@ class PipelineView:
                 "route": self._writers[name]}
 
     def look(self, route: str | None = None) -> tuple[Json, bytes]:
-        chosen = self._route(route, IMAGE_METHODS, "a camera")
+        chosen = self._route(route, takes_images, "a camera")
         latest = chosen.latest
         if latest is None:
             raise NotReady(f"route {chosen.name} has taken no frame yet")
@@ -118,7 +123,7 @@ class PipelineView:
     # calls on what the caller passes
 
     def detect(self, image: bytes, route: str | None = None) -> Json:
-        chosen = self._route(route, IMAGE_METHODS, "a detection", kind="detections")
+        chosen = self._route(route, takes_images, "a detection", kind="detections")
         return self._run(chosen, {"image": image_frame(image)})
 
     def infer(self, route: str, image: bytes | None = None,
@@ -128,9 +133,9 @@ class PipelineView:
         if (image is None) == (tensors is None):
             raise InvalidInput("give an image or tensors, not both")
         if image is not None:
-            return self._run(self._route(route, IMAGE_METHODS, "an image"),
+            return self._run(self._route(route, takes_images, "an image"),
                              {"image": image_frame(image)})
-        chosen = self._route(route, ("Infer",), "an Infer")
+        chosen = self._route(route, lambda m: m.takes_tensors, "an Infer")
         call: InferCall = chosen.config.call  # type: ignore[assignment]
         request = infer_request(call.server_model, tensor_inputs(tensors))
         try:
@@ -142,7 +147,7 @@ class PipelineView:
 
     def ask(self, question: str) -> Json:
         question = text_arg(question, "question")
-        chosen = self._route(None, ("Generate",), "a language model")
+        chosen = self._route(None, lambda m: m.answers, "a language model")
         facts = context_readings(chosen.config.call, self.pipeline.products)  # type: ignore[arg-type]
         result = self._run(chosen, {"text": question, "value": question, "route": chosen.name})
         result["facts"] = {r.name: {"value": plain(r.value), "age_s": round(r.age_s, 3),
@@ -154,14 +159,14 @@ class PipelineView:
             raise InvalidInput(f"audio of {len(audio):,} bytes; at most {MAX_AUDIO_BYTES:,}")
         pcm = parse_wav(audio)
         clip = AudioClip(pcm.samples.astype("<i2").tobytes(), pcm.sample_rate, pcm.channels)
-        chosen = self._route(None, ("Transcribe",), "a speech recognition")
+        chosen = self._route(None, lambda m: m.hears, "a speech recognition")
         return self._run(chosen, {"audio": clip})
 
     def say(self, text: str) -> Json:
         """Handed to the pipeline's speech route, so it plays where the pipeline says (a
         speaker, a topic, a file), after what it is saying already."""
         text = text_arg(text, "text")
-        chosen = self._route(None, ("Synthesize",), "a speech synthesis")
+        chosen = self._route(None, lambda m: m.speaks, "a speech synthesis")
         self.pipeline.submit(chosen.name, lambda: {"value": text, "text": text})
         return {"route": chosen.name, "queued": text}
 
@@ -190,10 +195,13 @@ class PipelineView:
         route = self.pipeline.config.routes[self._writers[product]]
         return next(o.max_age_s for o in route.outputs if o.product == product)
 
-    def _route(self, name: str | None, methods: tuple[str, ...], what: str,
+    def _route(self, name: str | None, test: Callable[[Method], bool], what: str,
                kind: str | None = None) -> Route:
-        fits = [r for r in self.pipeline.routes.values() if r.config.call.method in methods
-                and (kind is None or kind in METHODS[r.config.call.method].fields(r.config.call))]
+        """The named route (or the first) whose method passes `test` and, given a `kind`,
+        whose call adds that field."""
+        fits = [r for r in self.pipeline.routes.values()
+                if test(method := METHODS[r.config.call.method])
+                and (kind is None or kind in method.fields(r.config.call))]
         if name is None:
             if not fits:
                 raise NotReady(f"this pipeline has no {what} route")

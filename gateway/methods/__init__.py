@@ -12,6 +12,7 @@ Adding a method is one module with a METHOD, and its line below.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated
 
 from pydantic import Field
@@ -27,10 +28,21 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     synthesize.METHOD,
 )}
 
+
+
+def methods_that(test: Callable[[Method], bool]) -> tuple[str, ...]:
+    """The names of the methods whose entry passes `test` (e.g. `lambda m: m.speaks`)."""
+    return tuple(name for name, method in METHODS.items() if test(method))
+
+
+# The call methods of routes that take camera frames.
+IMAGE_METHODS = methods_that(lambda method: method.image_transport)
+
 # A route's `call:`: the `method` key picks the schema, so a key of another method is refused.
 CallConfig = Annotated[
     detect.DetectCall | transcribe.TranscribeCall | generate.GenerateCall | infer.InferCall
     | synthesize.SynthesizeCall,
     Field(discriminator="method")]
 
-__all__ = ["METHODS", "CallConfig", "Method", "Partial", "Skip"]
+__all__ = ["IMAGE_METHODS", "METHODS", "CallConfig", "Method", "Partial", "Skip",
+           "methods_that"]

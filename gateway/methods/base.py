@@ -60,6 +60,11 @@ class Method:
     result: Callable[[Any], type]              # call config -> its result dataclass
     bind: Binder                               # (call config, endpoint, products) -> invoke
     image_transport: bool = False              # sends camera frames (endpoint.image applies)
+    # What the control API and barge-in find a route by, so they name no method.
+    answers: bool = False                      # answers a question in text (ask)
+    hears: bool = False                        # turns speech into text (transcribe)
+    speaks: bool = False                       # turns text into speech (say, barge-in)
+    takes_tensors: bool = False                # tensors straight to its model (infer)
     # The protocols its calls can go in (an endpoint's targets must speak one of them).
     protocols: frozenset[str] = frozenset({"grpc"})
     # The record fields the call's templates name, by the key that holds the template.

@@ -254,5 +254,5 @@ def products(call: GenerateCall) -> dict[str, list[str]]:
 
 METHOD = Method("Generate", GenerateCall, "oricf.v1.LanguageModel",
                 language_pb2_grpc.LanguageModelStub, health_check("oricf.v1.LanguageModel"),
-                result, bind, reads=reads, products=products,
+                result, bind, reads=reads, products=products, answers=True,
                 protocols=frozenset({"grpc", "openai"}))

@@ -217,4 +217,4 @@ def result(call: InferCall) -> type:
 
 METHOD = Method("Infer", InferCall, "inference.GRPCInferenceService",
                 oip_grpc.GRPCInferenceServiceStub, server_ready, result, bind,
-                image_transport=True)
+                image_transport=True, takes_tensors=True)

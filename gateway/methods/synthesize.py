@@ -119,4 +119,5 @@ def reads(call: SynthesizeCall) -> dict[str, set[str]]:
 
 METHOD = Method("Synthesize", SynthesizeCall, "oricf.v1.SpeechSynthesizer",
                 synthesis_pb2_grpc.SpeechSynthesizerStub,
-                health_check("oricf.v1.SpeechSynthesizer"), result, bind, reads=reads)
+                health_check("oricf.v1.SpeechSynthesizer"), result, bind, reads=reads,
+                speaks=True)

@@ -67,4 +67,4 @@ def result(call: Any) -> type:
 
 METHOD = Method("Transcribe", TranscribeCall, "oricf.v1.SpeechRecognizer",
                 speech_pb2_grpc.SpeechRecognizerStub, health_check("oricf.v1.SpeechRecognizer"),
-                result, bind, protocols=frozenset({"grpc", "openai"}))
+                result, bind, protocols=frozenset({"grpc", "openai"}), hears=True)
