@@ -4,7 +4,8 @@
 
 Every message a topic route takes in, and every message a route sends to a topic, becomes
 one MCAP message on the channel of its topic (the full ROS name, e.g. /camera/image_raw),
-schema encoding `ros2msg` (the complete definition, definitions.py), message encoding `cdr`,
+schema encoding `ros2msg` (the complete definition, oricf.gateway.topics.definitions),
+message encoding `cdr` (written by the topic codec, oricf.gateway.topics.codec),
 profile `ros2`: `ros2 bag info` and `ros2 bag play`, mcap-ros2-support and Foxglove read it,
 and `oricf gateway --replay` plays it back without ROS (replay.py).
 
@@ -39,11 +40,11 @@ from mcap.writer import CompressionType, Writer
 
 from oricf.errors import InvalidInput, OricfError
 from oricf.gateway.config import OutputConfig
-from oricf.gateway.recording import definitions as msgdefs
-from oricf.gateway.recording.topic_values import serialize_output
 from oricf.gateway.route import Loader
 from oricf.gateway.sinks.jsonl import jsonable
 from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.topics import codec
+from oricf.gateway.topics import definitions as msgdefs
 from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
@@ -134,7 +135,7 @@ class Recorder:
 
     def output(self, topic: str, type_: str, value: Any, record: Record) -> None:
         """Records one output message (ValueError or TypeError if the value does not fit)."""
-        data = serialize_output(type_, value, record.get("header"))
+        data = codec.serialize(type_, value, record.get("header"))
         now = time.time_ns()
         self.write(topic, type_, data, now, int(record.get(INPUT_TIME, now)))
 
@@ -200,7 +201,8 @@ class Recorder:
 
 
 class TopicOutputs:
-    """Topic outputs when no ROS node publishes them (a replay): into the recording, or
+    """The pipeline's ROS outputs when no ROS node publishes them (a replay): each topic
+    output serialized by the topic codec into the recording, or
     without one to standard output as JSON lines (the jsonl sink's objects plus "topic" and
     "input_ns", the publish time of the input they came from)."""
 

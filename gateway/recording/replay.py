@@ -5,9 +5,10 @@
 The file is a rosbag2 recording (`ros2 bag record -s mcap`), or one the gateway wrote with
 --record. Its messages are read in file order; each on a topic some route reads (the
 route's topic as a ROS name: camera/image_raw is /camera/image_raw) goes to that route, the
-rest are skipped. Camera frames are read by oricf.gateway.recording.cdr as the ROS node reads them;
-text, numbers and audio are decoded by mcap-ros2-support from the definition in the file
-(or the gateway's own, definitions.py, if the file has none).
+rest are skipped. Camera frames are read by the topic codec (oricf.gateway.topics.codec) as
+the ROS node reads them; text, numbers and audio are decoded by mcap-ros2-support from the
+definition in the file (or the gateway's own, oricf.gateway.topics.definitions, if the file
+has none), and their `data` read by the codec.
 
 A camera frame's time (values.FRAME_TIME, what the track step measures time by) is its
 header's stamp, when the camera took it, or the log time, when it was recorded, for a
@@ -43,14 +44,14 @@ from mcap_ros2.decoder import DecoderFactory
 
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.recording import definitions as msgdefs
 from oricf.gateway.recording.mcap_reader import McapFile
 from oricf.gateway.recording.pace import Pace
 from oricf.gateway.recording.recorder import Recorder, RecordingError, linked, ros_name
-from oricf.gateway.recording.topic_values import data_record, image_record, timed
 from oricf.gateway.route import Loader
 from oricf.gateway.sources.base import OnEnd, Source
 from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.topics import definitions as msgdefs
+from oricf.gateway.topics.codec import data_loader, image_loader, timed
 from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
@@ -255,7 +256,7 @@ class Replay:
         """A loader per route for one message, None if it cannot be decoded (logged)."""
         data = message.data
         if feed.decode is None:  # frames taken when stamped, else when recorded
-            return {route: timed(_image_loader(feed.type, data), message.log_time)
+            return {route: timed(image_loader(feed.type, data), message.log_time)
                     for route in feed.routes}
         try:
             decoded = feed.decode(data).data
@@ -265,7 +266,7 @@ class Replay:
                                    "be decoded (%s); skipped", self.path, feed.topic,
                                    feed.type, quoted(exc or type(exc).__name__))
             return None
-        return {route: _data_loader(config, decoded) for route, config in feed.routes.items()}
+        return {route: data_loader(config, decoded) for route, config in feed.routes.items()}
 
     def close(self) -> int:
         """Ends the replay and closes its recorder; the exit code: 1 if the file was damaged
@@ -291,10 +292,3 @@ class ReplayHandle:
     def stop(self, timeout: float = 5.0) -> None:
         self._replay.stop(timeout)
 
-
-def _image_loader(type_: str, data: bytes) -> Loader:
-    return lambda: image_record(type_, data)
-
-
-def _data_loader(config: InputConfig, data: Any) -> Loader:
-    return lambda: data_record(config, data)

@@ -4,12 +4,11 @@ Per wake-up, rclpy's executors rebuild a wait set of every entity of the node in
 run each callback as a task, which costs the robot as much CPU per camera frame as the
 gRPC call that sends the frame away (docs/ros.md). A camera route instead gets a thread
 that waits on a wait set holding only its subscription and a stop signal (the pattern of
-rclpy's own wait_for_message), takes each frame serialized (oricf.gateway.recording.cdr
-reads it) and runs the route on it. While the route is busy, DDS keeps only the newest
-frame (history depth 1);
-the frames it replaced are counted from the gaps in the publisher's sequence numbers (exact
-with one publisher per camera topic, the usual case; with several the gaps mean nothing and
-are not counted).
+rclpy's own wait_for_message), takes each frame serialized (the topic codec,
+oricf.gateway.topics.codec, reads it) and runs the route on it. While the route is busy,
+DDS keeps only the newest frame (history depth 1); the frames it replaced are counted from
+the gaps in the publisher's sequence numbers (exact with one publisher per camera topic, the
+usual case; with several the gaps mean nothing and are not counted).
 
 Camera drivers are not ours, and the subscription adapts to them. Its reliability follows the
 topic's publishers, checked every second: reliable when every publisher is (image_transport's
@@ -42,10 +41,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from oricf.gateway.config import InputConfig
 from oricf.gateway.recording.recorder import Recorder, message_times
-from oricf.gateway.recording.topic_values import timed
 from oricf.gateway.ros.frame_loss import FrameLoss, camera_side_fix, replaceable
-from oricf.gateway.ros.messages import MESSAGE_TYPES, image_loader
+from oricf.gateway.ros.messages import message_type
 from oricf.gateway.route import Loader
+from oricf.gateway.topics.codec import image_loader, timed
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +87,7 @@ class CameraReceiver:
         self.loss = FrameLoss()
         self._node = node
         self._type = config.type
-        self._msg_type = MESSAGE_TYPES[config.type]
+        self._msg_type = message_type(config.type)
         self._topic = config.topic
         self._name = node.resolve_topic_name(config.topic)
         self._qos = qos

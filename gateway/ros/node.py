@@ -102,7 +102,7 @@ class GatewayNode(Node):
 
         # rclpy passes the message info to a callback with two parameters; its type
         # hint only names the one-parameter form.
-        self.create_subscription(messages.MESSAGE_TYPES[str(config.type)], config.topic,
+        self.create_subscription(messages.message_type(str(config.type)), config.topic,
                                  on_message,  # type: ignore[arg-type]
                                  input_qos(config),
                                  callback_group=MutuallyExclusiveCallbackGroup())

@@ -1,5 +1,6 @@
-"""Topic outputs on ROS: one publisher per output topic; each value converted to its
-message (oricf.gateway.ros.messages) and published, and recorded with --record."""
+"""Topic outputs, the pipeline's ROS outputs: one publisher per output topic; each value
+converted to its message (oricf.gateway.ros.messages, from the codec's fields) and
+published, and recorded with --record."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from oricf.gateway.config import OutputConfig, PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros import messages
 from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.topics.codec import TYPES
 from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
@@ -34,9 +36,9 @@ class TopicPublishers:
                 if output.topic is not None and output.topic not in self._publishers:
                     assert output.type is not None
                     # Reliable publishers match both reliable and best-effort subscribers.
-                    depth = 1 if output.type == "sensor_msgs/Image" else 10
                     self._publishers[output.topic] = node.create_publisher(
-                        messages.message_type(output.type), output.topic, depth)
+                        messages.message_type(output.type), output.topic,
+                        TYPES[output.type].depth)
 
     def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
         assert output.topic is not None and output.type is not None

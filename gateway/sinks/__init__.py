@@ -1,7 +1,8 @@
-"""Route outputs that are not ROS topics or data products, by the output's sink key:
+"""Route outputs other than ROS topics and data products, by the output's sink key:
 `jsonl` JSON lines (jsonl.py), `text` lines on standard output or a text channel (text.py),
 `frames` image and video files (frames.py), `audio` speech on a speaker (speaker.py), `wav`
-speech into WAV files (wav.py)."""
+speech into WAV files (wav.py). `Outlets` hands each output to its sink, and each topic
+output, a ROS output, to the ROS side."""
 
 from __future__ import annotations
 
@@ -18,16 +19,22 @@ from oricf.gateway.speaking import Speaking
 from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
+# Where topic outputs, the pipeline's ROS outputs, go: the ROS node's publishers
+# (oricf.gateway.ros.publishers.TopicPublishers), or without ROS, in a replay, the
+# recording (oricf.gateway.recording.recorder.TopicOutputs); each converts the value to the
+# topic's message through the topic codec (oricf.gateway.topics.codec).
+RosOutputs = Emit
+
 
 class Outlets:
-    """Where a pipeline's outputs go (data products excepted: the pipeline keeps those).
-    Topic outputs go to `topics`: the ROS node's publishers (oricf.gateway.ros.publishers),
-    or a recording when replaying without ROS. Owns the pipeline's text channels and
-    speakers; `speaking` is the pipeline's (oricf.gateway.speaking)."""
+    """Where a pipeline's outputs go (data products excepted: the pipeline keeps those): an
+    output with a sink key to that sink, a topic output to `ros` (RosOutputs; a topic output
+    without one is an error). Owns the pipeline's text channels and speakers; `speaking` is
+    the pipeline's (oricf.gateway.speaking)."""
 
-    def __init__(self, config: PipelineConfig, topics: Emit | None = None,
+    def __init__(self, config: PipelineConfig, ros: RosOutputs | None = None,
                  speaking: Speaking | None = None) -> None:
-        self.topics = topics
+        self.ros = ros
         self.speaking = speaking or Speaking()
         self.speakers = speakers(config, self.speaking)
         self.wav = WavFiles()
@@ -49,8 +56,8 @@ class Outlets:
             self.speakers[output.audio.device].play(value)
         elif output.wav is not None:
             self.wav.write(output.wav, value)
-        elif self.topics is not None:
-            self.topics(output, value, record)
+        elif self.ros is not None:
+            self.ros(output, value, record)
         else:
             raise RuntimeError(f"output topic {output.topic} needs the ROS node")
 

@@ -10,8 +10,8 @@ from oricf.gateway.main import split_ros_args
 CORE = ["config", "methods", "methods.detect", "methods.transcribe", "methods.generate",
         "methods.infer", "values", "post", "products", "endpoints", "worker", "route",
         "pipeline", "metrics", "throttle", "ros", "ros.dds", "ros.frame_loss", "ros.process",
-        "ros.params", "recording.cdr", "recording.recorder", "recording.replay", "main",
-        "sources", "sources.video", "sinks", "text_channels", "without_ros"]
+        "ros.params", "topics.cdr", "topics.codec", "recording.recorder", "recording.replay",
+        "main", "sources", "sources.video", "sinks", "text_channels", "without_ros"]
 
 
 def test_core_modules_do_not_import_ros() -> None:

@@ -26,7 +26,7 @@ from std_msgs.msg import String
 
 from oricf.audio import synthesize
 from oricf.config import config_dir, read_yaml
-from oricf.gateway.recording import definitions as msgdefs
+from oricf.gateway.topics import definitions as msgdefs
 from tests.gateway.ros.gateway_node import Probe, running_probe
 from tests.support.data import video_frames
 from tests.support.processes import oricf_process

@@ -16,10 +16,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Int16MultiArray, Int32, MultiArrayDimension, String
 
-from oricf.gateway.recording import cdr
-from oricf.gateway.recording import definitions as msgdefs
-from oricf.gateway.recording.topic_values import serialize_output
 from oricf.gateway.ros import messages as convert
+from oricf.gateway.topics import cdr
+from oricf.gateway.topics import definitions as msgdefs
+from oricf.gateway.topics.codec import TYPES, serialize
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
 from tests.support.vision_msgs import PACKAGE
@@ -69,7 +69,7 @@ def test_complete_definitions_decode_what_rclpy_serializes(
         monkeypatch.setattr(msgdefs, "complete_definition",
                             msgdefs.complete_definition.__wrapped__)
     for msg in samples():
-        type_ = next(t for t, cls in convert.MESSAGE_TYPES.items() if isinstance(msg, cls))
+        type_ = next(t for t in TYPES if isinstance(msg, convert.message_type(t)))
         text = msgdefs.complete_definition(type_)
         assert ("# " in text) == installed
         schema = Schema(id=1, name=msgdefs.schema_name(type_), encoding="ros2msg",
@@ -93,13 +93,13 @@ def test_outputs_written_without_ros_are_the_messages_the_node_publishes() -> No
                          ("std_msgs/String", "4 people"),
                          ("sensor_msgs/Image", Frame.from_pixels(pixels)),
                          ("sensor_msgs/Image", Frame(encode_image(pixels, "png"), "png"))]:
-        written = serialize_output(type_, value, stamp)
+        written = serialize(type_, value, stamp)
         published = convert.to_message(type_, value, stamp)
-        assert deserialize_message(written, convert.MESSAGE_TYPES[type_]) == published, type_
+        assert deserialize_message(written, convert.message_type(type_)) == published, type_
 
 
 def test_the_recording_modules_do_not_import_ros() -> None:
-    modules = ["recording.definitions", "recording.topic_values", "recording.recorder",
+    modules = ["topics.definitions", "topics.codec", "recording.recorder",
                "recording.mcap_reader", "recording.replay"]
     imports = "; ".join(f"import oricf.gateway.{name}" for name in modules)
     check = ("import sys; bad = sorted(m for m in sys.modules if m.split('.')[0] in "

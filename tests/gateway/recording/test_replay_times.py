@@ -16,9 +16,9 @@ import yaml
 from mcap_ros2.writer import Writer
 
 from oricf.config import config_dir, read_yaml
-from oricf.gateway.recording import cdr
-from oricf.gateway.recording import definitions as msgdefs
-from oricf.gateway.recording.topic_values import image_record, timed
+from oricf.gateway.topics import cdr
+from oricf.gateway.topics import definitions as msgdefs
+from oricf.gateway.topics.codec import image_record, timed
 from oricf.gateway.values import FRAME_TIME
 from tests.gateway.recording.test_record_replay import gateway_without_ros
 from tests.support.data import video_frames
@@ -120,8 +120,9 @@ def test_replays_at_any_rate_track_on_recorded_time(detector: RunningService,
 def stamped_frame(sec: int, nanosec: int) -> bytes:
     """A 64x48 sensor_msgs/Image of vtest.avi, serialized, with this stamp."""
     pixels = video_frames([0], (64, 48))[0]
-    return cdr.write_image(cdr.ImageFields(cdr.Stamp(sec, nanosec, "camera"), 48, 64, "bgr8",
-                                           0, 64 * 3, pixels.tobytes()))
+    return cdr.write("sensor_msgs/Image", {
+        "header": cdr.header(cdr.Stamp(sec, nanosec, "camera")), "height": 48, "width": 64,
+        "encoding": "bgr8", "is_bigendian": 0, "step": 64 * 3, "data": pixels.tobytes()})
 
 
 def test_a_frame_is_timed_by_its_stamp_or_else_when_it_was_recorded() -> None:

@@ -126,7 +126,7 @@ def test_tracked_detections_reach_a_subscriber_as_the_json_lines_carry_them(
     assert {row[1] for message in received for row in message} == {"person"}
     assert all(d["velocity"] is not None for frame in lines for d in frame)
     assert gateway.returncode == 0, stderr[-2000:]
-    # --record wrote them without vision_msgs (oricf.gateway.recording.cdr), and a decoder
+    # --record wrote them without vision_msgs (oricf.gateway.topics.cdr), and a decoder
     # that reads the recording's own definitions finds the same detections
     recorded = [[[d.id, d.results[0].hypothesis.class_id, d.results[0].hypothesis.score,
                   d.bbox.center.position.x, d.bbox.center.position.y, d.bbox.size_x,

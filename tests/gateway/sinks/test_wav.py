@@ -9,8 +9,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Int16MultiArray
 
-from oricf.gateway.recording.topic_values import TOPIC_AUDIO_RATE, serialize_output
 from oricf.gateway.ros.messages import to_message
+from oricf.gateway.topics.codec import TOPIC_AUDIO_RATE, serialize
 from oricf.gateway.values import SpokenAudio
 from tests.gateway.sinks.voice import local_gateway
 from tests.support.services import RunningService
@@ -45,7 +45,7 @@ def test_speech_on_a_topic_is_16_khz_mono_int16() -> None:
     audio = SpokenAudio(np.repeat(tone, 2).tobytes(), 22050, 2, text="a tone", asked_at=0)
     message = to_message("std_msgs/Int16MultiArray", audio)
     assert len(message.data) == TOPIC_AUDIO_RATE  # one second
-    recorded = deserialize_message(serialize_output("std_msgs/Int16MultiArray", audio),
+    recorded = deserialize_message(serialize("std_msgs/Int16MultiArray", audio),
                                    Int16MultiArray)
     assert list(recorded.data) == list(message.data)
     assert 7000 < np.abs(np.asarray(message.data)).max() < 8500

@@ -8,6 +8,7 @@ from the installed ROS packages' share/PACKAGE/msg/TYPE.msg when they are found 
 wheels install them under the virtual environment, apt ROS under /opt/ros/DISTRO, named by
 AMENT_PREFIX_PATH), comments and all as rosbag2 writes them, else from DEFINITIONS below:
 the same fields without the comments (a test compares the two, so the table cannot drift).
+The same table lays out the messages cdr.py writes (`layout`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import functools
 import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 DEFINITIONS: dict[str, str] = {
@@ -84,6 +86,13 @@ def fields_only(text: str) -> str:
     return "".join(f"{line}\n" for line in lines if line)
 
 
+def _full_type(package: str, field_type: str) -> str:
+    """A field's type as "package/Type" (a bare name is of the containing package)."""
+    if field_type in PRIMITIVES or "/" in field_type:
+        return field_type
+    return f"{package}/{field_type}"
+
+
 def _used_types(type_: str, text: str) -> list[str]:
     """The message types a definition's fields use, as "package/Type", in order."""
     package = type_.partition("/")[0]
@@ -91,14 +100,39 @@ def _used_types(type_: str, text: str) -> list[str]:
     for line in fields_only(text).splitlines():
         field_type = line.split()[0].split("[")[0].split("<=")[0]
         if field_type not in PRIMITIVES:  # (constants are always of primitive types)
-            used.append(field_type if "/" in field_type else f"{package}/{field_type}")
+            used.append(_full_type(package, field_type))
     return used
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of a message: `count` None for a single value, -1 for a sequence (T[]),
+    N for an array (T[N]); `default` as the definition gives it, else None."""
+
+    name: str
+    type: str  # a primitive, or "package/Type"
+    count: int | None
+    default: float | None
+
+
+@functools.cache
+def layout(type_: str) -> tuple[Field, ...]:
+    """The fields of a type of DEFINITIONS, in order (KeyError for another type)."""
+    package = type_.partition("/")[0]
+    fields = []
+    for line in DEFINITIONS[type_].splitlines():
+        kind, name, *default = line.split()
+        base, bracket, size = kind.partition("[")
+        count = None if not bracket else int(size[:-1] or -1)
+        fields.append(Field(name, _full_type(package, base), count,
+                            float(default[0]) if default else None))
+    return tuple(fields)
 
 
 @functools.cache
 def definition(type_: str) -> str:
     """One type's .msg text: the installed file's if it has the table's fields (so the schema
-    always matches what oricf.gateway.recording.cdr reads and writes), else the table's."""
+    always matches what oricf.gateway.topics.cdr reads and writes), else the table's."""
     installed = installed_definition(type_)
     if installed is not None and fields_only(installed) == DEFINITIONS[type_]:
         return installed

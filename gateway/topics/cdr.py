@@ -1,6 +1,6 @@
 """sensor_msgs/Image and CompressedImage read straight from their serialized (CDR) bytes;
-Image, String, Int32, Int16MultiArray and vision_msgs/Detection2DArray written (for
-recordings made without ROS).
+any message of definitions.DEFINITIONS written from its fields (`write`: what recordings
+made without ROS hold).
 
 Camera routes take frames serialized (rclpy's `raw=True`): rclpy would otherwise build a
 Python message first, copying the pixels into an array.array. Reading the few fields here
@@ -17,9 +17,15 @@ does on x86-64 and ARM.
 from __future__ import annotations
 
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.gateway.topics import definitions
+from oricf.gateway.topics.definitions import Field
 
 # Second byte of the encapsulation header: representation id (XCDR1 0/1, plain XCDR2 6/7);
 # odd is little-endian.
@@ -132,110 +138,82 @@ class _Writer:
         self._parts = [b"\x00\x01\x00\x00"]  # representation XCDR1, little-endian
         self._size = 0  # bytes after the encapsulation header, for alignment
 
-    def _put(self, data: bytes, align: int = 1) -> None:
+    def put(self, data: bytes, align: int = 1) -> None:
         padding = -self._size % align
         if padding:
             self._parts.append(b"\0" * padding)
-        self._parts.append(data)
+        self._parts.append(data)  # the caller's bytes, joined once by getvalue()
         self._size += padding + len(data)
 
-    def uint32(self, value: int) -> None:
-        if not 0 <= value < 2**32:
-            raise ValueError(f"{value} does not fit a uint32")
-        self._put(struct.pack("<I", value), 4)
-
-    def int32(self, value: int) -> None:
-        if not -(2**31) <= value < 2**31:
-            raise ValueError(f"{value} does not fit an int32")
-        self._put(struct.pack("<i", value), 4)
-
-    def uint8(self, value: int) -> None:
-        self._put(bytes((value,)))
-
-    def float64(self, value: float) -> None:
-        self._put(struct.pack("<d", value), 8)
-
-    def octets(self, data: bytes) -> None:
-        self.uint32(len(data))
-        self._put(data)
+    def primitive(self, type_: str, value: Any) -> None:
+        code = PRIMITIVES[type_]
+        try:
+            self.put(struct.pack("<" + code, value), struct.calcsize(code))
+        except struct.error:
+            article = "an" if type_[0] in "aeiou" else "a"
+            raise ValueError(f"{value} does not fit {article} {type_}") from None
 
     def string(self, text: str) -> None:
-        self.octets(text.encode() + b"\0")
-
-    def header(self, stamp: Stamp) -> None:
-        self.int32(stamp.sec)
-        self.uint32(stamp.nanosec)
-        self.string(stamp.frame_id)
+        data = text.encode() + b"\0"
+        self.primitive("uint32", len(data))
+        self.put(data)
 
     def getvalue(self) -> bytes:
         return b"".join(self._parts)
 
 
-def write_int32(value: int) -> bytes:
-    """std_msgs/Int32, serialized (raises ValueError out of range)."""
-    write = _Writer()
-    write.int32(value)
-    return write.getvalue()
+# struct codes of the primitive types (string is written apart)
+PRIMITIVES = {"bool": "?", "byte": "B", "char": "B", "int8": "b", "uint8": "B", "int16": "h",
+              "uint16": "H", "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
+              "float32": "f", "float64": "d"}
+# sequences of these may be given as bytes or a numpy array: written in one piece
+BULK = {"uint8": "u1", "byte": "u1", "char": "u1", "int8": "i1", "int16": "<i2"}
 
 
-def write_string(text: str) -> bytes:
-    """std_msgs/String, serialized."""
-    write = _Writer()
-    write.string(text)
-    return write.getvalue()
+def write(type_: str, fields: Mapping[str, Any]) -> bytes:
+    """A message of a type of definitions.DEFINITIONS, serialized from its fields by name
+    (nested messages as mappings too); a field left out takes its definition's default,
+    or zero, empty. Raises ValueError for a number that does not fit its field."""
+    writer = _Writer()
+    _message(writer, type_, fields)
+    return writer.getvalue()
 
 
-def write_int16_array(samples: bytes) -> bytes:
-    """std_msgs/Int16MultiArray with an empty layout, serialized; `samples` little-endian
-    int16."""
-    write = _Writer()
-    write.uint32(0)  # layout.dim: no dimensions
-    write.uint32(0)  # layout.data_offset
-    write.uint32(len(samples) // 2)
-    write._put(samples, 2)
-    return write.getvalue()
+def header(stamp: Stamp) -> dict[str, Any]:
+    """A std_msgs/Header's fields."""
+    return {"stamp": {"sec": stamp.sec, "nanosec": stamp.nanosec}, "frame_id": stamp.frame_id}
 
 
-@dataclass(frozen=True)
-class BoxFields:
-    """One vision_msgs/Detection2D: its id, one hypothesis, its box's centre and size."""
-
-    id: str
-    class_id: str
-    score: float
-    center_x: float
-    center_y: float
-    size_x: float
-    size_y: float
-
-
-def write_detection_array(header: Stamp, boxes: list[BoxFields]) -> bytes:
-    """vision_msgs/Detection2DArray, serialized: each detection with the array's header,
-    one hypothesis at an identity pose with zero covariance, and a box without rotation."""
-    write = _Writer()
-    write.header(header)
-    write.uint32(len(boxes))
-    for box in boxes:
-        write.header(header)
-        write.uint32(1)  # results
-        write.string(box.class_id)
-        write.float64(box.score)
-        for value in (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, *[0.0] * 36):  # pose, covariance
-            write.float64(value)
-        for value in (box.center_x, box.center_y, 0.0, box.size_x, box.size_y):
-            write.float64(value)
-        write.string(box.id)
-    return write.getvalue()
+def _message(writer: _Writer, type_: str, fields: Mapping[str, Any]) -> None:
+    for field in definitions.layout(type_):
+        value = fields.get(field.name)
+        if field.count is None:
+            _single(writer, field, value)
+        elif field.count < 0:
+            _sequence(writer, field, () if value is None else value)
+        else:
+            for item in [None] * field.count if value is None else value:
+                _single(writer, field, item)
 
 
-def write_image(image: ImageFields) -> bytes:
-    """sensor_msgs/Image, serialized: the inverse of image()."""
-    write = _Writer()
-    write.header(image.header)
-    write.uint32(image.height)
-    write.uint32(image.width)
-    write.string(image.encoding)
-    write.uint8(image.is_bigendian)
-    write.uint32(image.step)
-    write.octets(image.data)
-    return write.getvalue()
+def _single(writer: _Writer, field: Field, value: Any) -> None:
+    if field.type == "string":
+        writer.string("" if value is None else value)
+    elif field.type in PRIMITIVES:
+        writer.primitive(field.type, (field.default or 0) if value is None else value)
+    else:
+        _message(writer, field.type, {} if value is None else value)
+
+
+def _sequence(writer: _Writer, field: Field, value: Any) -> None:
+    if field.type in BULK and not isinstance(value, (list, tuple)):
+        # bytes pass as they are (a camera frame's pixels are not copied here)
+        data = value if isinstance(value, bytes) else np.asarray(value, BULK[field.type])
+        data = data if isinstance(data, bytes) else data.tobytes()
+        size = int(BULK[field.type][-1])
+        writer.primitive("uint32", len(data) // size)
+        writer.put(data, size)
+        return
+    writer.primitive("uint32", len(value))
+    for item in value:
+        _single(writer, field, item)

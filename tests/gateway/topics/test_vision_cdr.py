@@ -7,9 +7,9 @@ import pytest
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
 
-from oricf.gateway.recording import cdr
-from oricf.gateway.recording import definitions as msgdefs
-from oricf.gateway.recording.topic_values import serialize_output
+from oricf.gateway.topics import cdr
+from oricf.gateway.topics import definitions as msgdefs
+from oricf.gateway.topics.codec import serialize
 from oricf.imaging import Box, Detection
 
 TYPE = "vision_msgs/Detection2DArray"
@@ -28,7 +28,7 @@ def test_detections_read_back_field_by_field(count: int) -> None:
     detections = [Detection("person" if i % 2 else "dog", i, 0.25 + i / 10,
                             Box(10.5 * i, 20, 30.5 * i + 40, 100), track_id=i or None)
                   for i in range(count)]
-    data = serialize_output(TYPE, detections, cdr.Stamp(1700, 5, "front_camera"))
+    data = serialize(TYPE, detections, cdr.Stamp(1700, 5, "front_camera"))
     message = decode(data)
     assert (message.header.stamp.sec, message.header.frame_id) == (1700, "front_camera")
     assert len(message.detections) == count
@@ -49,4 +49,4 @@ def test_detections_read_back_field_by_field(count: int) -> None:
 def test_a_value_that_is_no_list_of_detections_is_a_type_error() -> None:
     for value in (3, ["person"]):
         with pytest.raises(TypeError):
-            serialize_output(TYPE, value)
+            serialize(TYPE, value)
