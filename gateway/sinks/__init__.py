@@ -6,7 +6,7 @@ output, a ROS output, to the ROS side."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypeAlias
 
 from oricf.errors import ConfigError
 from oricf.gateway.config import OutputConfig, PipelineConfig
@@ -23,7 +23,7 @@ from oricf.gateway.values import Record
 # (oricf.gateway.ros.publishers.TopicPublishers), or without ROS, in a replay, the
 # recording (oricf.gateway.recording.recorder.TopicOutputs); each converts the value to the
 # topic's message through the topic codec (oricf.gateway.topics.codec).
-RosOutputs = Emit
+RosOutputs: TypeAlias = Emit
 
 
 class Outlets:
