@@ -18,7 +18,7 @@ from tests.launch.helpers import (
 )
 from tests.support.data import video_path
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService
 from tests.support.sockets import inet_sockets
 
 # vtest.avi's first 10 frames (1 s) show 4 people each. A demo sending only those has one
@@ -140,19 +140,18 @@ def test_demo_refuses_zero_frames() -> None:
     assert "--frames must be at least 1" in command.output
 
 
-def test_demo_with_the_services_on_an_edge(tmp_path: Path) -> None:
+def test_demo_with_the_services_on_an_edge(tmp_path: Path, detector: RunningService,
+                                            asr: RunningService, llm: RunningService) -> None:
     """--placement edge's path: nothing started but the gateway, which calls remote
     services (real ones, in this test's process, standing in for compose/edge.yaml)."""
-    with running_service("detector") as detector, running_service("asr") as asr, \
-            running_service("llm") as llm:
-        placement = write_overlay(tmp_path, {"detector": {"address": detector.address},
-                                             "asr": {"address": asr.address},
-                                             "llm": {"address": llm.address}})
-        path = write_deployment(tmp_path, {
-            "remote": ["detector", "asr", "llm"],
-            "gateway": {"config": shipped_pipeline(), "overlays": [str(placement)]}})
-        code, command = run_demo("--deployment", str(path), "--question",
-                                 "How many people are there?", *STILL_SCENE, "--no-speak")
+    placement = write_overlay(tmp_path, {"detector": {"address": detector.address},
+                                         "asr": {"address": asr.address},
+                                         "llm": {"address": llm.address}})
+    path = write_deployment(tmp_path, {
+        "remote": ["detector", "asr", "llm"],
+        "gateway": {"config": shipped_pipeline(), "overlays": [str(placement)]}})
+    code, command = run_demo("--deployment", str(path), "--question",
+                             "How many people are there?", *STILL_SCENE, "--no-speak")
     assert code == 0, command.output
     assert set(command.started()) == {"gateway"}  # --no-speak: no speech synthesis either
     assert "spoken     :" not in command.output

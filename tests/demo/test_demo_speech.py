@@ -16,14 +16,14 @@ from tests.demo.test_demo import STILL_SCENE, demo_deployment, reported
 from tests.gateway.sinks.voice import Recorder, spoken_words, voiced, word_errors
 from tests.gateway.sources.audio import PulseServer
 from tests.launch.helpers import OricfCommand, private_ros_env
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 log = logging.getLogger(__name__)
 
 SINK = "oricf_demo_speaker"
 
 
-def test_the_demo_plays_each_answer_and_writes_it(tmp_path: Path) -> None:
+def test_the_demo_plays_each_answer_and_writes_it(tmp_path: Path, asr: RunningService) -> None:
     (tmp_path / "pulse").mkdir()
     pulse = PulseServer(tmp_path / "pulse")
     try:
@@ -54,14 +54,13 @@ def test_the_demo_plays_each_answer_and_writes_it(tmp_path: Path) -> None:
         written = np.frombuffer(spoken.readframes(spoken.getnframes()), "<i2")
         assert spoken.getframerate() == 16000
     assert abs(len(written) / 16000 - float(first_audio.group(2))) < 0.05
-    with running_service("asr") as asr:
-        from tests.gateway.sinks.voice import transcribe
+    from tests.gateway.sinks.voice import transcribe
 
-        sounded = voiced(played)
-        assert len(sounded), "nothing was played"
-        heard_played = transcribe(asr.channel, played[max(sounded[0] - 8000, 0):
-                                                      sounded[-1] + 8000])
-        heard_written = transcribe(asr.channel, written)
+    sounded = voiced(played)
+    assert len(sounded), "nothing was played"
+    heard_played = transcribe(asr.channel, played[max(sounded[0] - 8000, 0):
+                                                  sounded[-1] + 8000])
+    heard_written = transcribe(asr.channel, written)
     reference = spoken_words(answer)
     for heard in (heard_played, heard_written):
         assert word_errors(reference, spoken_words(heard)) / len(reference) <= 0.25, \
