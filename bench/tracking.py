@@ -27,7 +27,6 @@ import numpy as np
 import yaml
 
 from oricf.bench.common import print_table, shipped_detector_model
-from oricf.services.local import local_service, service_config
 from oricf.config import REPO_ROOT
 from oricf.gateway.methods.detect import detections
 from oricf.gateway.post import PostStep, chain
@@ -37,6 +36,7 @@ from oricf.gateway.post.track import TrackStep
 from oricf.gateway.values import Record
 from oricf.imaging import Detection
 from oricf.models.declaration import DetectionTask
+from oricf.services.local import local_service, service_config
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 

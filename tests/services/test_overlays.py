@@ -6,9 +6,9 @@ from typing import Any
 
 import pytest
 
-from oricf.services.local import local_service, service_config
 from oricf.config import config_dir
 from oricf.imaging import encode_image
+from oricf.services.local import local_service, service_config
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames
 from tests.support.detections import count

@@ -3,8 +3,8 @@
 import pytest
 from pydantic import ValidationError
 
-from oricf.services.local import local_service, service_config
 from oricf.errors import ConfigError
+from oricf.services.local import local_service, service_config
 from oricf.services.runtime.config import HttpSettings, ServerSettings
 
 
