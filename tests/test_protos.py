@@ -2,6 +2,8 @@
 
 from pathlib import Path
 
+import pytest
+
 from tests.support.scripts import load_script
 
 protogen = load_script("protogen")
@@ -38,6 +40,7 @@ def test_this_environment_runs_protobuf_6() -> None:
     assert google.protobuf.__version__.startswith("6.")
 
 
+@pytest.mark.long
 def test_stubs_run_on_protobuf_7_too(tmp_path: Path) -> None:
     """The stubs are generated for protobuf 6 (so ORICF installs beside tritonclient, kserve
     or mlserver, which need protobuf < 7); they must import on protobuf 7 as well."""

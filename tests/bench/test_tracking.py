@@ -42,6 +42,7 @@ def result() -> tracking.Result:
     return measured
 
 
+@pytest.mark.bench
 def test_on_held_out_frames_tracked_counts_err_less_and_flicker_less_than_per_frame_counts(
         result: tracking.Result) -> None:
     held_out = result.held_out
@@ -50,6 +51,7 @@ def test_on_held_out_frames_tracked_counts_err_less_and_flicker_less_than_per_fr
     assert held_out.published.flicker < held_out.raw.flicker
 
 
+@pytest.mark.bench
 def test_on_the_tuning_frames_tracked_counts_err_less_and_flicker_less(
         result: tracking.Result) -> None:
     tuning = result.tuning

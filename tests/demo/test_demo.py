@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from oricf.bench.rtsp_camera import RtspCamera
 from tests.launch.helpers import (
     OricfCommand,
@@ -112,6 +114,7 @@ def test_demo_keeps_every_socket_on_this_machine(tmp_path: Path) -> None:
         assert all(s.loopback for s in held), f"{name}: {[str(s) for s in held]}"
 
 
+@pytest.mark.long
 def test_demo_takes_its_camera_from_an_rtsp_stream(tmp_path: Path) -> None:
     with RtspCamera() as camera:
         camera.play_file(video_path())

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import grpc
+import pytest
 
 from oricf.config import config_dir
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
@@ -59,6 +60,7 @@ def test_a_model_without_a_prompt_is_refused_at_start(tmp_path: Path) -> None:
            "'smollm2-135m-instruct'" in result.stderr
 
 
+@pytest.mark.bench
 def test_bench_runs_and_prints_its_table() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "oricf", "--log-level", "WARNING", "bench", "llm",

@@ -131,7 +131,8 @@ WORST_ALLOWED = [
 ]
 
 
-@pytest.mark.parametrize("stream", [False, True])
+# Streamed, the same schemas are the long run's (the default run streams other schemas).
+@pytest.mark.parametrize("stream", [False, pytest.param(True, marks=pytest.mark.long)])
 @pytest.mark.parametrize("schema", WORST_ALLOWED)
 def test_the_costliest_allowed_schemas_are_served(llm: HttpService, api: openai.OpenAI,
                                                   schema: dict[str, Any],

@@ -11,6 +11,7 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 import yaml
 
 from oricf.config import config_dir
@@ -50,6 +51,7 @@ def rss_bytes(pid: int) -> int:
     raise AssertionError(f"no VmRSS for process {pid}")
 
 
+@pytest.mark.long
 def test_a_stalled_viewer_holds_no_more_than_the_configuration_allows(
         detector: RunningService, tmp_path: Path) -> None:
     with gateway_with_view(tmp_path, "--config", str(PIPELINE), "--overlay",

@@ -18,6 +18,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO
 
+import pytest
+
 from oricf.bench.rtsp_camera import RtspCamera
 from oricf.config import config_dir
 from oricf.launch.health import free_port
@@ -104,6 +106,7 @@ def test_an_address_where_no_camera_answers_is_retried_and_the_gateway_stays(
     assert "Traceback" not in text
 
 
+@pytest.mark.long
 def test_people_are_counted_from_an_hls_stream_over_http(tmp_path: Path,
                                                          detector: RunningService) -> None:
     """FFmpeg cuts vtest.avi into HLS segments; a real HTTP server serves them."""
