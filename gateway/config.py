@@ -32,7 +32,7 @@ from pydantic import Field, PrivateAttr, field_validator, model_validator
 from oricf.audio import VadSettings
 from oricf.config import Schema, read_with_overlays, resolve_path, validate
 from oricf.errors import ConfigError
-from oricf.gateway.agents.policy import AgentPolicy
+from oricf.gateway.actuation.policy import AgentPolicy
 from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.live_view.config import LiveViewConfig

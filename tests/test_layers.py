@@ -13,7 +13,7 @@ import json
 import os
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 
 try:
     import tomllib
@@ -120,8 +120,8 @@ def test_no_import_cycle(graph: Graph) -> None:
     assert not cycles, "import cycles:\n  " + "\n  ".join(cycles)
 
 
-
-def service_of(module: str, packages: set[str]) -> str | None:
+def package_of(module: str, packages: Collection[str]) -> str | None:
+    """The package of `packages` that holds `module`, if any."""
     return next((p for p in packages if module == p or module.startswith(p + ".")), None)
 
 
@@ -132,9 +132,9 @@ def test_no_model_service_imports_another(graph: Graph) -> None:
     packages = {f"oricf.services.{name}" for name in SERVICES}
     crossings = []
     for module, imported in graph.items():
-        mine = service_of(module, packages)
+        mine = package_of(module, packages)
         crossings += [f"{module} -> {other}" for other in imported
-                      if mine and service_of(other, packages) not in (None, mine)]
+                      if mine and package_of(other, packages) not in (None, mine)]
     assert not crossings, "a service imports another:\n  " + "\n  ".join(sorted(crossings))
 
 
@@ -145,4 +145,31 @@ def test_the_independence_contract_names_every_service() -> None:
     pyproject = REPO_ROOT / "pyproject.toml"
     contracts = tomllib.loads(pyproject.read_text())["tool"]["importlinter"]["contracts"]
     independent = [set(c["modules"]) for c in contracts if c["type"] == "independence"]
-    assert independent == [{f"oricf.services.{name}" for name in SERVICES}]
+    services = [modules for modules in independent
+                if any(m.startswith("oricf.services.") for m in modules)]
+    assert services == [{f"oricf.services.{name}" for name in SERVICES}]
+
+
+SURFACES = ("oricf.gateway.agents", "oricf.gateway.control", "oricf.gateway.live_view")
+
+
+def test_no_gateway_surface_imports_another(graph: Graph) -> None:
+    """MCP, the control API and the live view read the core (oricf.gateway.operations) and
+    act through it (oricf.gateway.actuation), never through each other."""
+    crossings = []
+    for module, imported in graph.items():
+        mine = package_of(module, SURFACES)
+        crossings += [f"{module} -> {other}" for other in imported
+                      if mine and package_of(other, SURFACES) not in (None, mine)]
+    assert not crossings, "a surface imports another:\n  " + "\n  ".join(sorted(crossings))
+
+
+def test_actuation_and_operations_import_no_surface_and_no_ros(graph: Graph) -> None:
+    """Everything that can move the robot, and the operations every surface carries, sit
+    under the surfaces and under ROS (its agent sender uses the policy, never the reverse)."""
+    core = ("oricf.gateway.actuation", "oricf.gateway.operations")
+    above = (*SURFACES, "oricf.gateway.ros")
+    crossings = [f"{module} -> {other}" for module, imported in graph.items()
+                 if package_of(module, core) for other in imported
+                 if package_of(other, above)]
+    assert not crossings, "imported from above:\n  " + "\n  ".join(sorted(crossings))

@@ -16,10 +16,10 @@ from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
 from oricf.errors import ConfigError
-from oricf.gateway.control.server import BearerTokens
 from oricf.hosts import ListenAddress
 from oricf.http_connections import guarded_h11
 from oricf.tls import ListenerConfig, ListenerKeys, ServerTls
+from oricf.tokens import BearerTokens
 
 log = logging.getLogger(__name__)
 

@@ -26,12 +26,12 @@ from pathlib import Path
 import anyio
 
 from oricf.errors import ConfigError, NotReady
-from oricf.gateway.agents.audit import AuditLog
+from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.agents.http import HttpSettings, serve_http
 from oricf.gateway.agents.mcp_server import build_server
 from oricf.gateway.agents.stdio import serve_stdio
 from oricf.gateway.config import PipelineConfig, load_pipeline
-from oricf.gateway.control.api import Gateway
+from oricf.gateway.operations.api import Gateway
 from oricf.metrics import MetricsConfig, MetricsServer
 
 log = logging.getLogger(__name__)
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     http = HttpSettings.from_args(args) if args.transport == "http" else None
     if args.attach:
-        from oricf.gateway.control.client import ControlClient
+        from oricf.gateway.operations.client import ControlClient
 
         gateway: Gateway = ControlClient(args.attach, args.token_file, args.ca)
         try:
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     config = load_pipeline(args.config, args.overlay, sets=args.sets)
     if http is None:
         check_stdio(config)
-    from oricf.gateway.agents.host import HostedPipeline
+    from oricf.gateway.hosted import HostedPipeline
 
     hosted = HostedPipeline(config, audit_path=args.audit)
     view = hosted.start()

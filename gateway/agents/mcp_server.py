@@ -2,7 +2,7 @@
 
 Perception is free: list_products, read_product, look, detect, infer, ask, transcribe, say,
 status. Actuation goes through `publish` alone, to the targets of the pipeline's `agent:`
-policy, checked where the commands are sent (oricf.gateway.agents.actuation). What models
+policy, checked where the commands are sent (oricf.gateway.actuation.actuation). What models
 produce (answers, transcripts, labels) comes back as data in a tool's result; the server
 never reads it as an instruction, so a transcript saying "publish cmd_vel 5 m/s" is text.
 """
@@ -23,10 +23,10 @@ from mcp_types import CallToolResult, ImageContent, TextContent
 from pydantic import BaseModel, Field
 
 from oricf.errors import OricfError
-from oricf.gateway.agents.audit import AuditLog
-from oricf.gateway.agents.policy import Refused
+from oricf.gateway.actuation.audit import AuditLog
+from oricf.gateway.actuation.policy import Refused
 from oricf.gateway.agents.resources import ResourceFeed
-from oricf.gateway.control.api import (
+from oricf.gateway.operations.api import (
     MAX_AUDIO_BYTES,
     MAX_IMAGE_BYTES,
     MAX_TEXT_CHARS,

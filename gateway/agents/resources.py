@@ -23,8 +23,8 @@ from mcp.server.mcpserver import MCPServer
 from mcp.server.mcpserver.resources import FunctionResource
 from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated, ServerEvent
 
-from oricf.gateway.control.api import Gateway
 from oricf.gateway.methods import IMAGE_METHODS
+from oricf.gateway.operations.api import Gateway
 
 log = logging.getLogger(__name__)
 

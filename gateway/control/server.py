@@ -35,64 +35,23 @@ from starlette.applications import Starlette
 from starlette.requests import Request
 from starlette.responses import JSONResponse
 from starlette.routing import Route
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp
 
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
-from oricf.gateway.agents.policy import Refused
-from oricf.gateway.control.api import Gateway, Json
+from oricf.gateway.actuation.policy import Refused
 from oricf.gateway.control.config import ControlConfig
+from oricf.gateway.operations.api import Gateway, Json
 from oricf.hosts import Address
 from oricf.http_connections import guarded_h11
-from oricf.tls import token_matches
+from oricf.tokens import APPROVER, BearerTokens
 
 log = logging.getLogger(__name__)
 
 STATUS = {"InvalidInput": 400, "Refused": 403, "NotReady": 503}
-APPROVER = "oricf.approver"  # in a request's scope: it carries a token of control.approvers
 
 
 class LateBody(InvalidInput):
     """A request body that did not arrive within control.body_timeout_s (408)."""
-
-
-def bearer(scope: Scope) -> str | None:
-    """The request's bearer token, if it gives one."""
-    given = dict(scope.get("headers") or []).get(b"authorization")
-    if given is None:
-        return None
-    scheme, _, token = given.decode("latin-1").partition(" ")
-    return token.strip() if scheme.lower() == "bearer" else None
-
-
-async def unauthorized(scope: Scope, receive: Receive, send: Send) -> None:
-    response = JSONResponse({"error": "missing or wrong bearer token"}, 401,
-                            headers={"WWW-Authenticate": "Bearer"})
-    await response(scope, receive, send)
-
-
-class BearerTokens:
-    """ASGI middleware: with `tokens`, every HTTP request carries `Authorization: Bearer
-    TOKEN` with one of them or of `approvers`; a token of `approvers` also marks the request
-    as an approver's (scope[APPROVER]): of the control API's clients, the one whose
-    `approved: true` is taken."""
-
-    def __init__(self, app: ASGIApp, tokens: tuple[bytes, ...],
-                 approvers: tuple[bytes, ...] = ()) -> None:
-        self.app = app
-        self.tokens = tokens
-        self.approvers = approvers
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] == "http":
-            token = bearer(scope)
-            approver = token is not None and bool(self.approvers) and \
-                token_matches(token, self.approvers)
-            if self.tokens and not approver and \
-                    (token is None or not token_matches(token, self.tokens)):
-                await unauthorized(scope, receive, send)
-                return
-            scope[APPROVER] = approver
-        await self.app(scope, receive, send)
 
 
 def error_kind(exc: Exception) -> str:

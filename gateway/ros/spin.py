@@ -6,13 +6,13 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from oricf.gateway.agents.host import serve_gateway_control
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros.dds import use_dds_profile
 from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.ros.params import Settings, declare_settings
 from oricf.gateway.ros.process import keep_freed_memory
+from oricf.gateway.surfaces import serve_gateway_control
 from oricf.signals import stop_on_signals
 
 log = logging.getLogger(__name__)

@@ -11,7 +11,9 @@ CORE = ["config", "methods", "methods.detect", "methods.transcribe", "methods.ge
         "methods.infer", "values", "post", "products", "endpoints", "worker", "route",
         "pipeline", "metrics", "throttle", "ros", "ros.dds", "ros.frame_loss", "ros.process",
         "ros.params", "topics.cdr", "topics.codec", "recording.recorder", "recording.replay",
-        "main", "sources", "sources.video", "sinks", "text_channels", "without_ros"]
+        "main", "sources", "sources.video", "sinks", "text_channels", "without_ros",
+        "actuation.actuation", "actuation.senders", "operations.view", "operations.client",
+        "surfaces", "hosted"]
 
 
 def test_core_modules_do_not_import_ros() -> None:

@@ -20,9 +20,9 @@ import pytest
 import yaml
 
 from oricf.errors import InvalidInput, NotReady
-from oricf.gateway.agents.policy import Refused
+from oricf.gateway.actuation.policy import Refused
 from oricf.gateway.agents.resources import POLL_S, ResourceFeed, product_uri
-from oricf.gateway.control.client import ControlClient
+from oricf.gateway.operations.client import ControlClient
 from tests.gateway.agents.scene import PEOPLE, RosListener
 from tests.gateway.agents.session import (
     server_env,

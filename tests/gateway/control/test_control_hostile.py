@@ -26,8 +26,8 @@ from typing import Any
 import httpx
 import pytest
 
-from oricf.gateway.agents.host import HostedPipeline
 from oricf.gateway.config import parse_pipeline
+from oricf.gateway.hosted import HostedPipeline
 from tests.gateway.agents.scene import ARM_TOPIC, RosListener, ros_listener
 from tests.support.processes import free_port
 from tests.support.sockets import peer_closed

@@ -17,22 +17,22 @@ import grpc
 
 from oricf.audio.wav import parse_wav
 from oricf.errors import InvalidInput, NotReady
-from oricf.gateway.agents.actuation import Actuation
-from oricf.gateway.agents.audit import AuditLog
-from oricf.gateway.agents.messages import nested
-from oricf.gateway.agents.policy import Refused
-from oricf.gateway.control.api import (
+from oricf.gateway.actuation.actuation import Actuation
+from oricf.gateway.actuation.audit import AuditLog
+from oricf.gateway.actuation.messages import nested
+from oricf.gateway.actuation.policy import Refused
+from oricf.gateway.methods import METHODS, Method
+from oricf.gateway.methods.base import Skip
+from oricf.gateway.methods.generate import context_readings
+from oricf.gateway.methods.infer import InferCall
+from oricf.gateway.operations.api import (
     MAX_AUDIO_BYTES,
     MAX_IMAGE_BYTES,
     MAX_TEXT_CHARS,
     Json,
 )
-from oricf.gateway.control.names import known_product
-from oricf.gateway.control.tensors import tensor_inputs, tensor_json
-from oricf.gateway.methods import METHODS, Method
-from oricf.gateway.methods.base import Skip
-from oricf.gateway.methods.generate import context_readings
-from oricf.gateway.methods.infer import InferCall
+from oricf.gateway.operations.names import known_product
+from oricf.gateway.operations.tensors import tensor_inputs, tensor_json
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.route import Route
 from oricf.gateway.values import AudioClip, Frame, Record

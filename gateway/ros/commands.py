@@ -1,17 +1,17 @@
-"""Where an allowed command goes: a ROS topic (a node of its own, `oricf_agent`, in a
-private rclpy context, so it works beside the gateway's node or without one) or a text
-channel of the pipeline (a line to every client)."""
+"""An agent's commands on ROS topics: a node of its own, `oricf_agent`, in a private rclpy
+context, so it works beside the gateway's node or without one. The actuation policy
+(oricf.gateway.actuation) decides what is sent; this only publishes it."""
 
 from __future__ import annotations
 
 import logging
 import threading
-from typing import Any, Protocol
+from typing import Any
 
 from oricf.errors import ConfigError
-from oricf.gateway.agents.messages import ros_message
-from oricf.gateway.agents.policy import AgentPolicy
-from oricf.gateway.text_channels import Channels
+from oricf.gateway.actuation.messages import ros_message
+from oricf.gateway.actuation.policy import AgentPolicy
+from oricf.gateway.ros.dds import use_dds_profile
 
 log = logging.getLogger(__name__)
 
@@ -22,12 +22,6 @@ def message_class(type_: str) -> Any:
     except ImportError as exc:
         raise ConfigError(f"agent target of type {type_}: its ROS message package is not "
                           f"installed ({exc})") from None
-
-
-class Sender(Protocol):
-    def send(self, target: str, fields: dict[str, Any]) -> None: ...
-
-    def close(self) -> None: ...
 
 
 class RosSender:
@@ -43,8 +37,6 @@ class RosSender:
             raise ConfigError(f"agent targets on ROS topics need ROS 2's Python packages "
                               f"({exc}): source /opt/ros/jazzy/setup.bash, or pip install "
                               f"'oricf[ros]' on x86-64") from None
-
-        from oricf.gateway.ros.dds import use_dds_profile
 
         use_dds_profile()
         self._context = Context()
@@ -77,36 +69,3 @@ class RosSender:
                 publisher.wait_for_all_acked(Duration(seconds=1))
         self._node.destroy_node()
         rclpy.try_shutdown(context=self._context)
-
-
-class ChannelSender:
-    def __init__(self, policy: AgentPolicy, channels: Channels) -> None:
-        self._channels = {name: channels.get(t.channel) for name, t in policy.targets.items()
-                          if t.channel}
-
-    def send(self, target: str, fields: dict[str, Any]) -> None:
-        self._channels[target].send(str(fields["data"]))
-
-    def close(self) -> None:
-        pass
-
-
-class Senders:
-    """Every target's sender: ROS only where a target is a topic (rclpy imported then)."""
-
-    def __init__(self, policy: AgentPolicy, channels: Channels) -> None:
-        self.ros = (RosSender(policy) if any(t.topic for t in policy.targets.values())
-                    else None)
-        self.text = ChannelSender(policy, channels)
-        self._topics = {name for name, t in policy.targets.items() if t.topic}
-
-    def send(self, target: str, fields: dict[str, Any]) -> None:
-        if target in self._topics:
-            assert self.ros is not None
-            self.ros.send(target, fields)
-        else:
-            self.text.send(target, fields)
-
-    def close(self) -> None:
-        if self.ros is not None:
-            self.ros.close()

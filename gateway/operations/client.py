@@ -2,7 +2,7 @@
 Unix socket or http(s)://HOST:PORT, with a bearer token; the server's errors come back as
 the same exception types (InvalidInput, NotReady, Refused).
 
-Names a caller passes are checked here by the rule the gateway applies (control.names)
+Names a caller passes are checked here by the rule the gateway applies (operations.names)
 before they reach a URL, and every path segment is percent-escaped: `../status` or
 `people_count?x=1` is no data product, never another endpoint or a query.
 """
@@ -18,9 +18,9 @@ from urllib.parse import quote
 import httpx
 
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
-from oricf.gateway.agents.policy import Refused
-from oricf.gateway.control.api import Json
-from oricf.gateway.control.names import known_product
+from oricf.gateway.actuation.policy import Refused
+from oricf.gateway.operations.api import Json
+from oricf.gateway.operations.names import known_product
 from oricf.tls import TokenSource
 
 ERRORS: dict[str, type[OricfError]] = {"InvalidInput": InvalidInput, "NotReady": NotReady,

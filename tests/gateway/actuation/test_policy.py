@@ -16,12 +16,13 @@ import yaml
 
 from oricf.config import config_dir
 from oricf.errors import ConfigError
-from oricf.gateway.agents.actuation import Actuation
-from oricf.gateway.agents.approval import ChannelApprover
-from oricf.gateway.agents.audit import AuditLog
-from oricf.gateway.agents.policy import AgentPolicy, Refused
-from oricf.gateway.agents.senders import ChannelSender, Senders
+from oricf.gateway.actuation.actuation import Actuation
+from oricf.gateway.actuation.approval import ChannelApprover
+from oricf.gateway.actuation.audit import AuditLog
+from oricf.gateway.actuation.policy import AgentPolicy, Refused
+from oricf.gateway.actuation.senders import ChannelSender, Senders
 from oricf.gateway.config import load_pipeline
+from oricf.gateway.surfaces import ros_sender
 from oricf.gateway.text_channels import ChannelConfig, Channels
 from tests.gateway.agents.scene import ARM_TOPIC, ros_listener
 from tests.support.processes import free_port
@@ -196,6 +197,13 @@ def test_shipped_mobile_base_policy() -> None:
     assert config.agent.targets["arm_lift"].approval == "elicit"
 
 
+def test_topic_targets_need_the_callers_ros_sender(channels: Channels) -> None:
+    """rclpy stays in ros/: a sender of topic targets comes from the caller, and without one
+    the targets are refused at once, not at their first command."""
+    with pytest.raises(ConfigError, match=r"agent targets on ROS topics \(t\)"):
+        Senders(policy(), channels)
+
+
 def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Path,
                                                ros_env: dict[str, str]) -> None:
     rules = AgentPolicy.model_validate({"targets": {"arm": {
@@ -204,7 +212,7 @@ def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Pat
         "max_rate_hz": 1000, "deadman_ms": 300}}})
     audit = AuditLog(tmp_path / "audit.jsonl")
     with ros_listener() as driver:
-        actuation = Actuation(rules, Senders(rules, channels), audit, channels)
+        actuation = Actuation(rules, Senders(rules, channels, ros_sender), audit, channels)
         person = LineClient(channels.get("approvals").address)
         try:
             deadline = time.monotonic() + 10

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.gateway.control.api import Json
+from oricf.gateway.operations.api import Json
 from oricf.logs import quoted
 from oricf.models.tensors import datatype, datatype_of
 

@@ -18,11 +18,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from oricf.gateway.agents.approval import ChannelApprover
-from oricf.gateway.agents.audit import AuditLog
-from oricf.gateway.agents.messages import nested, zero
-from oricf.gateway.agents.policy import AgentPolicy, Checked, Refused, TargetPolicy
-from oricf.gateway.agents.senders import Sender
+from oricf.gateway.actuation.approval import ChannelApprover
+from oricf.gateway.actuation.audit import AuditLog
+from oricf.gateway.actuation.messages import nested, zero
+from oricf.gateway.actuation.policy import AgentPolicy, Checked, Refused, TargetPolicy
+from oricf.gateway.actuation.senders import Sender
 from oricf.gateway.text_channels import Channels
 
 log = logging.getLogger(__name__)

@@ -24,7 +24,7 @@ from pydantic import Field, model_validator
 
 from oricf.config import FilePath, Schema
 from oricf.errors import OricfError
-from oricf.gateway.agents.messages import FIELDS, check_fields, flatten
+from oricf.gateway.actuation.messages import FIELDS, check_fields, flatten
 
 MessageType = Literal["geometry_msgs/Twist", "std_msgs/Float64", "std_msgs/Int32",
                       "std_msgs/Bool", "std_msgs/String"]

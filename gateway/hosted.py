@@ -1,69 +1,28 @@
-"""A pipeline run in this process (`oricf mcp --config`), started as `oricf gateway` would
-start it: with a ROS node on an executor thread of its own when the pipeline has topics,
-else its sources, routes and outlets alone. Also makes the pipeline's agent actuation and
-control view, and serves its control API if the YAML has `control:`.
+"""A pipeline run inside another program (`oricf mcp --config`), started as `oricf gateway`
+would start it: with a ROS node on an executor thread of its own when the pipeline has
+topics, else its sources, routes and outlets alone. Also makes the pipeline's agent
+actuation and control view, and serves its control API if the YAML has `control:`
+(oricf.gateway.surfaces). The third shell beside oricf.gateway.ros.spin and
+oricf.gateway.without_ros.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from oricf.gateway.agents.actuation import Actuation
-from oricf.gateway.agents.audit import AuditLog
-from oricf.gateway.agents.senders import Senders
+from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.config import PipelineConfig
-from oricf.gateway.control.view import PipelineView
+from oricf.gateway.operations.view import PipelineView
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sinks import Outlets
 from oricf.gateway.sources import pipeline_sources
+from oricf.gateway.surfaces import make_view, serve_control
 from oricf.gateway.text_channels import Channels
 
 log = logging.getLogger(__name__)
-
-
-def make_view(pipeline: Pipeline, channels: Channels, audit: AuditLog | None = None
-              ) -> PipelineView:
-    """The control view of a started pipeline, with actuation if it has an agent policy."""
-    config = pipeline.config
-    if audit is None:
-        audit = AuditLog(config.agent.audit if config.agent else None)
-    actuation = (Actuation(config.agent, Senders(config.agent, channels), audit, channels)
-                 if config.agent and config.agent.targets else None)
-    return PipelineView(pipeline, actuation, audit)
-
-
-def serve_control(view: PipelineView) -> Callable[[], None]:
-    """The control API of the view's pipeline if its YAML has `control:`; returns the stop
-    (which also closes the view: the deadman's zero commands go out first)."""
-    config = view.pipeline.config.control
-    if config is None:
-        return view.close
-    from oricf.gateway.control.server import ControlServer
-
-    server = ControlServer(config, view)
-    try:
-        server.start()
-    except BaseException:
-        view.close()
-        raise
-
-    def stop() -> None:
-        server.close()
-        view.close()
-
-    return stop
-
-
-def serve_gateway_control(pipeline: Pipeline, channels: Channels) -> Callable[[], None]:
-    """For `oricf gateway`: the control API and the agent's actuation, when the pipeline's
-    YAML asks for them; returns the stop."""
-    if pipeline.config.control is None:
-        return lambda: None
-    return serve_control(make_view(pipeline, channels))
 
 
 class HostedPipeline:
