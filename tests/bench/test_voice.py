@@ -33,7 +33,8 @@ def test_medians_and_p90_over_the_answered_questions() -> None:
     turns.append(turn(0.0, ("utterance", 0.4)))  # unanswered: left out
     table = summary(turns)
     assert table["LLM 1st sentence"][0] == pytest.approx(300)
-    assert table["LLM 1st sentence"][1] == pytest.approx(460)
+    # p90 is a value measured (oricf.stats.p90): of five, the largest
+    assert table["LLM 1st sentence"][1] == pytest.approx(500)
     assert table["total"][0] == pytest.approx(900)
     assert "device" not in table
 
