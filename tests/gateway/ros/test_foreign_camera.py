@@ -181,7 +181,8 @@ def test_a_publisher_that_never_matches_is_named_in_a_warning(
     assert "the gateway's subscription (sensor_msgs/msg/Image) matched" in warning
 
 
-@pytest.mark.parametrize("tcp", [True, False], ids=["tcp profile", "default profile"])
+@pytest.mark.parametrize("tcp", [True, pytest.param(False, marks=pytest.mark.long)],
+                         ids=["tcp profile", "default profile"])
 def test_a_camera_with_fast_dds_large_data_transports_reaches_the_gateway_on_tcp(
         tcp: bool, detector: RunningService) -> None:
     """FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA, Fast DDS's own answer to large samples: its
