@@ -4,6 +4,7 @@ Nothing is skipped for a missing model or tool: run scripts/setup.sh --dev first
 """
 
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
@@ -20,31 +21,20 @@ def shared_services() -> Iterator[SharedServices]:
     services.close()
 
 
-@pytest.fixture(scope="session")
-def detector(shared_services: SharedServices) -> RunningService:
-    """The detector with its shipped settings, shared by the session."""
-    return shared_services["detector"]
+def shared(name: str) -> Any:
+    """A session fixture named after a service: that service with its shipped settings,
+    shared by the session."""
+
+    @pytest.fixture(scope="session", name=name)
+    def service(shared_services: SharedServices) -> RunningService:
+        return shared_services[name]
+
+    return service
 
 
-@pytest.fixture(scope="session")
-def asr(shared_services: SharedServices) -> RunningService:
-    """The speech recognizer with its shipped settings, shared by the session."""
-    return shared_services["asr"]
-
-
-@pytest.fixture(scope="session")
-def llm(shared_services: SharedServices) -> RunningService:
-    """The language model with its shipped settings, shared by the session."""
-    return shared_services["llm"]
-
-
-@pytest.fixture(scope="session")
-def tts(shared_services: SharedServices) -> RunningService:
-    """The speech synthesizer with its shipped settings, shared by the session."""
-    return shared_services["tts"]
-
-
-@pytest.fixture(scope="session")
-def models(shared_services: SharedServices) -> RunningService:
-    """The declared-models service with its shipped settings, shared by the session."""
-    return shared_services["models"]
+# Each a RunningService (.address, .channel, .host).
+detector = shared("detector")
+asr = shared("asr")
+llm = shared("llm")
+tts = shared("tts")
+models = shared("models")

@@ -26,6 +26,7 @@ from oricf.gateway.surfaces import ros_sender
 from oricf.gateway.text_channels import ChannelConfig, Channels
 from tests.gateway.agents.scene import ARM_TOPIC, ros_listener
 from tests.support.processes import free_port
+from tests.support.waiting import wait_for
 
 TWIST = {"topic": "/cmd_vel", "type": "geometry_msgs/Twist",
          "bounds": {"linear.x": [-0.3, 0.3], "angular.z": [-0.5, 0.5]}}
@@ -158,10 +159,7 @@ def test_answers_without_a_plain_number_are_told_the_form(channels: Channels) ->
     approver = ChannelApprover(channels.get("approvals"))
     person = LineClient(channels.get("approvals").address)
     try:
-        deadline = time.monotonic() + 10
-        while not channels.get("approvals").clients:
-            assert time.monotonic() < deadline
-            time.sleep(0.02)
+        wait_for(lambda: channels.get("approvals").clients, 10, "the approver's client")
         for answer in ("yes \u00b2", "no \u2460", "yes -1", "yes", "yes 1 2"):
             person.say(answer)
             assert person.line() == "answer: yes N or no N", answer
@@ -177,10 +175,8 @@ def test_answers_without_a_plain_number_are_told_the_form(channels: Channels) ->
 
 
 def _wait_clients(channels: Channels) -> None:
-    deadline = time.monotonic() + 10
-    while not (channels.get("approvals").clients and channels.get("speech").clients):
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    wait_for(lambda: channels.get("approvals").clients and channels.get("speech").clients, 10,
+             "the approval and speech clients")
 
 
 def test_shipped_mobile_base_policy() -> None:
@@ -215,10 +211,7 @@ def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Pat
         actuation = Actuation(rules, Senders(rules, channels, ros_sender), audit, channels)
         person = LineClient(channels.get("approvals").address)
         try:
-            deadline = time.monotonic() + 10
-            while not channels.get("approvals").clients:
-                assert time.monotonic() < deadline
-                time.sleep(0.02)
+            wait_for(lambda: channels.get("approvals").clients, 10, "the approver's client")
             approving = threading.Event()
             approving.set()
 
@@ -235,6 +228,7 @@ def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Pat
 
             threading.Thread(target=answer, daemon=True).start()
             driver.wait_publisher(ARM_TOPIC)
+            deadline = time.monotonic() + 10
             while driver.arm.empty():  # until discovery is complete both ways
                 assert time.monotonic() < deadline, "nothing reached the arm"
                 actuation.send("arm", {"data": 0.5})
