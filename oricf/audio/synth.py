@@ -22,7 +22,7 @@ def synthesize(text: str, voice: str = "en-us", rate: int = 160,
     wav = subprocess.run(["espeak-ng", "-v", voice, "-s", str(rate), "--stdout", text],
                          check=True, capture_output=True).stdout
     raw = subprocess.run(
-        ["sox", "-t", "wav", "-", "-t", "raw", "-r", str(sample_rate), "-c", "1", "-b", "16",
+        ["sox", "-R", "-t", "wav", "-", "-t", "raw", "-r", str(sample_rate), "-c", "1", "-b", "16",
          "-e", "signed-integer", "-L", "-"],
         input=wav, check=True, capture_output=True).stdout
     return np.frombuffer(raw, dtype="<i2").copy()

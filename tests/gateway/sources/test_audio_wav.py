@@ -73,7 +73,7 @@ def test_questions_in_a_wav_file_are_transcribed_and_the_route_ends_without_ros(
 def test_any_rate_and_channels_become_16_khz_mono_utterances(questions: Path,
                                                             tmp_path: Path) -> None:
     stereo = tmp_path / "questions-44k-stereo.wav"
-    subprocess.run(["sox", str(questions), "-r", "44100", "-c", "2", str(stereo)], check=True)
+    subprocess.run(["sox", "-R", str(questions), "-r", "44100", "-c", "2", str(stereo)], check=True)
     clips = cut(stereo)
     assert [(c.sample_rate, c.channels) for c in clips] == [(16000, 1), (16000, 1)]
     assert [c.duration_s for c in clips] == pytest.approx(
@@ -105,7 +105,7 @@ def test_a_file_that_is_no_usable_wav_is_refused_at_start(
         path.write_bytes(questions.read_bytes()[:30])
     elif isinstance(content, str):
         encoding = ["-b", "8"] if content == "8-bit" else ["-e", "floating-point", "-b", "32"]
-        subprocess.run(["sox", str(questions), *encoding, str(path)], check=True)
+        subprocess.run(["sox", "-R", str(questions), *encoding, str(path)], check=True)
     else:
         path.write_bytes(content)
     with pytest.raises(ConfigError) as error:
