@@ -12,6 +12,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 import yaml
 
 from tests.gateway.live_view.processes import gateway_with_view
@@ -47,6 +48,7 @@ def boxes_of(lines: list[str]) -> list[set[tuple[float, ...]]]:
     return found
 
 
+@pytest.mark.long
 def test_a_replay_is_watched_live(detector: RunningService, tmp_path: Path) -> None:
     config, recording = viewed_pipeline(tmp_path, detector.address), tmp_path / "camera.mcap"
     record(recording)

@@ -139,8 +139,8 @@ def test_sixteen_processes_meet_with_every_dds_socket_on_loopback() -> None:
             assert member.off_loopback() == [], f"member {member.index}: {member.sockets}"
 
 
-@pytest.mark.parametrize("tcp", [False, pytest.param(True, marks=pytest.mark.long)],
-                         ids=["default profile", "tcp profile"])
+@pytest.mark.long
+@pytest.mark.parametrize("tcp", [False, True], ids=["default profile", "tcp profile"])
 def test_nodes_without_the_profile_meet_the_nodes_with_it(tcp: bool) -> None:
     """Camera drivers and other nodes ORICF did not write: Fast DDS's defaults (multicast
     discovery), ROS's LOCALHOST range, and, meeting ORICF's TCP profile, Fast DDS's
