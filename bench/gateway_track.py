@@ -17,8 +17,9 @@ from typing import Any
 from oricf.bench.common import print_table
 from oricf.bench.gateway_report import InputResult
 from oricf.bench.tracking import TRACK_MIN_SCORE
+from oricf.gateway.components import chain
+from oricf.gateway.config import PostStep
 from oricf.gateway.methods.detect import detections
-from oricf.gateway.post import PostStep, chain
 from oricf.gateway.values import Record
 from oricf.imaging import Detection
 from oricf.v1 import detector_pb2

@@ -28,8 +28,9 @@ import yaml
 
 from oricf.bench.common import print_table, shipped_detector_model
 from oricf.config import REPO_ROOT
+from oricf.gateway.components import chain
+from oricf.gateway.config import PostStep
 from oricf.gateway.methods.detect import detections
-from oricf.gateway.post import PostStep, chain
 from oricf.gateway.post import track as track_step
 from oricf.gateway.post.count_tracks import CountTracksStep
 from oricf.gateway.post.track import TrackStep

@@ -25,19 +25,19 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, Optional
 
-from pydantic import Field, PrivateAttr, field_validator, model_validator
+from pydantic import Field, PrivateAttr, create_model, field_validator, model_validator
 
 from oricf.audio import VadSettings
 from oricf.config import Schema, read_with_overlays, resolve_path, validate
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
+from oricf.gateway.components import STEPS, Step
 from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS, CallConfig
-from oricf.gateway.post import PostStep
 from oricf.gateway.text_channels import ChannelConfig
 from oricf.metrics import MetricsConfig
 
@@ -166,6 +166,36 @@ class OutputConfig(Schema):
         if self.topic is not None and self.type is None:
             raise ValueError("type: required with topic")
         return self
+
+
+class PostStepBase(Schema):
+    """One post step: exactly one of the registered steps' keys (oricf.gateway.post)."""
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> PostStepBase:
+        if len(self.model_fields_set) != 1:
+            raise ValueError(f"give exactly one of {', '.join(STEPS)}")
+        return self
+
+    @property
+    def kind(self) -> str:
+        return next(iter(self.model_fields_set))
+
+    def build(self) -> Step:
+        return STEPS[self.kind].build(getattr(self, self.kind))
+
+    if TYPE_CHECKING:  # the keys are the registered steps', known once they are found
+        def __init__(self, **steps: Any) -> None: ...
+
+        def __getattr__(self, key: str) -> Any: ...
+
+
+if TYPE_CHECKING:
+    PostStep = PostStepBase
+else:
+    PostStep = create_model(
+        "PostStep", __base__=PostStepBase, __module__=__name__,
+        **{key: (Optional[kind.settings], None) for key, kind in STEPS.items()})  # noqa: UP045
 
 
 class RouteConfig(Schema):

@@ -4,7 +4,7 @@ input is left as it came)."""
 from __future__ import annotations
 
 from oricf.config import Schema
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import draw_detections
 
@@ -20,3 +20,6 @@ def build(step: AnnotateStep) -> Step:
                                                               record["detections"]))
 
     return Step(frozenset({"image", "detections"}), step.into, run)
+
+
+COMPONENT = StepKind("annotate", AnnotateStep, build, rank=3)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from oricf.config import Schema
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Record
 
 
@@ -24,3 +24,6 @@ def build(step: CountStep) -> Step:
                              else sum(1 for d in detections if d.label == label))
 
     return Step(frozenset({"detections"}), step.into, run)
+
+
+COMPONENT = StepKind("count", CountStep, build, rank=2)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.post.over_tracks import OverTracks
 from oricf.gateway.tracking.measures import count_now
 from oricf.gateway.values import Record
@@ -21,3 +21,6 @@ def build(step: CountTracksStep) -> Step:
         record[step.into] = count_now(record[step.tracks], step.label, step.hold_s)
 
     return Step(frozenset({step.tracks}), step.into, run)
+
+
+COMPONENT = StepKind("count_tracks", CountTracksStep, build, rank=6)

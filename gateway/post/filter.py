@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from oricf.config import Schema
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Record
 
 
@@ -22,3 +22,6 @@ def build(step: FilterStep) -> Step:
                                 if (not labels or d.label in labels) and d.score >= step.min_score]
 
     return Step(frozenset({"detections"}), None, run)
+
+
+COMPONENT = StepKind("filter", FilterStep, build, rank=1)

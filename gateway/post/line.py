@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pydantic import field_validator, model_validator
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.post.over_tracks import Placed
 from oricf.gateway.post.zone import finite_point
 from oricf.gateway.tracking.measures import Line, LineMeasure
@@ -38,3 +38,6 @@ def build(step: LineStep) -> Step:
         record[step.into] = line.update(record[step.tracks])[step.measure]
 
     return Step(frozenset({step.tracks}), step.into, run)
+
+
+COMPONENT = StepKind("line", LineStep, build, rank=9)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Record
 
 
@@ -14,3 +14,6 @@ def build(mapping: dict[str, str]) -> Step:
                                 for d in record["detections"]]
 
     return Step(frozenset({"detections"}), None, run)
+
+
+COMPONENT = StepKind("map_labels", dict[str, str], build, rank=0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.post.over_tracks import OverTracks
 from oricf.gateway.tracking.measures import SeenInWindow
 from oricf.gateway.values import Record
@@ -23,3 +23,6 @@ def build(step: SeenTracksStep) -> Step:
         record[step.into] = seen.update(record[step.tracks])
 
     return Step(frozenset({step.tracks}), step.into, run)
+
+
+COMPONENT = StepKind("seen_tracks", SeenTracksStep, build, rank=7)

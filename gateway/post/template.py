@@ -6,7 +6,7 @@ from pydantic import field_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Record, template_fields
 
 
@@ -29,3 +29,6 @@ def build(step: TemplateStep) -> Step:
             raise InvalidInput(f"template {step.text!r}: cannot fill {exc}") from None
 
     return Step(frozenset(template_fields(step.text)), step.into, run)
+
+
+COMPONENT = StepKind("template", TemplateStep, build, rank=4)

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.tracking.bytetrack import ByteTracker, TrackerConfig
 from oricf.gateway.tracking.measures import Tracks
@@ -96,3 +96,6 @@ def build(step: TrackStep, clock: Callable[[], float] = time.monotonic) -> Step:
                 str(record.get("route", "")))
 
     return Step(frozenset({"detections"}), step.into, run)
+
+
+COMPONENT = StepKind("track", TrackStep, build, rank=5)

@@ -9,7 +9,7 @@ from typing import Any
 
 from pydantic import Field, field_validator
 
-from oricf.gateway.post.base import Step
+from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.post.over_tracks import Placed
 from oricf.gateway.tracking.bytetrack import MAX_COORDINATE, in_range
 from oricf.gateway.tracking.measures import Zone, ZoneMeasure
@@ -40,3 +40,6 @@ def build(step: ZoneStep) -> Step:
         record[step.into] = zone.update(record[step.tracks])[step.measure]
 
     return Step(frozenset({step.tracks}), step.into, run)
+
+
+COMPONENT = StepKind("zone", ZoneStep, build, rank=8)

@@ -7,7 +7,7 @@ import pytest
 
 from oricf.errors import InvalidInput
 from oricf.gateway import post
-from oricf.gateway.post import PostStep
+from oricf.gateway.config import PostStep
 from oricf.gateway.values import Frame, Record
 from oricf.imaging import Box, Detection
 from tests.support.data import video_frames

@@ -10,7 +10,7 @@ import pytest
 
 from oricf.errors import ConfigError
 from oricf.gateway import post
-from oricf.gateway.post import PostStep
+from oricf.gateway.config import PostStep
 from oricf.gateway.post import track as track_step
 from oricf.gateway.post.track import TrackStep
 from oricf.gateway.sinks.jsonl import jsonable

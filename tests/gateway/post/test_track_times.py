@@ -9,7 +9,7 @@ import logging
 import pytest
 
 from oricf.gateway import post
-from oricf.gateway.post import PostStep
+from oricf.gateway.config import PostStep
 from oricf.gateway.post import track as track_step
 from oricf.gateway.post.track import MAX_LEAP_S, TrackStep
 from oricf.gateway.values import FRAME_TIME, Record

@@ -1,0 +1,130 @@
+"""The gateway's components and how they are found: sources, methods, post steps, sinks.
+
+A component is one module in its kind's package (oricf.gateway.sources, .methods, .post,
+.sinks) that declares, at module level, what it is: `COMPONENT = StepKind(...)` (or
+SourceKind, SinkKind) or `METHOD = Method(...)`. The declaration says the component's YAML
+key, its settings schema (pydantic), the record fields it reads and writes, and how it is
+built. Each kind's `Registry` scans its package (pkgutil) the first time it is asked and keeps
+every declaration it finds; two modules that declare one key are an error naming both.
+
+The pipeline schema (oricf.gateway.config) builds its unions from the registries, so the core
+(config, pipeline, route, worker, this module) imports no component; pyproject's import
+contracts check that. A route's `call:` is a discriminated union on `method` (a pydantic
+`Field(discriminator=...)` over the registered call schemas). A route's `input:`, each of its
+`outputs[]` and each `post[]` step is one flat mapping in which exactly one key names the
+component (`{url: ..., fps: 5}`, `{count: {label: person}}`): those are built with
+pydantic.create_model from the components' settings as optional fields plus an "exactly one"
+rule, rather than as a tagged union (pydantic.Discriminator + Tag), because a tagged union puts
+its tag into every error's path (`input.url.fps`); the built models keep the paths users' files
+were always told (`routes.people.post[0].count.label`, `routes.x.input: ...`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import threading
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any, Generic, Protocol, TypeVar
+
+from oricf.gateway.values import Record
+
+Run = Callable[[Record], None]
+
+
+class ComponentError(RuntimeError):
+    """The components of a kind cannot be registered (two modules declare one key)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """A post step once built: the record fields it reads, the one it writes (if any), and
+    the function that runs it on a record."""
+
+    reads: frozenset[str]
+    writes: str | None
+    run: Run
+
+
+@dataclass(frozen=True)
+class StepKind:
+    """A post step: `{key: settings}` in a route's `post:` list."""
+
+    key: str
+    settings: Any                        # its schema (a pydantic class, or a type like dict)
+    build: Callable[[Any], Step]         # settings -> the step, once per route
+    rank: int = 100                      # where it is listed among the steps (messages, docs)
+
+
+class Builds(Protocol):
+    def build(self) -> Step: ...
+
+
+def chain(steps: Iterable[Builds]) -> Run:
+    """All steps in order, as one."""
+    runs = [step.build().run for step in steps]
+
+    def run(record: Record) -> None:
+        for step in runs:
+            step(record)
+
+    return run
+
+
+class Declared(Protocol):
+    @property
+    def key(self) -> str: ...
+
+    @property
+    def rank(self) -> int: ...
+
+
+K = TypeVar("K", bound=Declared)
+
+
+class Registry(Mapping[str, K], Generic[K]):
+    """The components of one kind by key, in rank order, found on first use: each module of
+    `package` that defines `attr` at module level."""
+
+    def __init__(self, package: str, attr: str, kind: type[Any]) -> None:
+        self.package = package
+        self._attr = attr
+        self._kind = kind
+        self._found: dict[str, K] | None = None
+        self._lock = threading.RLock()
+
+    def _components(self) -> dict[str, K]:
+        with self._lock:
+            if self._found is None:
+                self._found = self._discover()
+            return self._found
+
+    def _discover(self) -> dict[str, K]:
+        found: dict[str, tuple[K, str]] = {}
+        package = importlib.import_module(self.package)
+        for info in pkgutil.iter_modules(package.__path__, f"{self.package}."):
+            module = importlib.import_module(info.name)
+            declared = getattr(module, self._attr, None)
+            if declared is None:
+                continue
+            if not isinstance(declared, self._kind):
+                raise ComponentError(f"{info.name}.{self._attr} is no {self._kind.__name__}")
+            if declared.key in found:
+                raise ComponentError(f"'{declared.key}' is declared by both "
+                                     f"{found[declared.key][1]} and {info.name}")
+            found[declared.key] = (declared, info.name)
+        ordered = sorted(found.values(), key=lambda item: (item[0].rank, item[0].key))
+        return {declared.key: declared for declared, _ in ordered}
+
+    def __getitem__(self, key: str) -> K:
+        return self._components()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._components())
+
+    def __len__(self) -> int:
+        return len(self._components())
+
+
+STEPS: Registry[StepKind] = Registry("oricf.gateway.post", "COMPONENT", StepKind)
