@@ -45,8 +45,8 @@ from oricf.audio import MODEL_RATE, synthesize
 from oricf.bench.common import print_table, served
 from oricf.config import config_dir
 from oricf.gateway.config import PipelineConfig, load_pipeline
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import Outlets
 from oricf.gateway.sources.audio import Utterances, shared_vad
 from oricf.gateway.sources.video import VideoSource
 from oricf.stats import p90

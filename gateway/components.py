@@ -28,6 +28,9 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, Generic, Protocol, TypeVar
 
+from oricf.config import Schema
+from oricf.gateway.speaking import Speaking
+from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 Run = Callable[[Record], None]
@@ -70,6 +73,42 @@ def chain(steps: Iterable[Builds]) -> Run:
             step(record)
 
     return run
+
+
+@dataclass
+class ComponentContext:
+    """What a pipeline gives the components it builds (its sources and sinks)."""
+
+    config: Any              # the PipelineConfig (oricf.gateway.config, built on this module)
+    channels: Channels       # the pipeline's text channels
+    speaking: Speaking       # whether a speaker plays, and barge-in
+    # Where topic outputs go: the ROS node's publishers, or in a replay the recording.
+    ros: Callable[[Any, Any, Record], None] | None = None
+
+
+class Sink(Protocol):
+    """Where an output's values go (one object per output key in a pipeline)."""
+
+    def send(self, output: Any, value: Any, record: Record) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def no_rules(settings: Any) -> None:
+    """A component whose settings need no check beyond their schema."""
+
+
+@dataclass(frozen=True)
+class SinkKind:
+    """An output: `{key: ..., from: field}` in a route's `outputs:` list."""
+
+    key: str
+    # Its keys in an output, its own key among them, each optional (None when not given):
+    # the output schema takes the fields of every sink's options.
+    options: type[Schema]
+    open: Callable[[ComponentContext], Sink] | None  # None: the pipeline keeps it (products)
+    check: Callable[[Any], None] = no_rules          # rules on the whole output, if its key
+    rank: int = 100
 
 
 class Declared(Protocol):
@@ -128,3 +167,4 @@ class Registry(Mapping[str, K], Generic[K]):
 
 
 STEPS: Registry[StepKind] = Registry("oricf.gateway.post", "COMPONENT", StepKind)
+SINKS: Registry[SinkKind] = Registry("oricf.gateway.sinks", "COMPONENT", SinkKind)

@@ -33,29 +33,17 @@ from oricf.audio import VadSettings
 from oricf.config import Schema, read_with_overlays, resolve_path, validate
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
-from oricf.gateway.components import STEPS, Step
+from oricf.gateway.components import SINKS, STEPS, Step
 from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS, CallConfig
 from oricf.gateway.text_channels import ChannelConfig
+from oricf.gateway.topics.types import IMAGE_INPUTS, INPUT_FIELDS, InputType
 from oricf.metrics import MetricsConfig
 
-InputType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage", "std_msgs/String",
-                    "std_msgs/Int16MultiArray", "std_msgs/Int32"]
-OutputType = Literal["std_msgs/Int32", "std_msgs/String", "sensor_msgs/Image",
-                     "std_msgs/Int16MultiArray", "vision_msgs/Detection2DArray"]
-# The record field each input type fills (checked against `from`, templates).
-INPUT_FIELDS: dict[str, str] = {
-    "sensor_msgs/Image": "image", "sensor_msgs/CompressedImage": "image",
-    "std_msgs/String": "text", "std_msgs/Int16MultiArray": "audio", "std_msgs/Int32": "value",
-}
-# Camera inputs: newest frame only, sensor_data QoS.
-IMAGE_INPUTS = frozenset(t for t, f in INPUT_FIELDS.items() if f == "image")
 # The keys of InputConfig that name a source; a route has exactly one.
 SOURCE_KEYS = ("topic", "product", "url", "audio", "text")
-# The keys of OutputConfig that name a sink; an output has exactly one.
-SINK_KEYS = ("topic", "product", "jsonl", "text", "frames", "audio", "wav")
 
 
 class VadConfig(VadSettings):
@@ -135,37 +123,36 @@ class InputConfig(Schema):
         return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
 
 
-class SpeakerConfig(Schema):
-    """A speaker: an audio output device that plays speech (gateway.sinks.speaker)."""
+class OutputBase(Schema):
+    """A route output: exactly one of the registered sinks' keys (oricf.gateway.sinks), and
+    the record field it sends."""
 
-    device: str = Field("default", description="'default', an index, a PortAudio name, or "
-                                               "a PulseAudio sink")
-
-
-class OutputConfig(Schema):
-    topic: str | None = None
-    type: OutputType | None = None
-    product: str | None = None
-    jsonl: str | None = Field(
-        None, description="JSON lines: '-' for standard output, or a file (appended to)")
-    text: str | None = Field(
-        None, description="the value as a line of text: '-' for standard output, or a channel")
-    frames: str | None = Field(
-        None, description="images to a folder (numbered JPEGs), a .jpg/.png file (the newest "
-                          "frame), or a video file (.mp4, .avi, .mkv)")
-    audio: SpeakerConfig | None = Field(None, description="speech played on an audio device")
-    wav: str | None = Field(
-        None, description="speech into a WAV file, appended (the file is new at start)")
-    max_age_s: float = Field(5.0, gt=0, description="product: older values count as stale")
     source: str = Field(alias="from", description="the record field to send")
 
     @model_validator(mode="after")
-    def _one_sink(self) -> OutputConfig:
-        if sum(getattr(self, key) is not None for key in SINK_KEYS) != 1:
-            raise ValueError(f"give exactly one of {', '.join(SINK_KEYS)}")
-        if self.topic is not None and self.type is None:
-            raise ValueError("type: required with topic")
+    def _one_sink(self) -> OutputBase:
+        if sum(getattr(self, key) is not None for key in SINKS) != 1:
+            raise ValueError(f"give exactly one of {', '.join(SINKS)}")
+        SINKS[self.sink].check(self)
         return self
+
+    @property
+    def sink(self) -> str:
+        """The key that names this output's sink."""
+        return next(key for key in SINKS if getattr(self, key) is not None)
+
+    if TYPE_CHECKING:  # the keys are the registered sinks', known once they are found
+        def __init__(self, **keys: Any) -> None: ...
+
+        def __getattr__(self, key: str) -> Any: ...
+
+
+if TYPE_CHECKING:
+    OutputConfig = OutputBase
+else:
+    OutputConfig = create_model(
+        "OutputConfig", __base__=(OutputBase, *(kind.options for kind in SINKS.values())),
+        __module__=__name__)
 
 
 class PostStepBase(Schema):

@@ -15,10 +15,10 @@ from typing import Any
 
 from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.inputs import pipeline_sources
 from oricf.gateway.operations.view import PipelineView
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import pipeline_sources
 from oricf.gateway.surfaces import make_view, serve_control
 from oricf.gateway.text_channels import Channels
 

@@ -8,7 +8,7 @@ outputs that take its fields, before post steps (which run on the whole result).
 Every failure of one message is logged (throttled, per route and kind of failure) and
 counted, and told to whoever asked for the record (its `reply_to`, e.g. a text channel's
 client, which no output will answer now); the route goes on with the next message. Data
-products go to the ProductStore; every other output to `emit` (oricf.gateway.sinks.Outlets:
+products go to the ProductStore; every other output to `emit` (oricf.gateway.outlets.Outlets:
 files, text channels, and topics through the ROS node's publishers or a recording).
 """
 

@@ -9,11 +9,11 @@ import logging
 import threading
 
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.inputs import pipeline_sources
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import TopicOutputs
 from oricf.gateway.recording.replay import Replay
-from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import pipeline_sources
 from oricf.gateway.surfaces import serve_gateway_control
 from oricf.signals import stop_on_signals
 

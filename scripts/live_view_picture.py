@@ -28,9 +28,9 @@ from websockets.typing import Subprotocol
 from oricf.bench.common import served
 from oricf.config import config_dir
 from oricf.gateway.config import load_pipeline
+from oricf.gateway.inputs import pipeline_sources
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import pipeline_sources
 from oricf.store import ModelStore
 
 MIN_BOXES = 3

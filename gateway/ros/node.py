@@ -26,13 +26,13 @@ from rclpy.serialization import serialize_message
 
 from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
 from oricf.gateway.endpoints.placement import Placement
+from oricf.gateway.inputs import pipeline_sources
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import Recorder, message_times
 from oricf.gateway.ros import messages
 from oricf.gateway.ros.camera import CameraReceiver
 from oricf.gateway.ros.publishers import TopicPublishers
-from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import pipeline_sources
 
 log = logging.getLogger(__name__)
 

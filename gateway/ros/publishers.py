@@ -22,7 +22,7 @@ log = logging.getLogger(__name__)
 
 
 class TopicPublishers:
-    """Called with each topic output of the pipeline's routes (oricf.gateway.sinks.Outlets
+    """Called with each topic output of the pipeline's routes (oricf.gateway.outlets.Outlets
     hands them on)."""
 
     def __init__(self, node: Node, config: PipelineConfig,

@@ -13,10 +13,16 @@ import logging
 import os
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from oricf.gateway.config import OutputConfig
-from oricf.gateway.values import Frame
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.gateway.components import ComponentContext, Sink, SinkKind
+from oricf.gateway.values import Frame, Record
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import OutputConfig
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +34,8 @@ DEFAULT_FPS = 10.0
 class FrameFiles:
     """Every frames output of a pipeline; one writer per path."""
 
-    def __init__(self) -> None:
+    def __init__(self, fps: dict[str, float | None] | None = None) -> None:
+        self._fps = fps or {}  # route -> its input's frame rate (a video's frame rate)
         self._videos: dict[str, tuple[Any, tuple[int, int]]] = {}  # path -> writer, size
         self._numbers: dict[str, int] = {}
         self._lock = threading.Lock()
@@ -67,6 +74,10 @@ class FrameFiles:
             pixels = cv2.resize(pixels, size)
         writer.write(pixels)
 
+    def send(self, output: OutputConfig, value: Any, record: Record) -> None:
+        route = str(record.get("route", ""))
+        self.write(route, output, value, self._fps.get(route))
+
     def close(self) -> None:
         with self._lock:
             for writer, _ in self._videos.values():
@@ -86,3 +97,17 @@ def _replace_image(path: Path, pixels: Any) -> None:
     partial = path.with_name(f".{path.stem}.partial{path.suffix}")
     _write_image(partial, pixels)
     os.replace(partial, path)
+
+
+class FramesOutput(Schema):
+    frames: str | None = Field(
+        None, description="images to a folder (numbered JPEGs), a .jpg/.png file (the newest "
+                          "frame), or a video file (.mp4, .avi, .mkv)")
+
+
+def open_files(context: ComponentContext) -> Sink:
+    return FrameFiles({name: getattr(route.input, "fps", None)
+                       for name, route in context.config.routes.items()})
+
+
+COMPONENT = SinkKind("frames", FramesOutput, open_files, rank=4)

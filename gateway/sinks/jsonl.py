@@ -13,10 +13,16 @@ import json
 import sys
 import threading
 import time
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from oricf.gateway.config import OutputConfig
-from oricf.gateway.values import Frame
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.gateway.components import ComponentContext, Sink, SinkKind
+from oricf.gateway.values import Frame, Record
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import OutputConfig
 
 
 def jsonable(value: Any) -> Any:
@@ -56,8 +62,23 @@ class JsonLines:
             self._files[target] = open(target, "a", encoding="utf-8")  # noqa: SIM115
         return self._files[target]
 
+    def send(self, output: OutputConfig, value: Any, record: Record) -> None:
+        self.write(str(record.get("route", "")), output, value)
+
     def close(self) -> None:
         with self._lock:
             for out in self._files.values():
                 out.close()
             self._files.clear()
+
+
+class JsonlOutput(Schema):
+    jsonl: str | None = Field(
+        None, description="JSON lines: '-' for standard output, or a file (appended to)")
+
+
+def open_lines(context: ComponentContext) -> Sink:
+    return JsonLines()
+
+
+COMPONENT = SinkKind("jsonl", JsonlOutput, open_lines, rank=2)

@@ -23,12 +23,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydantic import Field
 
-from oricf.gateway.config import SpeakerConfig
+from oricf.config import Schema
+from oricf.errors import ConfigError
+from oricf.gateway.components import ComponentContext, Sink, SinkKind
 from oricf.gateway.sinks.speaker_device import SampleBuffer, find_output, playback_rate
 from oricf.gateway.sources import audio_device
 from oricf.gateway.speaking import Speaking
-from oricf.gateway.values import AudioClip, SpokenAudio
+from oricf.gateway.values import AudioClip, Record, SpokenAudio
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +44,17 @@ LEAD_IN_S = 0.15
 POLL_S = 0.02         # how often the player looks for a barge-in and the buffer's end
 IDLE_S = 0.5          # a piece arriving within this after the last keeps the stream open
 STALL_S = 2.0         # samples waiting this long untaken: the device stopped playing
+
+
+class SpeakerConfig(Schema):
+    """A speaker: an audio output device that plays speech."""
+
+    device: str = Field("default", description="'default', an index, a PortAudio name, or "
+                                               "a PulseAudio sink")
+
+
+class SpeakerOutput(Schema):
+    audio: SpeakerConfig | None = Field(None, description="speech played on an audio device")
 
 
 @dataclass
@@ -210,3 +224,37 @@ class Speaker:
             self._queue.clear()
             self._cond.notify_all()
         self._thread.join(timeout=5)
+
+
+class Speakers:
+    """A Speaker per device that the pipeline's `audio:` outputs name, opened (checked) at
+    once: a device that is not there is a ConfigError naming the file and the key."""
+
+    def __init__(self, context: ComponentContext) -> None:
+        self.speakers: dict[str, Speaker] = {}
+        config = context.config
+        for name, route in config.routes.items():
+            for i, output in enumerate(route.outputs):
+                if output.audio is None or output.audio.device in self.speakers:
+                    continue
+                try:
+                    self.speakers[output.audio.device] = Speaker(output.audio,
+                                                                 context.speaking)
+                except ConfigError as exc:
+                    self.close()
+                    raise ConfigError(f"{config.origin}: routes.{name}.outputs[{i}].audio."
+                                      f"device: {exc}") from None
+
+    def send(self, output: Any, value: Any, record: Record) -> None:
+        self.speakers[output.audio.device].play(value)
+
+    def close(self) -> None:
+        for speaker in self.speakers.values():
+            speaker.close()
+
+
+def open_speakers(context: ComponentContext) -> Sink:
+    return Speakers(context)
+
+
+COMPONENT = SinkKind("audio", SpeakerOutput, open_speakers, rank=5)

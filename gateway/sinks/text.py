@@ -6,12 +6,18 @@ from __future__ import annotations
 import json
 import sys
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from oricf.gateway.config import OutputConfig
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.gateway.components import ComponentContext, Sink, SinkKind
 from oricf.gateway.sinks.jsonl import jsonable
 from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import OutputConfig
 
 
 def as_line(value: Any) -> str:
@@ -25,7 +31,7 @@ class TextLines:
         self._channels = channels
         self._lock = threading.Lock()
 
-    def write(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def send(self, output: OutputConfig, value: Any, record: Record) -> None:
         assert output.text is not None
         line = as_line(value).replace("\n", " ")
         if output.text == "-":
@@ -34,3 +40,18 @@ class TextLines:
                 sys.stdout.flush()
         else:
             self._channels.get(output.text).send(line, record.get("reply_to"))
+
+    def close(self) -> None:
+        """The pipeline closes its channels."""
+
+
+class TextOutput(Schema):
+    text: str | None = Field(
+        None, description="the value as a line of text: '-' for standard output, or a channel")
+
+
+def open_lines(context: ComponentContext) -> Sink:
+    return TextLines(context.channels)
+
+
+COMPONENT = SinkKind("text", TextOutput, open_lines, rank=3)

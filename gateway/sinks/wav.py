@@ -11,7 +11,11 @@ import wave
 from pathlib import Path
 from typing import Any
 
-from oricf.gateway.values import AudioClip
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.gateway.components import ComponentContext, Sink, SinkKind
+from oricf.gateway.values import AudioClip, Record
 
 log = logging.getLogger(__name__)
 
@@ -43,8 +47,23 @@ class WavFiles:
         log.info("wav: writing speech to %s (%d Hz)", path, rate)
         return out
 
+    def send(self, output: Any, value: Any, record: Record) -> None:
+        self.write(output.wav, value)
+
     def close(self) -> None:
         with self._lock:
             for out in self._files.values():
                 out.close()
             self._files.clear()
+
+
+class WavOutput(Schema):
+    wav: str | None = Field(
+        None, description="speech into a WAV file, appended (the file is new at start)")
+
+
+def open_files(context: ComponentContext) -> Sink:
+    return WavFiles()
+
+
+COMPONENT = SinkKind("wav", WavOutput, open_files, rank=6)

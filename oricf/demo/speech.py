@@ -86,8 +86,7 @@ class AnswerPlayer:
         self.wav: Any = None
         self.note = ""
         if play:
-            from oricf.gateway.config import SpeakerConfig
-            from oricf.gateway.sinks.speaker import Speaker
+            from oricf.gateway.sinks.speaker import Speaker, SpeakerConfig
 
             try:
                 self.speaker = Speaker(SpeakerConfig(device="default"), Speaking())

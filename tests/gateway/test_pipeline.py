@@ -10,8 +10,8 @@ import pytest
 
 from oricf.config import deep_merge
 from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import Outlets
 from oricf.gateway.values import Frame, Record
 from tests.support.data import video_frames
 from tests.support.processes import free_port

@@ -17,9 +17,9 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
 from oricf.config import config_dir, deep_merge, read_yaml
 from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.inputs import pipeline_sources
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sinks import Outlets
-from oricf.gateway.sources import pipeline_sources
 from oricf.gateway.values import Record
 from tests.support.data import video_path
 

@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 
 from oricf.errors import ConfigError
-from oricf.gateway.config import SpeakerConfig
-from oricf.gateway.sinks.speaker import Speaker
+from oricf.gateway.sinks.speaker import Speaker, SpeakerConfig
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip
 from oricf.v1 import synthesis_pb2

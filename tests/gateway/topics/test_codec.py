@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
-from oricf.gateway.config import InputConfig, InputType, OutputType
+from oricf.gateway.config import InputConfig
 from oricf.gateway.ros.messages import message_type, to_message
 from oricf.gateway.topics import cdr
 from oricf.gateway.topics.codec import TYPES, data_record, image_record, serialize
+from oricf.gateway.topics.types import InputType, OutputType
 from oricf.gateway.values import AudioClip, Frame
 from oricf.imaging import Box, Detection, encode_image
 from tests.support.vision_msgs import build, environment
