@@ -111,6 +111,43 @@ class SinkKind:
     rank: int = 100
 
 
+class Source(Protocol):
+    """A route's input that runs on a thread of its own (not a ROS topic)."""
+
+    route: str
+
+    def start(self) -> None: ...
+
+    def stop(self, timeout: float = 5.0) -> None: ...
+
+
+Loader = Callable[[], Record]
+Submit = Callable[[Loader], None]   # hands a route an item, as a loader that builds its record
+OnEnd = Callable[[str], None]       # told the route's name when its source ended for good
+# (route name, its input, submit, on_end, the pipeline's context) -> the source, not started
+OpenSource = Callable[[str, Any, Submit, OnEnd, ComponentContext], Source]
+
+
+def nothing_stray(input_config: Any) -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class SourceKind:
+    """A route's input: `{key: ..., other keys of its own}` as a route's `input:`."""
+
+    key: str
+    # Its keys in an input, its own key among them, each optional (None when not given):
+    # the input schema takes the fields of every source's options.
+    options: type[Schema]
+    field: Callable[[Any], str]                   # input -> the record field its items fill
+    open: OpenSource | None     # None: fed by the ROS node or a replay (topic), or the pipeline
+    check: Callable[[Any], None] = no_rules       # rules on the whole input, if its key
+    stray: Callable[[Any], str | None] = nothing_stray  # its options on another's input
+    latest: Callable[[Any], bool] = lambda input_config: False  # newest only by default
+    rank: int = 100
+
+
 class Declared(Protocol):
     @property
     def key(self) -> str: ...
@@ -168,3 +205,4 @@ class Registry(Mapping[str, K], Generic[K]):
 
 STEPS: Registry[StepKind] = Registry("oricf.gateway.post", "COMPONENT", StepKind)
 SINKS: Registry[SinkKind] = Registry("oricf.gateway.sinks", "COMPONENT", SinkKind)
+SOURCES: Registry[SourceKind] = Registry("oricf.gateway.sources", "COMPONENT", SourceKind)

@@ -27,100 +27,68 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Optional
 
-from pydantic import Field, PrivateAttr, create_model, field_validator, model_validator
+from pydantic import Field, PrivateAttr, create_model, model_validator
 
-from oricf.audio import VadSettings
-from oricf.config import Schema, read_with_overlays, resolve_path, validate
+from oricf.config import Schema, read_with_overlays, validate
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
-from oricf.gateway.components import SINKS, STEPS, Step
+from oricf.gateway.components import SINKS, SOURCES, STEPS, Step
 from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS, CallConfig
 from oricf.gateway.text_channels import ChannelConfig
-from oricf.gateway.topics.types import IMAGE_INPUTS, INPUT_FIELDS, InputType
 from oricf.metrics import MetricsConfig
 
-# The keys of InputConfig that name a source; a route has exactly one.
-SOURCE_KEYS = ("topic", "product", "url", "audio", "text")
 
+class InputBase(Schema):
+    """Where a route's items come from: exactly one of the registered sources' keys
+    (oricf.gateway.sources), with that source's other keys, and how items wait."""
 
-class VadConfig(VadSettings):
-    """How an audio input is cut into utterances: the same settings as the ASR service's
-    `endpointing:`."""
-
-
-class InputConfig(Schema):
-    """Where a route's items come from: exactly one of topic, product, url, audio, text."""
-
-    topic: str | None = None
-    type: InputType | None = None
-    product: str | None = Field(None, description="run on every new value of a data product")
-    url: str | None = Field(
-        None, description="a video: a file, rtsp://, http(s)://, or a device /dev/videoN")
-    fps: float | None = Field(None, gt=0, le=240, description="url: at most this many frames/s")
-    loop: bool = Field(False, description="url: a file starts again at its end (else the "
-                                          "route ends)")
-    audio: str | None = Field(
-        None, description="utterances from an audio device ('default', a name or an index) "
-                          "or a .wav file, cut by voice activity")
-    text: str | None = Field(
-        None, description="lines of text: '-' for standard input, or a channel's name")
-    sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
-    channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
-    vad: VadConfig | None = Field(None, description="audio: voice activity settings")
-    while_speaking: Literal["mute", "barge_in"] | None = Field(
-        None, description="audio, while a speaker output plays: mute (hear silence, so the "
-                          "robot never hears itself; the default) or barge_in (a new "
-                          "utterance stops the speech; for a headset or an echo-cancelled "
-                          "microphone)")
     keep: Literal["latest", "queue"] | None = Field(
         None, description="latest: newest only, older ones dropped (always for images); "
                           "queue: keep up to queue_size in order (default otherwise)")
     queue_size: int = Field(8, ge=1, le=1000)
 
-    @field_validator("audio", mode="before")
-    @classmethod
-    def _wav_beside_yaml(cls, value: Any, info: Any) -> Any:
-        """A .wav file resolves against the YAML file like every path; a device name stays."""
-        if not isinstance(value, str) or not value.lower().endswith(".wav"):
-            return value
-        return str(resolve_path(value, info))
-
     @model_validator(mode="after")
-    def _one_source(self) -> InputConfig:
-        if sum(getattr(self, key) is not None for key in SOURCE_KEYS) != 1:
-            raise ValueError(f"give exactly one of {', '.join(SOURCE_KEYS)}")
-        if self.url is None and (self.fps is not None or self.loop):
-            raise ValueError("fps, loop: only with url")
-        audio_only = [key for key in ("vad", "while_speaking") if getattr(self, key) is not None]
-        if self.audio is None and audio_only:
-            raise ValueError(f"{', '.join(audio_only)}: only with audio")
-        if self.topic is None and self.type is not None:
-            raise ValueError("type: only with topic (the other inputs carry their own kind)")
-        if self.topic is not None and self.type is None:
-            raise ValueError("type: required with topic")
-        if self.type in IMAGE_INPUTS and self.keep == "queue":
-            raise ValueError("keep: camera inputs keep only the newest frame (latest)")
+    def _one_source(self) -> InputBase:
+        if sum(getattr(self, key) is not None for key in SOURCES) != 1:
+            raise ValueError(f"give exactly one of {', '.join(SOURCES)}")
+        for key, kind in SOURCES.items():
+            stray = None if key == self.source else kind.stray(self)
+            if stray is not None:
+                raise ValueError(stray)
+        SOURCES[self.source].check(self)
         return self
 
     @property
     def source(self) -> str:
-        """The key that names this input's source: topic, product, url, audio or text."""
-        return next(key for key in SOURCE_KEYS if getattr(self, key) is not None)
+        """The key that names this input's source (topic, product, url, audio, text...)."""
+        return next(key for key in SOURCES if getattr(self, key) is not None)
 
     @property
     def field(self) -> str:
-        if self.topic is not None:
-            return INPUT_FIELDS[str(self.type)]
-        return {"url": "image", "audio": "audio", "text": "text"}.get(self.source, "value")
+        """The record field this input's items fill."""
+        return SOURCES[self.source].field(self)
 
     @property
     def mode(self) -> Literal["latest", "queue"]:
         if self.keep is not None:
             return self.keep
-        return "latest" if self.type in IMAGE_INPUTS or self.url is not None else "queue"
+        return "latest" if SOURCES[self.source].latest(self) else "queue"
+
+    if TYPE_CHECKING:  # the keys are the registered sources', known once they are found
+        def __init__(self, **keys: Any) -> None: ...
+
+        def __getattr__(self, key: str) -> Any: ...
+
+
+if TYPE_CHECKING:
+    InputConfig = InputBase
+else:
+    InputConfig = create_model(
+        "InputConfig", __base__=(InputBase, *(kind.options for kind in SOURCES.values())),
+        __module__=__name__)
 
 
 class OutputBase(Schema):

@@ -42,7 +42,7 @@ from mcap.records import Channel, Message, Schema
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap_ros2.decoder import DecoderFactory
 
-from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
+from oricf.gateway.config import InputConfig, PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.mcap_reader import McapFile
 from oricf.gateway.recording.pace import Pace
@@ -52,6 +52,7 @@ from oricf.gateway.sources.base import OnEnd, Source
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.topics import definitions as msgdefs
 from oricf.gateway.topics.codec import data_loader, image_loader, timed
+from oricf.gateway.topics.types import IMAGE_INPUTS
 from oricf.logs import quoted
 
 log = logging.getLogger(__name__)

@@ -24,7 +24,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import serialize_message
 
-from oricf.gateway.config import IMAGE_INPUTS, InputConfig, PipelineConfig
+from oricf.gateway.config import InputConfig, PipelineConfig
 from oricf.gateway.endpoints.placement import Placement
 from oricf.gateway.inputs import pipeline_sources
 from oricf.gateway.outlets import Outlets
@@ -33,6 +33,7 @@ from oricf.gateway.recording.recorder import Recorder, message_times
 from oricf.gateway.ros import messages
 from oricf.gateway.ros.camera import CameraReceiver
 from oricf.gateway.ros.publishers import TopicPublishers
+from oricf.gateway.topics.types import IMAGE_INPUTS
 
 log = logging.getLogger(__name__)
 

@@ -20,15 +20,17 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+from pydantic import Field, field_validator
 
-from oricf.audio import MODEL_RATE, Resampler, mix_down, to_float32, to_int16
+from oricf.audio import MODEL_RATE, Resampler, VadSettings, mix_down, to_float32, to_int16
+from oricf.config import Schema, resolve_path
 from oricf.errors import ConfigError, ModelMissing
-from oricf.gateway.config import InputConfig, VadConfig
+from oricf.gateway.components import ComponentContext
 from oricf.gateway.sources import audio_device
-from oricf.gateway.sources.base import OnEnd, Submit
+from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
 from oricf.gateway.sources.wav import WavFile, is_wav_path
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip, audio_clip
@@ -36,8 +38,38 @@ from oricf.gateway.values import AudioClip, audio_clip
 if TYPE_CHECKING:
     from oricf.audio.endpointing import Utterance
     from oricf.audio.vad import SileroVad
+    from oricf.gateway.config import InputConfig
 
 log = logging.getLogger(__name__)
+
+
+
+class VadConfig(VadSettings):
+    """How an audio input is cut into utterances: the same settings as the ASR service's
+    `endpointing:`."""
+
+
+class AudioInput(Schema):
+    audio: str | None = Field(
+        None, description="utterances from an audio device ('default', a name or an index) "
+                          "or a .wav file, cut by voice activity")
+    sample_rate: int = Field(16000, gt=0, le=384_000, description="audio: Hz")
+    channels: int = Field(1, ge=1, le=32, description="audio: interleaved channels")
+    vad: VadConfig | None = Field(None, description="audio: voice activity settings")
+    while_speaking: Literal["mute", "barge_in"] | None = Field(
+        None, description="audio, while a speaker output plays: mute (hear silence, so the "
+                          "robot never hears itself; the default) or barge_in (a new "
+                          "utterance stops the speech; for a headset or an echo-cancelled "
+                          "microphone)")
+
+    @field_validator("audio", mode="before")
+    @classmethod
+    def _wav_beside_yaml(cls, value: Any, info: Any) -> Any:
+        """A .wav file resolves against the YAML file like every path; a device name stays."""
+        if not isinstance(value, str) or not value.lower().endswith(".wav"):
+            return value
+        return str(resolve_path(value, info))
+
 
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 10.0
@@ -252,3 +284,17 @@ class AudioSource:
             elif voiced == 0:
                 self._barged_in = False
         self._send(clips)
+
+
+def stray(config: Any) -> str | None:
+    given = [key for key in ("vad", "while_speaking") if getattr(config, key) is not None]
+    return f"{', '.join(given)}: only with audio" if given else None
+
+
+def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
+                context: ComponentContext) -> Source:
+    return AudioSource(route, config, submit, on_end, context.speaking)
+
+
+COMPONENT = SourceKind("audio", AudioInput, lambda config: "audio", open_source, stray=stray,
+                       rank=3)

@@ -10,12 +10,18 @@ from __future__ import annotations
 import logging
 import sys
 import threading
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from oricf.gateway.config import InputConfig
-from oricf.gateway.sources.base import OnEnd, Submit
+from pydantic import Field
+
+from oricf.config import Schema
+from oricf.gateway.components import ComponentContext
+from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
 from oricf.gateway.text_channels import Channels, Client
 from oricf.gateway.values import Record
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import InputConfig
 
 log = logging.getLogger(__name__)
 
@@ -71,3 +77,16 @@ class TextSource:
                 self._take(line)
         log.info("route %s: standard input ended after %d lines", self.route, self.lines)
         self._on_end(self.route)
+
+
+class TextInput(Schema):
+    text: str | None = Field(
+        None, description="lines of text: '-' for standard input, or a channel's name")
+
+
+def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
+                context: ComponentContext) -> Source:
+    return TextSource(route, config, submit, on_end, context.channels)
+
+
+COMPONENT = SourceKind("text", TextInput, lambda config: "text", open_source, rank=4)

@@ -28,15 +28,21 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
+from pydantic import Field
+
+from oricf.config import Schema
 from oricf.errors import InvalidInput
-from oricf.gateway.config import InputConfig
-from oricf.gateway.sources.base import Submit
+from oricf.gateway.components import ComponentContext
+from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
 from oricf.gateway.sources.mjpeg import BadStream, MjpegStream, NotMjpeg, without_credentials
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import FRAME_TIME, Frame
 from oricf.logs import quoted
+
+if TYPE_CHECKING:
+    from oricf.gateway.config import InputConfig
 
 log = logging.getLogger(__name__)
 
@@ -230,3 +236,24 @@ class VideoSource:
         last, step = self._last_time
         self._last_time = (taken, taken - last if last is not None and taken > last else step)
         return taken
+
+
+class VideoInput(Schema):
+    url: str | None = Field(
+        None, description="a video: a file, rtsp://, http(s)://, or a device /dev/videoN")
+    fps: float | None = Field(None, gt=0, le=240, description="url: at most this many frames/s")
+    loop: bool = Field(False, description="url: a file starts again at its end (else the "
+                                          "route ends)")
+
+
+def stray(config: Any) -> str | None:
+    return "fps, loop: only with url" if config.fps is not None or config.loop else None
+
+
+def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
+                context: ComponentContext) -> Source:
+    return VideoSource(route, config, submit, on_end)
+
+
+COMPONENT = SourceKind("url", VideoInput, lambda config: "image", open_source, stray=stray,
+                       latest=lambda config: True, rank=2)
