@@ -18,7 +18,7 @@ from typing import Any
 
 from oricf.bench.common import print_table
 from oricf.bench.gateway_report import InputResult
-from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.listeners import LiveViewConfig
 
 
 def view_overlay(overlay: dict[str, Any], port: int) -> dict[str, Any]:

@@ -1,18 +1,25 @@
 """The gateway: inputs -> model services -> outputs, wired by a pipeline YAML.
 
-The core, at this level, imports no ROS: `config` (the pipeline YAML), `values` (frames,
-audio clips, records), `products` (data products), `route` (input -> method -> post steps ->
-outputs), `worker` (a thread per route), `pipeline` (all of it), `metrics`, `throttle`,
-`speaking` (whether a speaker plays; barge-in), and `text_channels` with `text_clients` (the
-line-based TCP text server). Around it, a package per concern: `endpoints/` (the servers
-routes call over gRPC or the OpenAI API: deadlines, retries, failover), `methods/` (one
-module per method: Detect, Transcribe, Generate, Infer, Synthesize), `post/` (one module per
-post step), `tracking/` (multi-object tracking and what is measured over tracks), `sources/`
-and `sinks/` (inputs and outputs that are no ROS topics), `recording/` (MCAP record and
-replay, CDR, message definitions), `ros/` (the rclpy node, cameras, publishers, parameters,
-/rosout, the DDS profile), `control/` (the local control API: the pipeline's state and calls
-over HTTP on loopback or a Unix socket), `agents/` (`oricf mcp`: the MCP server and the
-`agent:` policy that commands pass). `main` is `oricf gateway`; `without_ros` runs a
-pipeline with no topics.
+Layers, each importing only those below it (pyproject's import contracts check them):
+
+- `shells/`: how a gateway runs: `main` (`oricf gateway`) picks `ros` (a ROS 2 node,
+  `ros_node`) or `without_ros`; `embedded` runs one inside `oricf mcp` (`mcp`).
+- `host/`: the `Gateway` lifecycle (configure, activate, deactivate, cleanup) and what
+  starts beside a running pipeline (`surfaces`).
+- `ros/` (the rclpy pieces: cameras, publishers, the agent's topic commands, parameters,
+  /rosout, the DDS profile) and `recording/` (MCAP record and replay).
+- surfaces, none importing another: `control/` (the local control API), `agents/` (the MCP
+  server), `live_view/` (Foxglove); they share `operations/` (reads and calls on a pipeline)
+  and `actuation/` (the `agent:` policy every command passes).
+- components, found by the core's registries (`components`): `sources/`, `methods/`,
+  `post/`, `sinks/`, one module each.
+- the core, at this level, imports no ROS and no component: `config` (the pipeline YAML,
+  its unions built from the registries), `listeners` (the surfaces' listener settings),
+  `components` (the registries), `values`, `products` (data products), `route` (input ->
+  method -> post steps -> outputs), `worker` (a thread per route), `pipeline` (all of it),
+  `outlets` and `inputs` (a pipeline's sinks and sources), `metrics`, `throttle`,
+  `speaking` (barge-in); below it `endpoints/` (the servers routes call: deadlines, retries,
+  failover), `topics/` (the ROS message codec), `tracking/`, `channels/` (text channels).
+
 Importing this package imports nothing. docs/architecture.md walks through it.
 """

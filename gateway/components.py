@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from typing import Any, Generic, Protocol, TypeVar
 
 from oricf.config import Schema
+from oricf.gateway.channels.server import Channels
 from oricf.gateway.speaking import Speaking
-from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 Run = Callable[[Record], None]

@@ -32,12 +32,11 @@ from pydantic import Field, PrivateAttr, create_model, model_validator
 from oricf.config import Schema, read_with_overlays, validate
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
+from oricf.gateway.channels.server import ChannelConfig
 from oricf.gateway.components import SINKS, SOURCES, STEPS, Step
-from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.endpoints import EndpointConfig
-from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.listeners import ControlConfig, LiveViewConfig
 from oricf.gateway.methods import METHODS, CallConfig
-from oricf.gateway.text_channels import ChannelConfig
 from oricf.metrics import MetricsConfig
 
 

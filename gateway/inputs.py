@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import functools
 
+from oricf.gateway.channels.server import Channels
 from oricf.gateway.components import SOURCES, ComponentContext, OnEnd, Source, Submit
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.speaking import Speaking
-from oricf.gateway.text_channels import Channels
 
 
 def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEnd,

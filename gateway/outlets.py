@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from typing import Any, TypeAlias
 
+from oricf.gateway.channels.server import Channels
 from oricf.gateway.components import SINKS, ComponentContext, Sink
 from oricf.gateway.config import OutputConfig, PipelineConfig
 from oricf.gateway.route import Emit
 from oricf.gateway.speaking import Speaking
-from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 # Where topic outputs, the pipeline's ROS outputs, go: the ROS node's publishers

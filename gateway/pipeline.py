@@ -1,19 +1,17 @@
 """A whole pipeline without ROS: endpoints, data products, routes and their workers.
 
-The ROS node (oricf.gateway.ros.node) only subscribes to input topics, submits loaders here,
+The ROS node (oricf.gateway.shells.ros_node) only subscribes to input topics, submits loaders here,
 and publishes what `emit` receives. Tests and benchmarks drive this class directly too.
 """
 
 from __future__ import annotations
 
-import functools
 import logging
 from collections.abc import Callable, Collection
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.methods import METHODS
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
@@ -22,9 +20,6 @@ from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
 from oricf.metrics import MetricsServer
-
-if TYPE_CHECKING:
-    from oricf.gateway.live_view.view import LiveView
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +46,6 @@ class Pipeline:
                 if output.product is not None:
                     self.products.declare(output.product, output.max_age_s)
         self.metrics_server: MetricsServer | None = None
-        self.live_view: LiveView | None = None
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}
         for name, rc in config.routes.items():
@@ -88,8 +82,6 @@ class Pipeline:
         those through handle_here from threads of its own."""
         if self.config.metrics is not None:  # first: an address in use stops the start
             self.metrics_server = MetricsServer(self.config.metrics, pipeline_registry(self))
-        if self.config.foxglove is not None:
-            self._start_live_view(self.config.foxglove)
         for name, worker in self.workers.items():
             if name not in inline:
                 worker.start()
@@ -99,21 +91,6 @@ class Pipeline:
                       if METHODS[self.config.method_of(name)].image_transport else "")
             log.info("endpoint %s: %s%s, deadline %d ms%s", name, endpoint.primary.address,
                      fallback, endpoint.config.deadline_ms, images)
-
-    def _start_live_view(self, config: LiveViewConfig) -> None:
-        from oricf.gateway.live_view.states import states
-        from oricf.gateway.live_view.topics import declared_topics
-        from oricf.gateway.live_view.view import LiveView  # foxglove-sdk, only when used
-
-        view = LiveView(config, self.config.node_name)
-        for topic, kind in declared_topics(self.config):
-            view.declare(topic, kind)
-        view.start(lambda: states(self))
-        self.live_view = view
-        for route in self.routes.values():
-            route.watchers.append(view.show)
-        for product in self.products.declared():
-            self.products.subscribe(product, functools.partial(view.show_product, product))
 
     def idle(self, timeout: float) -> bool:
         return all(worker.idle(timeout) for worker in self.workers.values())
@@ -133,5 +110,3 @@ class Pipeline:
         self.log_stats()
         if self.metrics_server is not None:
             self.metrics_server.close()
-        if self.live_view is not None:
-            self.live_view.stop()

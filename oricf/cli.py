@@ -35,13 +35,13 @@ log = logging.getLogger("oricf")
 # verb -> module whose main(argv) -> int handles it
 DELEGATED = {
     "certs": "oricf.launch.certs",
-    "gateway": "oricf.gateway.main",
-    "mcp": "oricf.gateway.agents.main",
+    "gateway": "oricf.gateway.shells.main",
+    "mcp": "oricf.gateway.shells.mcp",
     "up": "oricf.launch.up",
     "demo": "oricf.demo.main",
 }
 # Modules that run a pipeline in this process: grpc's client polls in the calling thread.
-RUN_PIPELINES = {"oricf.gateway.main", "oricf.gateway.agents.main"}
+RUN_PIPELINES = {"oricf.gateway.shells.main", "oricf.gateway.shells.mcp"}
 BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
               "offload", "edge", "tracking", "soak")
 

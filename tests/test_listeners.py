@@ -11,10 +11,9 @@ import pytest
 from oricf.config import load_config, validate
 from oricf.errors import ConfigError
 from oricf.gateway.agents.http import McpListener
+from oricf.gateway.channels.server import ChannelConfig
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.control.config import ControlConfig
-from oricf.gateway.live_view.config import LiveViewConfig
-from oricf.gateway.text_channels import ChannelConfig
+from oricf.gateway.listeners import ControlConfig, LiveViewConfig
 from oricf.hosts import Address
 from oricf.metrics import MetricsConfig
 from oricf.services.runtime.config import ServiceConfig

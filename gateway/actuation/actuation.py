@@ -23,7 +23,7 @@ from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.actuation.messages import nested, zero
 from oricf.gateway.actuation.policy import AgentPolicy, Checked, Refused, TargetPolicy
 from oricf.gateway.actuation.senders import Sender
-from oricf.gateway.text_channels import Channels
+from oricf.gateway.channels.server import Channels
 
 log = logging.getLogger(__name__)
 

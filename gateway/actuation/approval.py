@@ -11,8 +11,8 @@ from __future__ import annotations
 import itertools
 import threading
 
-from oricf.gateway.text_channels import TextChannel
-from oricf.gateway.text_clients import Client
+from oricf.gateway.channels.clients import Client
+from oricf.gateway.channels.server import TextChannel
 
 
 class ChannelApprover:

@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
-from oricf.gateway.text_channels import Channels
+from oricf.gateway.channels.server import Channels
 
 log = logging.getLogger(__name__)
 
@@ -19,6 +19,11 @@ class Sender(Protocol):
     def send(self, target: str, fields: dict[str, Any]) -> None: ...
 
     def close(self) -> None: ...
+
+
+# policy -> the sender of its topic targets (oricf.gateway.ros.commands.RosSender, made by
+# the shells so that nothing here imports ROS).
+MakeSender = Callable[[AgentPolicy], Sender]
 
 
 class ChannelSender:
@@ -38,7 +43,7 @@ class Senders:
     (rclpy imported then)."""
 
     def __init__(self, policy: AgentPolicy, channels: Channels,
-                 ros_sender: Callable[[AgentPolicy], Sender] | None = None) -> None:
+                 ros_sender: MakeSender | None = None) -> None:
         self._topics = {name for name, t in policy.targets.items() if t.topic}
         if self._topics and ros_sender is None:
             raise ConfigError(f"agent targets on ROS topics ({', '.join(sorted(self._topics))})"

@@ -3,9 +3,9 @@
 
 `mcp_server` (the tools on the `mcp` SDK), `resources` (data products and frames as
 resources, with update notifications), `stdio` (the SDK's stdio transport, answering
-malformed messages), `http` (streamable HTTP: tokens, TLS), `main` (`oricf mcp`: a pipeline
-in this process through oricf.gateway.hosted, or one that runs, through the control API).
-It imports neither the control API (oricf.gateway.control) nor the live view.
+malformed messages), `http` (streamable HTTP: tokens, TLS). `oricf mcp` itself is a shell
+(oricf.gateway.shells.mcp): a gateway in this process, or one that runs, through the control
+API. It imports neither the control API (oricf.gateway.control) nor the live view.
 docs/agents.md.
 Importing this package imports nothing.
 """

@@ -30,8 +30,8 @@ from oricf.gateway.operations.api import (
     MAX_AUDIO_BYTES,
     MAX_IMAGE_BYTES,
     MAX_TEXT_CHARS,
-    Gateway,
     Json,
+    Operations,
 )
 
 log = logging.getLogger(__name__)
@@ -70,7 +70,7 @@ def as_result(data: Json, image: bytes | None = None) -> CallToolResult:
     return CallToolResult(content=content, structured_content=data)
 
 
-def build_server(gateway: Gateway, audit: AuditLog, name: str = "oricf") -> MCPServer:
+def build_server(gateway: Operations, audit: AuditLog, name: str = "oricf") -> MCPServer:
     feed = ResourceFeed(gateway)
     app: MCPServer = MCPServer(name, instructions=INSTRUCTIONS, lifespan=feed.lifespan,
                                subscriptions=feed.bus)

@@ -24,7 +24,7 @@ from mcp.server.mcpserver.resources import FunctionResource
 from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated, ServerEvent
 
 from oricf.gateway.methods import IMAGE_METHODS
-from oricf.gateway.operations.api import Gateway
+from oricf.gateway.operations.api import Operations
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ class ListenedBus(InMemorySubscriptionBus):
 
 
 class ResourceFeed:
-    def __init__(self, gateway: Gateway) -> None:
+    def __init__(self, gateway: Operations) -> None:
         self.gateway = gateway
         self.bus = ListenedBus()
         self._legacy: dict[str, set[Any]] = {}  # uri -> sessions that subscribed

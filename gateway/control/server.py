@@ -39,8 +39,8 @@ from starlette.types import ASGIApp
 
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.actuation.policy import Refused
-from oricf.gateway.control.config import ControlConfig
-from oricf.gateway.operations.api import Gateway, Json
+from oricf.gateway.listeners import ControlConfig
+from oricf.gateway.operations.api import Json, Operations
 from oricf.hosts import Address
 from oricf.http_connections import guarded_h11
 from oricf.tokens import APPROVER, BearerTokens
@@ -98,7 +98,7 @@ async def read_body(request: Request, max_bytes: int, timeout_s: float) -> bytes
         chunks.append(chunk)
 
 
-def control_app(gateway: Gateway, config: ControlConfig) -> Starlette:
+def control_app(gateway: Operations, config: ControlConfig) -> Starlette:
     async def body(request: Request) -> Json:
         raw = await read_body(request, config.max_body_bytes, config.body_timeout_s)
         try:
@@ -163,7 +163,7 @@ def control_app(gateway: Gateway, config: ControlConfig) -> Starlette:
 class ControlServer:
     """start() binds (raising if it cannot) and serves in a thread; close() stops it."""
 
-    def __init__(self, config: ControlConfig, gateway: Gateway) -> None:
+    def __init__(self, config: ControlConfig, gateway: Operations) -> None:
         self.config = config
         self.gateway = gateway
         self.address = ""

@@ -34,7 +34,7 @@ from websockets.http11 import Request, Response
 from websockets.typing import Subprotocol
 
 from oricf.errors import ConfigError
-from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.listeners import LiveViewConfig
 from oricf.gateway.throttle import ThrottledLog
 from oricf.tls import token_matches
 

@@ -24,8 +24,8 @@ from typing import Any
 import foxglove
 from foxglove.channels import CompressedImageChannel, ImageAnnotationsChannel, LogChannel
 
+from oricf.gateway.listeners import LiveViewConfig
 from oricf.gateway.live_view import messages
-from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.live_view.front import Front
 from oricf.gateway.live_view.sdk_logs import make_sdk_logs_safe
 from oricf.gateway.recording.recorder import INPUT_TIME

@@ -18,7 +18,7 @@ MAX_TEXT_CHARS = 4000
 Json = dict[str, Any]
 
 
-class Gateway(Protocol):
+class Operations(Protocol):
     def products(self) -> list[Json]:
         """Every data product: name, max_age_s, the route that writes it, written or not,
         and once written its value and age_s."""

@@ -1,4 +1,4 @@
-"""The control API from another process (`oricf mcp --attach`): api.Gateway over HTTP, on a
+"""The control API from another process (`oricf mcp --attach`): api.Operations over HTTP, on a
 Unix socket or http(s)://HOST:PORT, with a bearer token; the server's errors come back as
 the same exception types (InvalidInput, NotReady, Refused).
 

@@ -1,4 +1,4 @@
-"""The control operations (api.Gateway) on a pipeline running in this process.
+"""The control operations (api.Operations) on a pipeline running in this process.
 
 Reads come from the pipeline itself: data products from its ProductStore, the newest frame
 of a camera route from the route (`Route.latest`), counters from routes and endpoints. Calls

@@ -15,8 +15,9 @@ namespace), with the file, function and line of the Python call. While attached:
 There is no way round back into Python: rcutils is C and logs nothing through `logging`.
 Lines logged before the node exists (loading the pipeline), once its context is shut down
 (SIGINT, SIGTERM: rcl can no longer publish them) or after it is destroyed go to the root
-handlers, the console, as without ROS. The gateway's entry points attach it (GatewayRosNode);
-a GatewayNode built in a test leaves the test's log capture alone.
+handlers, the console, as without ROS. The gateway's entry points attach it
+(oricf.gateway.shells.ros.GatewayRosNode); a GatewayNode built in a test leaves the test's
+log capture alone.
 """
 
 from __future__ import annotations
@@ -28,8 +29,6 @@ from rclpy.context import Context
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.node import Node
-
-from oricf.gateway.ros.node import GatewayNode
 
 ROOT = "oricf"
 # Python logging level -> rcutils severity, highest first (the numbers happen to agree).
@@ -91,8 +90,3 @@ class RosoutLogging(Node):
         logger.setLevel(level)
         super().destroy_node()
 
-
-class GatewayRosNode(GatewayNode, RosoutLogging):
-    """The gateway node as `oricf gateway` and `ros2 run oricf_gateway gateway` run it: its
-    log on /rosout. (GatewayNode's super().__init__ reaches RosoutLogging before Node, so
-    the routes it sets up already log there.)"""

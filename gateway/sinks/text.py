@@ -11,9 +11,9 @@ from typing import TYPE_CHECKING, Any
 from pydantic import Field
 
 from oricf.config import Schema
+from oricf.gateway.channels.server import Channels
 from oricf.gateway.components import ComponentContext, Sink, SinkKind
 from oricf.gateway.sinks.jsonl import jsonable
-from oricf.gateway.text_channels import Channels
 from oricf.gateway.values import Record
 
 if TYPE_CHECKING:

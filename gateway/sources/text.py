@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any, TextIO
 from pydantic import Field
 
 from oricf.config import Schema
+from oricf.gateway.channels.server import Channels, Client
 from oricf.gateway.components import ComponentContext
 from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
-from oricf.gateway.text_channels import Channels, Client
 from oricf.gateway.values import Record
 
 if TYPE_CHECKING:

@@ -1,5 +1,5 @@
 """topic: {topic: camera/image_raw, type: sensor_msgs/Image} takes a ROS topic's messages.
-The ROS node subscribes (oricf.gateway.ros.node), or a replay reads them from a recording
+The ROS node subscribes (oricf.gateway.shells.ros_node), or a replay reads them from a recording
 (oricf.gateway.recording.replay); camera topics keep only the newest frame."""
 
 from __future__ import annotations

@@ -92,7 +92,7 @@ def test_gateway_process_stops_cleanly_while_frames_stream(
 # asks it to stop once built).
 SIGTERM_WHILE_STARTING = """
 import os, signal, sys, time
-from oricf.gateway.ros.node import GatewayNode
+from oricf.gateway.shells.ros_node import GatewayNode
 subscribe = GatewayNode._subscribe_batteries
 def stop_now(self):
     subscribe(self)

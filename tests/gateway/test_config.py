@@ -11,7 +11,7 @@ import yaml
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.main import main
+from oricf.gateway.shells.main import main
 
 PIPELINES = config_dir() / "pipelines"
 PEOPLE_QA = PIPELINES / "people_qa.yaml"

@@ -5,15 +5,16 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from oricf.gateway.main import split_ros_args
+from oricf.gateway.shells.main import split_ros_args
 
 CORE = ["config", "methods", "methods.detect", "methods.transcribe", "methods.generate",
         "methods.infer", "values", "post", "products", "endpoints", "worker", "route",
         "pipeline", "metrics", "throttle", "ros", "ros.dds", "ros.frame_loss", "ros.process",
         "ros.params", "topics.cdr", "topics.codec", "recording.recorder", "recording.replay",
-        "main", "sources", "sources.video", "sinks", "text_channels", "without_ros",
-        "actuation.actuation", "actuation.senders", "operations.view", "operations.client",
-        "surfaces", "hosted"]
+        "shells.main", "sources", "sources.video", "sinks", "channels.server",
+        "shells.without_ros", "actuation.actuation", "actuation.senders", "operations.view",
+        "operations.client", "ros.commands", "host.gateway", "host.surfaces", "shells.embedded",
+        "shells.ros"]
 
 
 def test_core_modules_do_not_import_ros() -> None:
@@ -37,7 +38,7 @@ def test_the_gateway_sets_grpc_polling_before_grpc_loads() -> None:
     or as a ROS node) must not load it before main() has turned the EventEngine client off
     (oricf.gateway.ros.process), or every reply wakes the EventEngine's threads."""
     assert_grpc_polls_in_calling_thread(
-        "import oricf.cli, oricf.gateway.main as gateway\n"
+        "import oricf.cli, oricf.gateway.shells.main as gateway\n"
         "assert 'grpc' not in sys.modules, 'grpc loaded on import'\n"
         "assert gateway.main(['--check']) == 0\n")
 

@@ -22,7 +22,7 @@ import cv2
 import pytest
 
 from oricf.config import config_dir
-from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
+from oricf.gateway.channels.server import ChannelConfig, Client, TextChannel
 from oricf.launch.health import free_port
 from tests.support.data import video_frames
 from tests.support.services import RunningService

@@ -18,9 +18,9 @@ from typing import Any
 
 import pytest
 
+from oricf.gateway.channels.server import ChannelConfig, Channels, Client, TextChannel
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.text import Question, TextSource
-from oricf.gateway.text_channels import ChannelConfig, Channels, Client, TextChannel
 from oricf.gateway.worker import RouteWorker
 from oricf.launch.health import free_port
 from tests.support.certs import TOKEN as SECRET

@@ -20,9 +20,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from oricf.gateway.channels.server import ChannelConfig, Client, TextChannel
 from oricf.gateway.sources.mjpeg import MjpegStream, NotMjpeg
 from oricf.gateway.sources.video import STREAM_ERRORS
-from oricf.gateway.text_channels import ChannelConfig, Client, TextChannel
 from oricf.launch.health import free_port
 from tests.gateway.sources.test_mjpeg import JPEGS, PNG
 

@@ -23,8 +23,8 @@ from hypothesis import strategies as st
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
+from oricf.gateway.listeners import LiveViewConfig
 from oricf.gateway.live_view import front
-from oricf.gateway.live_view.config import LiveViewConfig
 from oricf.gateway.live_view.view import LiveView
 from oricf.gateway.values import Frame
 from oricf.imaging import Box, Detection

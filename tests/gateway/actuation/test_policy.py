@@ -21,9 +21,9 @@ from oricf.gateway.actuation.approval import ChannelApprover
 from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.actuation.policy import AgentPolicy, Refused
 from oricf.gateway.actuation.senders import ChannelSender, Senders
+from oricf.gateway.channels.server import ChannelConfig, Channels
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.surfaces import ros_sender
-from oricf.gateway.text_channels import ChannelConfig, Channels
+from oricf.gateway.ros.commands import RosSender
 from tests.gateway.agents.scene import ARM_TOPIC, ros_listener
 from tests.support.processes import free_port
 from tests.support.waiting import wait_for
@@ -208,7 +208,7 @@ def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Pat
         "max_rate_hz": 1000, "deadman_ms": 300}}})
     audit = AuditLog(tmp_path / "audit.jsonl")
     with ros_listener() as driver:
-        actuation = Actuation(rules, Senders(rules, channels, ros_sender), audit, channels)
+        actuation = Actuation(rules, Senders(rules, channels, RosSender), audit, channels)
         person = LineClient(channels.get("approvals").address)
         try:
             wait_for(lambda: channels.get("approvals").clients, 10, "the approver's client")

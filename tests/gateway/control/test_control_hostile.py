@@ -27,7 +27,7 @@ import httpx
 import pytest
 
 from oricf.gateway.config import parse_pipeline
-from oricf.gateway.hosted import HostedPipeline
+from oricf.gateway.shells.embedded import EmbeddedGateway
 from tests.gateway.agents.scene import ARM_TOPIC, RosListener, ros_listener
 from tests.support.processes import free_port
 from tests.support.sockets import peer_closed
@@ -96,16 +96,16 @@ def served(driver: RosListener, tmp_path_factory: pytest.TempPathFactory
             "channels": {"questions": {"listen": f"127.0.0.1:{free_port()}"},
                          "robot_says": {"listen": f"127.0.0.1:{free_port()}"}},
             "agent": {**tcp["agent"], "audit": str(folder / "audit_unix.jsonl")}}
-    hosted = [HostedPipeline(parse_pipeline(data, f"test pipeline {n}", folder))
+    embedded = [EmbeddedGateway(parse_pipeline(data, f"test pipeline {n}", folder))
               for n, data in enumerate([tcp, unix])]
     try:
-        for one in hosted:
+        for one in embedded:
             one.start()
         driver.wait_publisher(ARM_TOPIC)
         yield Served(f"http://127.0.0.1:{port}", sock, folder / "audit.jsonl",
                      tcp["channels"]["robot_says"]["listen"])
     finally:
-        for one in hosted:
+        for one in embedded:
             one.stop()
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-from oricf.gateway.control.config import ControlConfig
 from oricf.gateway.control.server import ControlServer
+from oricf.gateway.listeners import ControlConfig
 
 
 @pytest.mark.parametrize(("listen", "host"), [("127.0.0.1:0", "127.0.0.1"), ("[::1]:0", "[::1]")])

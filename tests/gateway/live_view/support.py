@@ -17,8 +17,7 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
 from oricf.config import config_dir, deep_merge, read_yaml
 from oricf.gateway.config import PipelineConfig, parse_pipeline
-from oricf.gateway.inputs import pipeline_sources
-from oricf.gateway.outlets import Outlets
+from oricf.gateway.host.gateway import Gateway
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Record
 from tests.support.data import video_path
@@ -44,41 +43,39 @@ def video_pipeline(detector: str, foxglove: dict[str, Any] | None = None,
 
 @dataclass
 class Running:
-    pipeline: Pipeline
+    gateway: Gateway
     records: list[Record] = field(default_factory=list)
 
     @property
+    def pipeline(self) -> Pipeline:
+        return self.gateway.pipeline
+
+    @property
     def url(self) -> str:
-        assert self.pipeline.live_view is not None
-        return self.pipeline.live_view.url
+        assert self.gateway.live_view is not None
+        return self.gateway.live_view.url
 
 
 @contextmanager
 def running(config: PipelineConfig) -> Iterator[Running]:
     """The pipeline started with its sources; every record the route finished is kept."""
-    outlets = Outlets(config)
-    pipeline = Pipeline(config, outlets)
-    run = Running(pipeline)
+    gateway = Gateway(config)
+    gateway.configure()
+    run = Running(gateway)
     lock = threading.Lock()
 
     def keep(route: str, record: Record) -> None:
         with lock:
             run.records.append(dict(record))
 
-    for route in pipeline.routes.values():
+    for route in gateway.pipeline.routes.values():
         route.watchers.append(keep)
-    sources = pipeline_sources(pipeline, outlets.channels, lambda route: None)
-    outlets.start()
-    pipeline.start()
-    for source in sources:
-        source.start()
+    gateway.activate()
     try:
         yield run
     finally:
-        for source in sources:
-            source.stop()
-        pipeline.stop()
-        outlets.close()
+        gateway.deactivate()
+        gateway.cleanup()
 
 
 class Decoder:

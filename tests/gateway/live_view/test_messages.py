@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from oricf.gateway.live_view import messages
-from oricf.gateway.main import build_parser, main
+from oricf.gateway.shells.main import build_parser, main
 from oricf.gateway.values import Frame
 from oricf.imaging import Box, Detection, encode_image
 from tests.gateway.live_view.support import Decoder

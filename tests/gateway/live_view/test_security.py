@@ -15,7 +15,7 @@ from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
 from oricf.errors import ConfigError
-from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.listeners import LiveViewConfig
 from tests.gateway.live_view.support import Running, running, video_pipeline
 from tests.gateway.live_view.viewers import official_client
 from tests.support.certs import TOKEN

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from oricf.gateway.live_view.config import LiveViewConfig
+from oricf.gateway.listeners import LiveViewConfig
 from oricf.gateway.live_view.front import REFUSAL_LOG_INTERVAL_S
 from oricf.gateway.live_view.view import LiveView
 from tests.gateway.live_view.viewers import publishing_client

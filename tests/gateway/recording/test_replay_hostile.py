@@ -14,9 +14,9 @@ import yaml
 from mcap_ros2.writer import Writer
 
 from oricf.config import config_dir, read_yaml
-from oricf.gateway.main import build_parser
 from oricf.gateway.recording.pace import MAX_GAP_NS, Pace
 from oricf.gateway.recording.recorder import RecordingError
+from oricf.gateway.shells.main import build_parser
 
 IMAGE_DEFINITION = ("std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n"
                     "uint8 is_bigendian\nuint32 step\nuint8[] data\n" + "=" * 80 +

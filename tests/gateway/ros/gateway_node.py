@@ -27,7 +27,7 @@ from std_msgs.msg import Int16MultiArray, Int32, String
 from oricf.demo.node import image_from_pixels
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.ros.dds import dds_profile
-from oricf.gateway.ros.node import GatewayNode
+from oricf.gateway.shells.ros_node import GatewayNode
 
 OUTPUTS = {"/human_counter": Int32, "/answer": String, "/speech/transcript": String,
            "/camera/image_annotated": Image, "/people_fallen": Int32, "/fall_alert": String}
@@ -143,6 +143,8 @@ def running_gateway(config: PipelineConfig, context: Context) -> Iterator[tuple[
                                                                                   Probe]]:
     """The gateway node and a probe node in this process, on real DDS."""
     gateway = GatewayNode(config, context=context)
+    gateway.configure()
+    gateway.activate()
     probe = Probe(context)
     try:
         with spinning(context, gateway, probe.node):

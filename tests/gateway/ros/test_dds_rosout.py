@@ -11,7 +11,8 @@ import rclpy.logging
 from rcl_interfaces.msg import Log
 from rclpy.context import Context
 
-from oricf.gateway.ros.rosout import GatewayRosNode
+from oricf.gateway.shells.ros import gateway_ros_node
+from oricf.gateway.shells.ros_node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.rosout import lines_until, next_line, rosout_reader
 
@@ -19,9 +20,11 @@ NOWHERE = {name: "127.0.0.1:9" for name in ("detector", "asr", "llm")}  # nothin
 
 
 @contextmanager
-def gateway_node(context: Context, name: str) -> Iterator[GatewayRosNode]:
-    node = GatewayRosNode(people_qa({"node_name": name}, **NOWHERE), context=context)
+def gateway_node(context: Context, name: str) -> Iterator[GatewayNode]:
+    node = gateway_ros_node(people_qa({"node_name": name}, **NOWHERE), context=context)
     try:
+        node.configure()
+        node.activate()
         yield node
     finally:
         node.shutdown()
@@ -41,8 +44,8 @@ def test_the_gateway_log_reaches_rosout_once_with_level_and_place(
         between = [line.msg for line in lines_until(lines, "rosout_gw", "marker")
                    if line.name == "rosout_gw"]
     assert between == ["marker"]
-    assert (started.level, started.function, started.file.endswith("gateway/ros/node.py")) == \
-        (Log.INFO, "__init__", True)
+    assert (started.level, started.function) == (Log.INFO, "activate")
+    assert started.file.endswith("gateway/shells/ros_node.py")
     assert (warned.level, warned.function) == (Log.WARN, "test_the_gateway_log_reaches_rosout_"
                                                          "once_with_level_and_place")
     console = capfd.readouterr().err

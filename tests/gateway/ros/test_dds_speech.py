@@ -14,7 +14,7 @@ from rclpy.context import Context
 from std_msgs.msg import String
 
 from oricf.audio import synthesize
-from oricf.gateway.ros.node import GatewayNode
+from oricf.gateway.shells.ros_node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.support.data import video_frames

@@ -32,7 +32,7 @@ from rclpy.qos import ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import CompressedImage
 
 from oricf.gateway.ros.dds import dds_profile
-from oricf.gateway.ros.node import GatewayNode
+from oricf.gateway.shells.ros_node import GatewayNode
 from tests.gateway.pipelines import people_qa
 from tests.gateway.ros.gateway_node import Probe, logged, running_gateway, wait_for
 from tests.gateway.ros.matching import MATCH_TIMEOUT_S

@@ -15,8 +15,8 @@ from rclpy.parameter import Parameter
 from oricf.config import config_dir
 from oricf.errors import ConfigError
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.main import main
 from oricf.gateway.ros.params import Settings, declare_settings, read_parameters
+from oricf.gateway.shells.main import main
 from tests.gateway.pipelines import PEOPLE_QA
 
 FLAGS = Settings(config=str(PEOPLE_QA))

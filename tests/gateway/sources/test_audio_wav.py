@@ -151,7 +151,7 @@ def test_without_the_asr_extra_the_error_names_it(questions: Path, tmp_path: Pat
 
 def test_gateway_modules_import_audio_libraries_only_for_audio_routes() -> None:
     check = ("import sys\n"
-             "import oricf.gateway.without_ros, oricf.gateway.sources\n"
+             "import oricf.gateway.shells.without_ros, oricf.gateway.sources\n"
              "assert 'oricf.services.asr' not in sys.modules\n"
              "import oricf.gateway.sources.audio\n"
              "heavy = {'sounddevice', 'faster_whisper', 'rclpy'} & set(sys.modules)\n"

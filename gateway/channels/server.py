@@ -20,7 +20,7 @@ make room ...`): with `auth`, only one yet to send its token; without, one with 
 waiting for its answer. Idle sockets (on a robot every local client shares 127.0.0.1) never
 lock a client out. Every question is answered, with the route's answer or an `error:` line
 (Client.fail), also when the client half-closes its connection after asking. Lines reach a
-client as printable text (text_clients.one_printable_line).
+client as printable text (clients.one_printable_line).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from collections.abc import Callable
 
 from pydantic import Field
 
-from oricf.gateway.text_clients import Client
+from oricf.gateway.channels.clients import Client
 from oricf.hosts import Address, ListenAddress
 from oricf.tls import ListenerConfig, token_matches
 

@@ -31,7 +31,7 @@ from oricf.gateway.agents.http import HttpSettings, serve_http
 from oricf.gateway.agents.mcp_server import build_server
 from oricf.gateway.agents.stdio import serve_stdio
 from oricf.gateway.config import PipelineConfig, load_pipeline
-from oricf.gateway.operations.api import Gateway
+from oricf.gateway.operations.api import Operations
 from oricf.metrics import MetricsConfig, MetricsServer
 
 log = logging.getLogger(__name__)
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.attach:
         from oricf.gateway.operations.client import ControlClient
 
-        gateway: Gateway = ControlClient(args.attach, args.token_file, args.ca)
+        gateway: Operations = ControlClient(args.attach, args.token_file, args.ca)
         try:
             gateway.status()  # fail now, with the reason, if the gateway cannot be reached
         except NotReady as exc:
@@ -98,17 +98,17 @@ def main(argv: list[str] | None = None) -> int:
     config = load_pipeline(args.config, args.overlay, sets=args.sets)
     if http is None:
         check_stdio(config)
-    from oricf.gateway.hosted import HostedPipeline
+    from oricf.gateway.shells.embedded import EmbeddedGateway
 
-    hosted = HostedPipeline(config, audit_path=args.audit)
-    view = hosted.start()
+    embedded = EmbeddedGateway(config, audit_path=args.audit)
+    view = embedded.start()
     try:
         return serve(view, view.audit, http, args.metrics_listen)
     finally:
-        hosted.stop()
+        embedded.stop()
 
 
-def serve(gateway: Gateway, audit: AuditLog, http: HttpSettings | None,
+def serve(gateway: Operations, audit: AuditLog, http: HttpSettings | None,
           metrics_listen: str | None = None) -> int:
     app = build_server(gateway, audit)
     metrics = (MetricsServer(MetricsConfig(listen=metrics_listen), audit.registry)

@@ -1,4 +1,4 @@
-"""One client of a text channel (text_channels.py): its writes, made on the channel's event
+"""One client of a text channel (server.py): its writes, made on the channel's event
 loop whatever thread sends, and the answers it still waits for, so that a client that
 half-closes its connection after its last question is answered before it is closed.
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -26,12 +27,13 @@ from rclpy.serialization import serialize_message
 
 from oricf.gateway.config import InputConfig, PipelineConfig
 from oricf.gateway.endpoints.placement import Placement
-from oricf.gateway.inputs import pipeline_sources
+from oricf.gateway.host.gateway import Gateway
 from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import Recorder, message_times
 from oricf.gateway.ros import messages
 from oricf.gateway.ros.camera import CameraReceiver
+from oricf.gateway.ros.commands import RosSender
 from oricf.gateway.ros.publishers import TopicPublishers
 from oricf.gateway.topics.types import IMAGE_INPUTS
 
@@ -54,30 +56,41 @@ def battery_reader(placement: Placement) -> Callable[[Any], None]:
 
 
 class GatewayNode(Node):
+    """The gateway as a ROS 2 node: a Gateway (oricf.gateway.host) whose topic inputs are
+    this node's subscriptions and whose topic outputs are its publishers. The constructor
+    makes the node alone; configure() makes the gateway's parts, the publishers and the
+    subscriptions, activate() starts them, shutdown() stops and closes them."""
+
     def __init__(self, config: PipelineConfig, context: Context | None = None,
-                 recorder: Recorder | None = None) -> None:
+                 recorder: Recorder | None = None, audit_path: Path | None = None) -> None:
         super().__init__(config.node_name, context=context)
+        self.config = config
         self._recorder = recorder  # --record: every topic input and output into a file
         self._cameras: list[CameraReceiver] = []
-        self._outlets = Outlets(config, TopicPublishers(self, config, recorder))
-        self.pipeline = Pipeline(config, self._outlets)
-        self._sources = pipeline_sources(self.pipeline, self._outlets.channels,
-                                         lambda route: None)
-        for name, route in config.routes.items():
+        self.gateway = Gateway(config, RosSender, audit_path)
+
+    def configure(self) -> None:
+        """Every ROS entity is made here, before any thread starts: a SIGTERM during
+        start-up makes creating one fail (the context is shut down), and then nothing is
+        left running."""
+        self.gateway.configure(TopicPublishers(self, self.config, self._recorder))
+        for name, route in self.config.routes.items():
             if route.input.topic is not None:
                 self._subscribe(name, route.input)
+        self.gateway.add_inputs(self._cameras)
         self._subscribe_batteries()
-        if config.stats_interval_s > 0:
-            self.create_timer(config.stats_interval_s, self.pipeline.log_stats)
-        # Every ROS entity exists before any thread starts: a SIGTERM during start-up makes
-        # creating one fail (the context is shut down), and then nothing is left running.
-        self.pipeline.start(inline=[camera.route for camera in self._cameras])
-        for camera in self._cameras:
-            camera.start()
-        self._outlets.start()
-        for source in self._sources:
-            source.start()
-        log.info("gateway node %s: %d routes", config.node_name, len(config.routes))
+        if self.config.stats_interval_s > 0:
+            self.create_timer(self.config.stats_interval_s, self.pipeline.log_stats)
+
+    def activate(self, operations: bool = False) -> None:
+        """Starts the gateway; camera routes run on their receive threads."""
+        self.gateway.activate(inline=[camera.route for camera in self._cameras],
+                              operations=operations)
+        log.info("gateway node %s: %d routes", self.config.node_name, len(self.config.routes))
+
+    @property
+    def pipeline(self) -> Pipeline:
+        return self.gateway.pipeline
 
     def _subscribe(self, route: str, config: InputConfig) -> None:
         assert config.topic is not None and config.type is not None
@@ -124,12 +137,9 @@ class GatewayNode(Node):
     @property
     def outlets(self) -> Outlets:
         """Where outputs go, text channels included (the agent's targets use them too)."""
-        return self._outlets
+        return self.gateway.outlets
 
     def shutdown(self) -> None:
-        for source in self._sources:
-            source.stop()
-        for camera in self._cameras:
-            camera.stop()
-        self.pipeline.stop()
-        self._outlets.close()
+        """The control API and the actuation first, then inputs, routes and outputs."""
+        self.gateway.deactivate()
+        self.gateway.cleanup()

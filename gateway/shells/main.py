@@ -6,7 +6,7 @@
         [--record run.mcap] [--replay run.mcap [--rate 0]] [--foxglove 127.0.0.1:8765] \\
         [--ros-args -r __node:=my_gateway ...]
 
-Also runnable as a plain ROS node: `python -m oricf.gateway.main --config FILE`, and as the
+Also runnable as a plain ROS node: `python -m oricf.gateway.shells.main --config FILE`, and as the
 ROS 2 package ros/oricf_gateway: `ros2 run oricf_gateway gateway --ros-args -p config:=...`,
 `ros2 launch oricf_gateway people_qa.launch.py` (docs/ros.md). The flags are the defaults of
 the node's parameters config, placement, overlays and sets (oricf.gateway.ros.params); given
@@ -88,9 +88,9 @@ def replay_rate(text: str) -> float:
 
 def replay(config: PipelineConfig, args: argparse.Namespace) -> int:
     """--replay: the pipeline without ROS, its topic inputs from the recording."""
-    from oricf.gateway import without_ros as standalone
     from oricf.gateway.recording.recorder import Recorder, RecordingError
     from oricf.gateway.recording.replay import Replay
+    from oricf.gateway.shells import without_ros as standalone
 
     player = Replay(args.replay, config, 1.0 if args.rate is None else args.rate)
     try:
@@ -153,17 +153,17 @@ def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
         if args.record is not None:
             raise RecordingError(f"--record {args.record}: the pipeline reads and writes no "
                                  f"topic, so there is nothing to record")
-        from oricf.gateway import without_ros as standalone
+        from oricf.gateway.shells import without_ros as standalone
 
         return standalone.run(config)
-    from oricf.gateway.ros.spin import run
+    from oricf.gateway.shells.ros import run
 
     return run(config, ros_args, args.record, settings)
 
 
 def ros_main() -> int:
     """`ros2 run oricf_gateway gateway` (ros/oricf_gateway) and `python -m
-    oricf.gateway.main`: main() with the logging set-up and exit codes of a program."""
+    oricf.gateway.shells.main`: main() with the logging set-up and exit codes of a program."""
     setup_logging()
     try:
         return main()
