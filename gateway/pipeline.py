@@ -11,10 +11,10 @@ import logging
 from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Any
 
+from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.live_view.config import LiveViewConfig
-from oricf.gateway.methods import METHODS
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
 from oricf.gateway.route import Emit, Loader, Route
