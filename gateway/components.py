@@ -21,15 +21,21 @@ were always told (`routes.people.post[0].count.label`, `routes.x.input: ...`).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import pkgutil
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeAlias, TypeVar
+
+import grpc
+from pydantic import Field
 
 from oricf.config import Schema
 from oricf.gateway.channels.server import Channels
+from oricf.gateway.endpoints import Endpoint, Ready
+from oricf.gateway.products import ProductStore
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import Record
 
@@ -98,6 +104,11 @@ def no_rules(settings: Any) -> None:
     """A component whose settings need no check beyond their schema."""
 
 
+def names_no_channel(settings: Any) -> str | None:
+    """A component that reads or writes no text channel of the pipeline's `channels:`."""
+    return None
+
+
 @dataclass(frozen=True)
 class SinkKind:
     """An output: `{key: ..., from: field}` in a route's `outputs:` list."""
@@ -108,6 +119,8 @@ class SinkKind:
     options: type[Schema]
     open: Callable[[ComponentContext], Sink] | None  # None: the pipeline keeps it (products)
     check: Callable[[Any], None] = no_rules          # rules on the whole output, if its key
+    ros: bool = False                                # sent through the ROS node (a topic)
+    channel: Callable[[Any], str | None] = names_no_channel  # the text channel it writes
     rank: int = 100
 
 
@@ -145,7 +158,80 @@ class SourceKind:
     check: Callable[[Any], None] = no_rules       # rules on the whole input, if its key
     stray: Callable[[Any], str | None] = nothing_stray  # its options on another's input
     latest: Callable[[Any], bool] = lambda input_config: False  # newest only by default
+    # The record fields its items carry beside `field` (a camera topic's message header).
+    more_fields: Callable[[Any], frozenset[str]] = lambda input_config: frozenset()
+    ros: bool = False                             # read through the ROS node (a topic)
+    channel: Callable[[Any], str | None] = names_no_channel  # the text channel it reads
     rank: int = 100
+
+
+Result: TypeAlias = Any  # a method's result dataclass
+Invoke: TypeAlias = Callable[[Record], Result]
+Binder: TypeAlias = Callable[[Any, Endpoint, ProductStore], Invoke]
+
+
+class Skip(Exception):
+    """Nothing to pass on for this message (e.g. silence transcribed to nothing)."""
+
+
+@dataclass(frozen=True)
+class Partial:
+    """A piece of a result handed on before the call ends (a sentence of an answer still
+    being generated, the audio of one sentence): its fields go at once to the outputs that
+    take them. A method whose call streams returns an iterator of Partials ending with its
+    result, in which those fields are None (so they are not sent twice)."""
+
+    fields: dict[str, Any]
+
+
+class CallBase(Schema):
+    """The keys every call has: the endpoint it goes to."""
+
+    service: str = Field(description="an endpoint name")
+
+
+@dataclass(frozen=True)
+class Method:
+    """A method a route calls: `call: {method: NAME, service: ENDPOINT, ...}`. Its call
+    schema is a CallBase subclass whose `method` literal is its name; its typed result is a
+    dataclass whose fields the route's record gains (checked against post steps and outputs
+    when the pipeline loads); `bind` runs once per route and returns the function that
+    turns one record into a result."""
+
+    name: str
+    config: type[CallBase]                     # the schema of the route's `call:`
+    service: str                               # the gRPC service the endpoint must serve
+    stub: Callable[[grpc.Channel], Any]
+    ready: Ready                               # the probe used to come back from a fallback
+    result: Callable[[Any], type]              # call config -> its result dataclass
+    bind: Binder                               # (call config, endpoint, products) -> invoke
+    image_transport: bool = False              # sends camera frames (endpoint.image applies)
+    # What the control API and barge-in find a route by, so they name no method.
+    answers: bool = False                      # answers a question in text (ask)
+    hears: bool = False                        # turns speech into text (transcribe)
+    speaks: bool = False                       # turns text into speech (say, barge-in)
+    takes_tensors: bool = False                # tensors straight to its model (infer)
+    # The protocols its calls can go in (an endpoint's targets must speak one of them).
+    protocols: frozenset[str] = frozenset({"grpc"})
+    # The record fields the call's templates name, by the key that holds the template.
+    reads: Callable[[Any], dict[str, set[str]]] = lambda call: {}
+    # The data products the call reads as context, by the key that names them.
+    products: Callable[[Any], dict[str, list[str]]] = lambda call: {}
+    rank: int = 100                            # where it is listed (schema, messages, docs)
+
+    @property
+    def key(self) -> str:
+        """Its name, as a route's `call.method` gives it."""
+        return self.name
+
+    def fields(self, call: Any) -> tuple[str, ...]:
+        """The record fields a call of this method adds."""
+        return tuple(f.name for f in dataclasses.fields(self.result(call)))
+
+
+def result_fields(result: Result) -> Record:
+    """A result's fields as record entries (shallow: the values themselves, not copies)."""
+    return {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
 
 
 class Declared(Protocol):
@@ -206,3 +292,4 @@ class Registry(Mapping[str, K], Generic[K]):
 STEPS: Registry[StepKind] = Registry("oricf.gateway.post", "COMPONENT", StepKind)
 SINKS: Registry[SinkKind] = Registry("oricf.gateway.sinks", "COMPONENT", SinkKind)
 SOURCES: Registry[SourceKind] = Registry("oricf.gateway.sources", "COMPONENT", SourceKind)
+METHODS: Registry[Method] = Registry("oricf.gateway.methods", "METHOD", Method)

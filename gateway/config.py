@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field, PrivateAttr, create_model, model_validator
 
@@ -33,10 +33,9 @@ from oricf.config import Schema, read_with_overlays, validate
 from oricf.errors import ConfigError
 from oricf.gateway.actuation.policy import AgentPolicy
 from oricf.gateway.channels.server import ChannelConfig
-from oricf.gateway.components import SINKS, SOURCES, STEPS, Step
+from oricf.gateway.components import METHODS, SINKS, SOURCES, STEPS, CallBase, Method, Step
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.listeners import ControlConfig, LiveViewConfig
-from oricf.gateway.methods import METHODS, CallConfig
 from oricf.metrics import MetricsConfig
 
 
@@ -152,6 +151,23 @@ else:
         **{key: (Optional[kind.settings], None) for key, kind in STEPS.items()})  # noqa: UP045
 
 
+def call_schema(methods: Iterable[Method]) -> Any:
+    """A route's `call:` over these methods: its `method` key picks the schema, so a key of
+    another method is refused, and an error's path names the method
+    (`routes.x.call.Detect.max_tokens`)."""
+    return Annotated[Union[tuple(method.config for method in methods)],  # noqa: UP007
+                     Field(discriminator="method")]
+
+
+if TYPE_CHECKING:  # the registered methods' call schemas, known once they are found
+    class CallConfig(CallBase):
+        method: str
+
+        def __getattr__(self, key: str) -> Any: ...
+else:
+    CallConfig = call_schema(METHODS.values())
+
+
 class RouteConfig(Schema):
     input: InputConfig
     call: CallConfig
@@ -190,7 +206,7 @@ class PipelineConfig(Schema):
     def uses_ros(self) -> bool:
         """Whether any route reads or writes a ROS topic, or a placement reads the battery
         from one (else the gateway runs without ROS)."""
-        return any(r.input.topic is not None or any(o.topic for o in r.outputs)
+        return any(SOURCES[r.input.source].ros or any(SINKS[o.sink].ros for o in r.outputs)
                    for r in self.routes.values()) or any(
             e.placement is not None and e.placement.battery_topic is not None
             for e in self.endpoints.values())
@@ -208,9 +224,8 @@ def route_fields(name: str, route: RouteConfig) -> Iterator[str]:
     be one the route has by then (its input's, its method's result's, or an earlier step's)."""
     call = route.call
     method = METHODS[call.method]
-    fields = {"route", route.input.field, *method.fields(call)}
-    if route.input.field == "image" and route.input.topic is not None:
-        fields.add("header")
+    source = SOURCES[route.input.source]
+    fields = {"route", route.input.field, *source.more_fields(route.input), *method.fields(call)}
     yield from _missing(f"routes.{name}.call", method.reads(call), fields)
     for i, post in enumerate(route.post):
         step = post.build()
@@ -231,10 +246,12 @@ def _missing(where: str, reads: dict[str, set[str]], fields: set[str]) -> Iterat
 
 
 def _channel_problems(config: PipelineConfig) -> Iterator[str]:
-    """Text inputs and outputs name a channel of `channels:` or '-' (standard in/out)."""
+    """Inputs and outputs name a text channel of `channels:` or '-' (standard in/out)."""
     for name, route in config.routes.items():
-        texts = [("input.text", route.input.text)] + [
-            (f"outputs[{i}].text", o.text) for i, o in enumerate(route.outputs)]
+        source = SOURCES[route.input.source]
+        texts = [(f"input.{source.key}", source.channel(route.input))] + [
+            (f"outputs[{i}].{o.sink}", SINKS[o.sink].channel(o))
+            for i, o in enumerate(route.outputs)]
         for key, text in texts:
             if text not in (None, "-") and text not in config.channels:
                 yield (f"routes.{name}.{key}: no channel '{text}' (channels: "

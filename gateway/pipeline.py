@@ -10,9 +10,9 @@ import logging
 from collections.abc import Callable, Collection
 from typing import Any
 
+from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.methods import METHODS
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
 from oricf.gateway.route import Emit, Loader, Route

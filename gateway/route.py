@@ -23,11 +23,9 @@ from typing import Any, Protocol
 import grpc
 
 from oricf.errors import InvalidInput
-from oricf.gateway.components import chain
+from oricf.gateway.components import METHODS, Partial, Skip, chain, result_fields
 from oricf.gateway.config import OutputConfig, RouteConfig
 from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.methods import METHODS, Partial, Skip
-from oricf.gateway.methods.base import result_fields
 from oricf.gateway.products import ProductStore
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog

@@ -23,7 +23,7 @@ from mcp.server.mcpserver import MCPServer
 from mcp.server.mcpserver.resources import FunctionResource
 from mcp.server.subscriptions import InMemorySubscriptionBus, ResourceUpdated, ServerEvent
 
-from oricf.gateway.methods import IMAGE_METHODS
+from oricf.gateway.components import METHODS
 from oricf.gateway.operations.api import Operations
 
 log = logging.getLogger(__name__)
@@ -39,6 +39,11 @@ def product_uri(name: str) -> str:
 
 def frame_uri(route: str) -> str:
     return f"oricf://frames/{quote(route, safe='')}"
+
+
+def takes_frames(method: str) -> bool:
+    """Whether routes that call `method` take camera frames (and so have a frame resource)."""
+    return METHODS[method].image_transport
 
 
 class ListenedBus(InMemorySubscriptionBus):
@@ -94,7 +99,7 @@ class ResourceFeed:
 
     def _camera_routes(self) -> list[str]:
         routes = self.gateway.status()["routes"]
-        return [name for name, r in routes.items() if r["method"] in IMAGE_METHODS]
+        return [name for name, r in routes.items() if takes_frames(r["method"])]
 
     async def _subscribe(self, ctx: Any, params: types.SubscribeRequestParams
                          ) -> types.EmptyResult:
@@ -139,7 +144,7 @@ class ResourceFeed:
             if product["written"]:
                 now[product_uri(product["name"])] = (product["value"], product["age_s"])
         for name, route in self.gateway.status()["routes"].items():
-            if route["method"] in IMAGE_METHODS:
+            if takes_frames(route["method"]):
                 now[frame_uri(name)] = route["ok"]
         changed = []
         for uri, value in now.items():

@@ -8,8 +8,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Literal, get_type_hints
 
+from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig
-from oricf.gateway.methods import METHODS
 
 Kind = Literal["image", "detections", "log"]
 

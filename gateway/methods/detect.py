@@ -12,9 +12,10 @@ from typing import Any, Literal
 
 from pydantic import Field
 
+from oricf.gateway.components import CallBase, Invoke, Method
 from oricf.gateway.endpoints import Endpoint, EndpointConfig
 from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
-from oricf.gateway.methods.base import CallBase, Invoke, Method, health_check, input_frame
+from oricf.gateway.methods.base import health_check, input_frame
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Record
 from oricf.imaging import Box, Detection
@@ -89,4 +90,4 @@ def result(call: Any) -> type:
 
 
 METHOD = Method("Detect", DetectCall, "oricf.v1.Detector", detector_pb2_grpc.DetectorStub,
-                health_check("oricf.v1.Detector"), result, bind, image_transport=True)
+                health_check("oricf.v1.Detector"), result, bind, image_transport=True, rank=0)

@@ -19,10 +19,11 @@ from pydantic import Field, field_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
+from oricf.gateway.components import CallBase, Invoke, Method, Partial, Skip
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.endpoints.endpoint import Work
 from oricf.gateway.endpoints.openai import OpenAITarget, chat_completion
-from oricf.gateway.methods.base import CallBase, Invoke, Method, Partial, Skip, health_check
+from oricf.gateway.methods.base import health_check
 from oricf.gateway.methods.chat import ChatTemplates, ImageContext, image_url, messages
 from oricf.gateway.methods.sentences import SentenceCutter
 from oricf.gateway.products import ProductStore, Reading
@@ -255,4 +256,4 @@ def products(call: GenerateCall) -> dict[str, list[str]]:
 METHOD = Method("Generate", GenerateCall, "oricf.v1.LanguageModel",
                 language_pb2_grpc.LanguageModelStub, health_check("oricf.v1.LanguageModel"),
                 result, bind, reads=reads, products=products, answers=True,
-                protocols=frozenset({"grpc", "openai"}))
+                protocols=frozenset({"grpc", "openai"}), rank=2)

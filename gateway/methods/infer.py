@@ -19,9 +19,10 @@ from pydantic import Field, model_validator
 
 from oricf.config import FilePath
 from oricf.errors import ConfigError, InvalidInput
+from oricf.gateway.components import CallBase, Invoke, Method
 from oricf.gateway.endpoints import Endpoint, Metadata
 from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
-from oricf.gateway.methods.base import CallBase, Invoke, Method, input_frame
+from oricf.gateway.methods.base import input_frame
 from oricf.gateway.methods.detect import Detections
 from oricf.gateway.methods.infer_shared import NotNow, output_bytes, placed_outputs
 from oricf.gateway.products import ProductStore
@@ -217,4 +218,4 @@ def result(call: InferCall) -> type:
 
 METHOD = Method("Infer", InferCall, "inference.GRPCInferenceService",
                 oip_grpc.GRPCInferenceServiceStub, server_ready, result, bind,
-                image_transport=True, takes_tensors=True)
+                image_transport=True, takes_tensors=True, rank=3)

@@ -20,8 +20,9 @@ from pydantic import Field, field_validator
 
 from oricf.audio import check_format
 from oricf.errors import InvalidInput
+from oricf.gateway.components import CallBase, Invoke, Method, Partial, Skip
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
-from oricf.gateway.methods.base import CallBase, Invoke, Method, Partial, Skip, health_check
+from oricf.gateway.methods.base import health_check
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Record, SpokenAudio, template_fields
 from oricf.logs import quoted
@@ -120,4 +121,4 @@ def reads(call: SynthesizeCall) -> dict[str, set[str]]:
 METHOD = Method("Synthesize", SynthesizeCall, "oricf.v1.SpeechSynthesizer",
                 synthesis_pb2_grpc.SpeechSynthesizerStub,
                 health_check("oricf.v1.SpeechSynthesizer"), result, bind, reads=reads,
-                speaks=True)
+                speaks=True, rank=4)

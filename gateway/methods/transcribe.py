@@ -12,9 +12,10 @@ import numpy as np
 
 from oricf.audio import encode_wav
 from oricf.errors import InvalidInput
+from oricf.gateway.components import CallBase, Invoke, Method, Skip
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.endpoints.openai import OpenAITarget, transcription
-from oricf.gateway.methods.base import CallBase, Invoke, Method, Skip, health_check
+from oricf.gateway.methods.base import health_check
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import AudioClip, Record
 from oricf.v1 import speech_pb2, speech_pb2_grpc
@@ -67,4 +68,4 @@ def result(call: Any) -> type:
 
 METHOD = Method("Transcribe", TranscribeCall, "oricf.v1.SpeechRecognizer",
                 speech_pb2_grpc.SpeechRecognizerStub, health_check("oricf.v1.SpeechRecognizer"),
-                result, bind, protocols=frozenset({"grpc", "openai"}), hears=True)
+                result, bind, protocols=frozenset({"grpc", "openai"}), hears=True, rank=1)

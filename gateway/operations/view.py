@@ -21,8 +21,7 @@ from oricf.gateway.actuation.actuation import Actuation
 from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.actuation.messages import nested
 from oricf.gateway.actuation.policy import Refused
-from oricf.gateway.methods import METHODS, Method
-from oricf.gateway.methods.base import Skip
+from oricf.gateway.components import METHODS, Method, Skip
 from oricf.gateway.methods.generate import context_readings
 from oricf.gateway.methods.infer import InferCall
 from oricf.gateway.operations.api import (

@@ -54,4 +54,5 @@ def open_lines(context: ComponentContext) -> Sink:
     return TextLines(context.channels)
 
 
-COMPONENT = SinkKind("text", TextOutput, open_lines, rank=3)
+COMPONENT = SinkKind("text", TextOutput, open_lines, channel=lambda output: output.text,
+                     rank=3)

@@ -42,4 +42,4 @@ def open_outputs(context: ComponentContext) -> Sink:
     return RosOutputs(context)
 
 
-COMPONENT = SinkKind("topic", TopicOutput, open_outputs, check, rank=0)
+COMPONENT = SinkKind("topic", TopicOutput, open_outputs, check, ros=True, rank=0)

@@ -89,4 +89,5 @@ def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
     return TextSource(route, config, submit, on_end, context.channels)
 
 
-COMPONENT = SourceKind("text", TextInput, lambda config: "text", open_source, rank=4)
+COMPONENT = SourceKind("text", TextInput, lambda config: "text", open_source,
+                       channel=lambda config: config.text, rank=4)

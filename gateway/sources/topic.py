@@ -29,5 +29,16 @@ def stray(input_config: Any) -> str | None:
     return "type: only with topic (the other inputs carry their own kind)"
 
 
-COMPONENT = SourceKind("topic", TopicInput, lambda config: INPUT_FIELDS[str(config.type)],
-                       None, check, stray, lambda config: config.type in IMAGE_INPUTS, rank=0)
+def field(input_config: Any) -> str:
+    return INPUT_FIELDS[str(input_config.type)]
+
+
+def more_fields(input_config: Any) -> frozenset[str]:
+    """A camera frame comes with its message's header (stamp and frame), which topic
+    outputs of the route can pass on."""
+    return frozenset({"header"}) if field(input_config) == "image" else frozenset()
+
+
+COMPONENT = SourceKind("topic", TopicInput, field, None, check, stray,
+                       lambda config: config.type in IMAGE_INPUTS, more_fields=more_fields,
+                       ros=True, rank=0)

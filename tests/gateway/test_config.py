@@ -119,6 +119,19 @@ BAD = [
                          "outputs": [{"topic": "/a", "type": "std_msgs/String",
                                       "from": "answer"}]}}},
      "call.service: endpoint 'detector' would serve both"),
+    # A text input or output names a channel of `channels:`, or '-' (standard in/out).
+    ({"endpoints": {"llm": {"address": "127.0.0.1:50053"}},
+      "routes": {"ask": {"input": {"text": "typed"},
+                         "call": {"service": "llm", "method": "Generate"},
+                         "outputs": [{"text": "-", "from": "answer"}]}}},
+     "routes.ask.input.text: no channel 'typed' (channels: none; or '-')"),
+    ({"routes": {"people": {"outputs": [{"text": "spoken", "from": "count"}]}}},
+     "routes.people.outputs[0].text: no channel 'spoken' (channels: none; or '-')"),
+    # A camera topic's frames come with their header; a video's do not.
+    ({"routes": {"people": {"input": {"topic": None, "type": None,
+                                      "url": "people.mp4"},
+                            "outputs": [{"jsonl": "-", "from": "header"}]}}},
+     "routes.people.outputs[0].from: no field 'header' in this route"),
 ]
 
 
@@ -130,6 +143,25 @@ def test_mistakes_name_the_file_and_the_key(tmp_path: Path, change: dict[str, An
         load_pipeline(path)
     assert str(path) in str(error.value)
     assert message in str(error.value)
+
+
+def test_a_camera_topic_route_has_the_header_and_uses_ros(tmp_path: Path) -> None:
+    header = {"routes": {"people": {"outputs": [{"jsonl": "-", "from": "header"}]}}}
+    assert load_pipeline(write(tmp_path, edited(header))).uses_ros
+    assert load_pipeline(write(tmp_path, MINIMAL)).uses_ros
+
+
+@pytest.mark.parametrize(("change", "ros"), [
+    ({"input": {"topic": None, "type": None, "url": "people.mp4"}}, True),  # topic output
+    ({"outputs": [{"jsonl": "-", "from": "count"}]}, True),                 # topic input
+    ({"input": {"topic": None, "type": None, "url": "people.mp4"},
+      "outputs": [{"jsonl": "-", "from": "count"}]}, False),
+])
+def test_the_gateway_needs_ros_for_a_topic_input_or_output(tmp_path: Path,
+                                                           change: dict[str, Any],
+                                                           ros: bool) -> None:
+    config = load_pipeline(write(tmp_path, edited({"routes": {"people": change}})))
+    assert config.uses_ros is ros
 
 
 def test_context_must_name_a_product_some_route_outputs(tmp_path: Path) -> None:

@@ -14,8 +14,8 @@ import grpc
 import pytest
 
 from oricf.bench.common import stop
+from oricf.gateway.components import METHODS
 from oricf.gateway.endpoints import GrpcTarget, TargetConfig
-from oricf.gateway.methods import METHODS
 from oricf.gateway.methods.base import health_check
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc

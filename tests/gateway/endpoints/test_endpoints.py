@@ -11,8 +11,8 @@ from collections.abc import Callable, Iterator
 import grpc
 import pytest
 
+from oricf.gateway.components import METHODS
 from oricf.gateway.endpoints import Endpoint, EndpointConfig, RetryConfig
-from oricf.gateway.methods import METHODS
 from oricf.gateway.values import Frame
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import video_frames

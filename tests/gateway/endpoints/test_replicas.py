@@ -16,9 +16,9 @@ import pytest
 from grpc_health.v1 import health, health_pb2_grpc
 
 from oricf.errors import ConfigError
+from oricf.gateway.components import METHODS
 from oricf.gateway.config import EndpointConfig, parse_pipeline
 from oricf.gateway.endpoints import Endpoint
-from oricf.gateway.methods import METHODS
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame
 from oricf.v1 import detector_pb2, detector_pb2_grpc
