@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -21,7 +22,9 @@ from tests.launch.helpers import (
 from tests.support.data import video_path
 from tests.support.processes import free_port
 from tests.support.services import RunningService
-from tests.support.sockets import inet_sockets
+
+if TYPE_CHECKING:  # tests/demo/spoken.py imports this module
+    from tests.demo.spoken import DemoRun
 
 # vtest.avi's first 10 frames (1 s) show 4 people each. A demo sending only those has one
 # count from its first report on, so the count it prints is the one the gateway gave the
@@ -64,10 +67,8 @@ def demo_deployment(folder: Path) -> Path:
         "gateway": {"config": shipped_pipeline()}})
 
 
-def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
-    code, command = run_demo("--deployment", str(demo_deployment(tmp_path)), "--question",
-                             "How many people do you see?", *STILL_SCENE,
-                             "--log", str(tmp_path / "demo.log"))
+def test_demo_answers_a_spoken_question_with_the_count(spoken_demo: DemoRun) -> None:
+    code, command, tmp_path = spoken_demo.code, spoken_demo.command, spoken_demo.folder
     output = command.output
     assert code == 0, output
     assert "SERVING" in output  # progress while the models load
@@ -87,26 +88,14 @@ def test_demo_answers_a_spoken_question_with_the_count(tmp_path: Path) -> None:
     assert "gateway  | " in log and "detector | " in log
 
 
-def test_demo_keeps_every_socket_on_this_machine(tmp_path: Path) -> None:
+def test_demo_keeps_every_socket_on_this_machine(spoken_demo: DemoRun) -> None:
     """Under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, as private_ros_env sets it: once the
     gateway counts, every UDP and TCP socket of the demo's processes (its own DDS
-    participant, the gateway's, the services') is bound to a loopback address, as
-    `ss -tuanp` would show them."""
-    command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),
-                           "--question", "How many people do you see?", *STILL_SCENE,
-                           "--no-speak", "--log", str(tmp_path / "demo.log"),
-                           env=private_ros_env())
-    try:
-        command.wait_for("the gateway counts people", timeout=600)
-        started = command.started()
-        processes = {"demo": [command.process.pid],
-                     **{name: group_members(pids[-1]) for name, pids in started.items()}}
-        sockets = {name: [s for pid in pids for s in inet_sockets(pid)]
-                   for name, pids in processes.items()}
-        assert command.finish(timeout=600) == 0, command.output
-    finally:
-        command.kill()
-    assert set(sockets) == {"demo", "detector", "asr", "llm", "gateway"}
+    participant, the gateway's, the services', speech synthesis included) is bound to a
+    loopback address, as `ss -tuanp` would show them."""
+    sockets = spoken_demo.sockets
+    assert spoken_demo.code == 0, spoken_demo.command.output
+    assert set(sockets) == {"demo", "detector", "asr", "llm", "tts", "gateway"}
     for name in ("demo", "gateway"):  # DDS participants: discovery on 127.0.0.1
         assert any(s.table == "udp" and str(s.address) == "127.0.0.1"
                    for s in sockets[name]), sockets[name]

@@ -8,40 +8,21 @@ from __future__ import annotations
 import logging
 import re
 import wave
-from pathlib import Path
 
 import numpy as np
 
-from tests.demo.test_demo import STILL_SCENE, demo_deployment, reported
-from tests.gateway.sinks.voice import Recorder, spoken_words, voiced, word_errors
-from tests.gateway.sources.audio import PulseServer
-from tests.launch.helpers import OricfCommand, private_ros_env
+from tests.demo.spoken import DemoRun
+from tests.demo.test_demo import reported
+from tests.gateway.sinks.voice import spoken_words, voiced, word_errors
 from tests.support.services import RunningService
 
 log = logging.getLogger(__name__)
 
-SINK = "oricf_demo_speaker"
 
-
-def test_the_demo_plays_each_answer_and_writes_it(tmp_path: Path, asr: RunningService) -> None:
-    (tmp_path / "pulse").mkdir()
-    pulse = PulseServer(tmp_path / "pulse")
-    try:
-        pulse.add_sink(SINK)
-        pulse.pactl("set-default-sink", SINK)
-        recorder = Recorder(pulse, SINK, tmp_path / "played.raw")
-        wav = tmp_path / "spoken.wav"
-        command = OricfCommand(
-            "demo", "--deployment", str(demo_deployment(tmp_path)), "--question",
-            "How many people do you see?", *STILL_SCENE, "--speak-to", str(wav),
-            env={**private_ros_env(), "PULSE_SERVER": pulse.env()["PULSE_SERVER"]})
-        try:
-            code = command.finish(timeout=600)
-        finally:
-            command.kill()
-        played = recorder.samples()
-    finally:
-        pulse.close()
+def test_the_demo_plays_each_answer_and_writes_it(spoken_demo: DemoRun,
+                                                  asr: RunningService) -> None:
+    code, command = spoken_demo.code, spoken_demo.command
+    played, wav = spoken_demo.played, spoken_demo.wav
     output = command.output
     log.info("%s", output)
     assert code == 0, output

