@@ -10,7 +10,8 @@
                 (up to `drain_s`), then the live view and the route workers
     cleanup     close: the sinks and the text channels
 
-The steps are a ROS 2 lifecycle node's (configure, activate, deactivate, cleanup). The shells
+The steps are a ROS 2 lifecycle node's (configure, activate, deactivate, cleanup), each taken
+once: a deactivated gateway has closed its endpoints and is not activated again. The shells
 (oricf.gateway.shells) add only what is theirs: a ROS node's subscriptions and publishers,
 a replayed recording, the MCP server.
 """

@@ -115,8 +115,8 @@ def test_the_installed_gateway_runs_as_a_ros_node_and_logs_to_rosout(
         with rosout_reader(ros_context) as lines:
             started = next_line(lines, "robot7.oricf_gateway",
                                 "gateway node oricf_gateway: 4 routes", timeout=60)
-            assert (started.level, started.function) == (Log.INFO, "__init__")
-            assert started.file.endswith("gateway/ros/node.py")
+            assert (started.level, started.function) == (Log.INFO, "activate")
+            assert started.file.endswith("gateway/shells/ros_node.py")
             assert get_parameters(ros_context, "/robot7/oricf_gateway",
                                   ["config", "placement", "overlays", "sets"]) == [
                 str(PIPELINES / "people_qa.yaml"), "edge", [str(site)], []]
