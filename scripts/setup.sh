@@ -15,7 +15,7 @@ CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
 # LLAMA_VERSION, CMAKE_ARGS and LLAMA_WHEELS: the llama.cpp build for this CPU
 # shellcheck source=scripts/llama-wheel.sh
 source scripts/llama-wheel.sh
-MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en piper-joe-medium gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec)
+MODELS=(yolox-nano yolov8-fall ppocr-text-direction whisper-tiny-en piper-joe-medium gemma3-270m smollm2-135m-instruct vtest-video darknet-images opencv-text-image grpcurl compose-spec pybullet-hopper pybullet-ant pybullet-inverted-double-pendulum)
 
 step() { printf '\n==> %s\n' "$*"; }
 die() { printf 'setup: %s\n' "$*" >&2; exit 1; }

@@ -19,6 +19,8 @@ SERVICES: dict[str, ServiceSpec] = {spec.name: spec for spec in (
     ServiceSpec("tts", "oricf.v1.SpeechSynthesizer", 50054, http=True),
     # Declared models over the Open Inference Protocol, on its customary gRPC port.
     ServiceSpec("models", "inference.GRPCInferenceService", 8001),
+    # Learned control policies: observations in, chunks of actions out.
+    ServiceSpec("policy", "oricf.v1.Policy", 50055),
 )}
 
 __all__ = ["SERVICES", "ServiceSpec", "load_spec"]

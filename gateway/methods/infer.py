@@ -68,6 +68,9 @@ class InferCall(CallBase):
         if task is None:
             raise ValueError(f"model: {self.model} declares no task; the gateway needs one "
                              f"to turn its input into tensors and its outputs into fields")
+        if task.kind == "policy":
+            raise ValueError(f"model: {self.model} is a policy (task.kind: policy); Infer "
+                             f"calls image models: detection or classification")
         known = task.label_list()  # reads the labels file, so once
         unknown = sorted(set(self.labels) - set(known)) if known else []
         if unknown:

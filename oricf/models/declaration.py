@@ -4,7 +4,7 @@
     weights: {catalog: yolox-nano}            # or {path: ./my-model.onnx, sha256: ...}
     backend: {engine: onnxruntime, threads: 1} # or {engine: openvino, device: CPU}
     task:                                     # optional: raw tensors in and out without it
-      kind: detection                         # or classification
+      kind: detection                         # or classification, or policy (policy_task)
       image: {size: [416, 416], resize: letterbox, pad_value: 114, color: bgr}
       decoder: yolox                          # yolox | yolov8 | ssd
       labels_file: labels/coco80.txt
@@ -20,10 +20,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, PrivateAttr, model_validator
 
 from oricf.config import FilePath, Schema, load_config
 from oricf.errors import ConfigError
+from oricf.models.policy_task import PolicyTask
 from oricf.models.tensors import DATATYPE_NAMES
 
 MODEL_NAME = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$"
@@ -37,6 +38,10 @@ class Weights(Schema):
     path: FilePath | None = Field(None, description="a local model file")
     sha256: str | None = Field(None, pattern=r"^[0-9a-f]{64}$",
                                description="path: checked before loading when given")
+    convert: Literal["mlp-arrays"] | None = Field(
+        None, description="the file is not a model but its weights: mlp-arrays, an MLP's "
+                          "numpy array literals in a Python file (read, never run), made "
+                          "into ONNX once (oricf.models.mlp_source)")
 
     @model_validator(mode="after")
     def _one_source(self) -> Weights:
@@ -153,7 +158,8 @@ class ClassificationTask(Labels):
     top_k: int = Field(5, ge=1, le=1000)
 
 
-Task = Annotated[DetectionTask | ClassificationTask, Field(discriminator="kind")]
+Task = Annotated[DetectionTask | ClassificationTask | PolicyTask, Field(discriminator="kind")]
+ImageTask = DetectionTask | ClassificationTask
 
 
 class ModelDeclaration(Schema):
@@ -166,8 +172,16 @@ class ModelDeclaration(Schema):
     inputs: list[TensorOverride] = Field(default_factory=list)
     outputs: list[TensorOverride] = Field(default_factory=list)
     task: Task | None = None
+    _source: str = PrivateAttr("")  # the file it was read from, for errors found at load
+
+    @property
+    def source(self) -> str:
+        """Where later errors point: the declaration's file, else the model's name."""
+        return self._source or f"model {self.name}"
 
 
 def load_declaration(path: Path | str) -> ModelDeclaration:
     """One model declaration file, validated; errors name the file and the key."""
-    return load_config(path, ModelDeclaration)
+    declaration = load_config(path, ModelDeclaration)
+    declaration._source = str(path)
+    return declaration

@@ -22,6 +22,9 @@ from oricf.models.backends import Session, open_session
 from oricf.models.declaration import ModelDeclaration, TensorOverride
 from oricf.models.heads import DetectionHead, Detections, Head, Prepared, make_head
 from oricf.models.info import ModelInfo
+from oricf.models.mlp_source import converted
+from oricf.models.policy_shapes import check_policy
+from oricf.models.policy_task import PolicyTask
 from oricf.models.tensors import DATATYPES, TensorSpec, clip
 from oricf.store import ModelStore, sha256_of
 
@@ -80,16 +83,23 @@ class DeclaredModel:
             path = self._store.path(weights.catalog, weights.file)
             self.sha256 = next(f.sha256 for f in entry.files if f.name == path.name)
             self.license = self.license or entry.license
-            return path
+            return self._converted(path, weights.catalog)
         assert weights.path is not None
         if not weights.path.is_file():
             raise ConfigError(f"model {self.name}: weights.path: no file {weights.path}")
-        if weights.sha256 is not None:
+        if weights.sha256 is not None or weights.convert is not None:
             self.sha256 = sha256_of(weights.path)
-            if self.sha256 != weights.sha256:
+            if weights.sha256 is not None and self.sha256 != weights.sha256:
                 raise ConfigError(f"model {self.name}: {weights.path} has sha256 "
                                   f"{self.sha256}, the declaration says {weights.sha256}")
-        return weights.path
+        return self._converted(weights.path, str(weights.path))
+
+    def _converted(self, path: Path, key: str) -> Path:
+        """The model file itself, or the ONNX model made once from a weights file."""
+        weights = self.declaration.weights
+        if weights is None or weights.convert is None:
+            return path
+        return converted(path, self.sha256, key)
 
     def load(self) -> None:
         free = [tuple(axis for axis, d in enumerate(o.shape or ()) if d == -1)
@@ -102,7 +112,9 @@ class DeclaredModel:
         self._output_names = {f.name: d.name for d, f in zip(self.outputs, session.outputs,
                                                              strict=False)}
         task = self.declaration.task
-        if task is not None:
+        if isinstance(task, PolicyTask):
+            check_policy(self.declaration.source, task, self.inputs, self.outputs)
+        elif task is not None:
             name = task.image.input or self.inputs[0].name
             if name not in {s.name for s in self.inputs}:
                 raise ConfigError(f"model {self.name}: task.image.input: the model has no "

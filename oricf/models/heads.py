@@ -24,6 +24,7 @@ from oricf.models.declaration import (
 )
 from oricf.models.decoders import DECODERS
 from oricf.models.image import Geometry, network_size, to_tensor
+from oricf.models.policy_task import PolicyTask
 from oricf.models.tensors import clip
 
 
@@ -161,6 +162,8 @@ def declared_head(declaration: ModelDeclaration) -> Head:
     task = declaration.task
     if task is None:
         raise ValueError(f"model {declaration.name} declares no task")
+    if isinstance(task, PolicyTask):
+        raise ValueError(f"model {declaration.name} is a policy: it has no image task")
     name = task.image.input or (declaration.inputs[0].name if declaration.inputs else None)
     if name is None:
         raise ValueError(f"model {declaration.name}: name its image input (task.image.input)")

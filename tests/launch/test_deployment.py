@@ -74,8 +74,9 @@ def test_shipped_robot_deployment_starts_what_its_placement_puts_onboard() -> No
 
 def test_shipped_local_deployment_is_everything_on_loopback() -> None:
     deployment = load_deployment(config_dir() / "deployments" / "local.yaml")
-    # The services the reference pipeline calls; `models` (declared models) is opt-in.
-    assert set(deployment.services) == set(SERVICES) - {"models"}
+    # The services the reference pipeline calls; `models` (declared models) and `policy`
+    # (a control policy) are opt-in.
+    assert set(deployment.services) == set(SERVICES) - {"models", "policy"}
     assert deployment.gateway is not None
     assert all(s.listen and s.listen.startswith("127.0.0.1:")
                for s in deployment.services.values())

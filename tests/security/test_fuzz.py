@@ -19,10 +19,10 @@ from hypothesis import strategies as st
 
 from oricf.audio import wav_header
 from oricf.oip import open_inference_grpc_pb2 as oip
-from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
+from oricf.v1 import detector_pb2, language_pb2, policy_pb2, speech_pb2, synthesis_pb2
 from tests.support.services import RunningService, running_service
 
-EXAMPLES = 70  # per RPC: 21 RPCs, at least 1,470 requests of 1-3 messages
+EXAMPLES = 70  # per RPC: 24 RPCs, at least 1,680 requests of 1-3 messages
 # Refusals a client may get for a hostile request. INTERNAL and UNKNOWN are bugs;
 # DEADLINE_EXCEEDED would mean the service did not answer in time.
 ACCEPTABLE = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
@@ -38,6 +38,7 @@ SERVICES: dict[str, tuple[ServiceDescriptor, dict[str, Any]]] = {
             {"generation": {"max_tokens": 2, "max_tokens_limit": 4}}),
     "models": (oip.DESCRIPTOR.services_by_name["GRPCInferenceService"], {}),
     "tts": (synthesis_pb2.DESCRIPTOR.services_by_name["SpeechSynthesizer"], {}),
+    "policy": (policy_pb2.DESCRIPTOR.services_by_name["Policy"], {}),
 }
 CASES = [(service, method.name) for service, (descriptor, _) in SERVICES.items()
          for method in descriptor.methods]
@@ -87,11 +88,25 @@ def scalar(field: FieldDescriptor) -> st.SearchStrategy[Any]:
     return INTS
 
 
+# Repeated fields drawn whole: a policy's state of the served Hopper's 15 values, sometimes
+# with NaN, infinity or huge values in it, or of a wrong length.
+HOSTILE_FLOATS = st.sampled_from([0.0, -1.0, 0.5, 1e30, -3.4e38, math.inf, math.nan])
+LIST_VALUES: dict[str, st.SearchStrategy[Any]] = {
+    "oricf.v1.Observation.state": st.one_of(
+        st.lists(st.floats(-10, 10, width=32), min_size=15, max_size=15),
+        st.lists(HOSTILE_FLOATS, min_size=15, max_size=15),
+        st.lists(HOSTILE_FLOATS, max_size=40)),
+}
+
+
 def message(descriptor: Descriptor, depth: int = 0) -> st.SearchStrategy[dict[str, Any]]:
     """A random message of this type, as a dict of field values (each field optional but
     those of FIELD_VALUES)."""
     fields: dict[str, st.SearchStrategy[Any]] = {}
     for field in descriptor.fields:
+        if field.full_name in LIST_VALUES:
+            fields[field.name] = LIST_VALUES[field.full_name]
+            continue
         if field.message_type is not None and field.message_type.GetOptions().map_entry:
             key, value = field.message_type.fields
             value_strategy = (message(value.message_type, depth + 1)

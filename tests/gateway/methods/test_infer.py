@@ -80,6 +80,8 @@ BAD_CALLS = [
     ({"prompt": "{text}"}, "routes.people.call.Infer.prompt: unknown key"),
     ({"model": "/nowhere/model.yaml"},
      "infer pipeline: routes.people.call.Infer: model: /nowhere/model.yaml: file not found"),
+    ({"model": str(REPO_ROOT / "configs/models/policies/hopper.yaml"), "labels": []},
+     "hopper.yaml is a policy (task.kind: policy); Infer calls image models"),
 ]
 
 

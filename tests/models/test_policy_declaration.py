@@ -1,0 +1,96 @@
+"""A declared policy (`task: {kind: policy}`): the shipped ones load and agree with their
+model files; a declaration that disagrees with its file, or with itself, is refused naming
+the file and the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from oricf.config import REPO_ROOT
+from oricf.errors import ConfigError
+from oricf.models.declaration import load_declaration
+from oricf.models.policy import PolicyModel
+from oricf.store import ModelStore
+
+POLICIES = REPO_ROOT / "configs" / "models" / "policies"
+HOPPER = POLICIES / "hopper.yaml"
+
+
+@pytest.mark.parametrize(("file", "state", "action"), [
+    ("hopper.yaml", 15, 3), ("ant.yaml", 28, 8), ("inverted-double-pendulum.yaml", 9, 1)])
+def test_the_shipped_policies_load_and_act_within_their_bounds(file: str, state: int,
+                                                               action: int) -> None:
+    policy = PolicyModel(load_declaration(POLICIES / file), ModelStore())
+    policy.load()
+    assert (policy.task.state.size, policy.task.action.dim, policy.task.chunk) == (
+        state, action, 1)
+    assert policy.task.rate_hz == pytest.approx(1 / 0.0165, abs=1e-3)  # pybullet_envs' step
+    actions = policy.act(np.full(state, 10.0, np.float32))  # far outside what it was trained on
+    assert actions.shape == (1, action) and abs(actions).max() <= 1.0
+
+
+def changed(tmp_path: Path, **task: Any) -> Path:
+    data = yaml.safe_load(HOPPER.read_text())
+    for key, value in task.items():
+        if isinstance(value, dict):
+            data["task"][key] = {**data["task"][key], **value}
+        else:
+            data["task"][key] = value
+    path = tmp_path / "mine.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(("task", "message"), [
+    ({"state": {"size": 14}}, "mine.yaml: task.state.size: 14, the model input 'observation' "
+                              "takes 15 values"),
+    ({"action": {"dim": 4}}, "mine.yaml: task.action.dim: 1 x 4 actions, the model output "
+                             "'action' gives 3 values"),
+    ({"chunk": 4}, "mine.yaml: task.chunk: 4 x 3 actions, the model output 'action' gives 3"),
+    ({"state": {"input": "obs"}}, "mine.yaml: task.state.input: the model has no input 'obs' "
+                                  "(inputs: observation)"),
+    ({"action": {"output": "act"}}, "mine.yaml: task.action.output: the model has no output "
+                                    "'act' (outputs: action)"),
+], ids=["state size", "action dim", "chunk", "state input", "action output"])
+def test_a_declaration_that_disagrees_with_its_model_file_is_refused_at_load(
+        tmp_path: Path, task: dict[str, Any], message: str) -> None:
+    policy = PolicyModel(load_declaration(changed(tmp_path, **task)), ModelStore())
+    with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        policy.load()
+
+
+@pytest.mark.parametrize(("task", "message"), [
+    ({"state": {"mean": [0.0] * 3}}, r"task\.policy\.state: mean: 3 values, size is 15"),
+    ({"state": {"std": [0.0] * 15}}, r"task\.policy\.state: std: every value must be > 0"),
+    ({"action": {"low": [0.0, 0.0]}}, r"task\.policy\.action: low: 2 values, dim is 3"),
+    ({"action": {"low": 2.0}}, r"task\.policy\.action: low: above high"),
+    ({"images": ["wrist"]}, r"task\.policy\.images: List should have at most 0 items"),
+    ({"rate_hz": 0}, r"task\.policy\.rate_hz: Input should be greater than 0"),
+], ids=["mean", "std", "bounds", "low above high", "images", "rate"])
+def test_a_declaration_at_odds_with_itself_is_refused_naming_file_and_key(
+        tmp_path: Path, task: dict[str, Any], message: str) -> None:
+    with pytest.raises(ConfigError, match=f"mine.yaml: {message}"):
+        load_declaration(changed(tmp_path, **task))
+
+
+def test_the_policy_service_refuses_a_model_that_is_no_policy() -> None:
+    yolox = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
+    with pytest.raises(ConfigError, match=r"yolox-nano.yaml: task.kind: the policy service "
+                                          r"serves policies"):
+        PolicyModel(load_declaration(yolox), ModelStore())
+
+
+def test_normalisation_is_applied_before_the_model(tmp_path: Path) -> None:
+    plain = PolicyModel(load_declaration(HOPPER), ModelStore())
+    shifted = PolicyModel(load_declaration(changed(
+        tmp_path, state={"mean": [1.0] * 15, "std": [2.0] * 15})), ModelStore())
+    plain.load()
+    shifted.load()
+    state = np.linspace(-1.0, 2.0, 15, dtype=np.float32)
+    assert abs(plain.act(state) - plain.act((state - 1.0) / 2.0)).max() > 0.01
+    np.testing.assert_allclose(shifted.act(state), plain.act((state - 1.0) / 2.0), atol=1e-6)
