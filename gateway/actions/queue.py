@@ -1,0 +1,156 @@
+"""The action queue of a control loop: each chunk's actions by the step they are for, merged
+where chunks overlap, one action taken per tick.
+
+A policy answers an observation of step `s` with a chunk whose action `i` is for step
+`s + 1 + i` (the step after the one it saw). By the time the chunk arrives the robot may be
+at step `s + d`: how the late part is treated (`late`) and how actions two chunks give for
+one step are combined (`merge`) are the loop's settings:
+
+    late: skip     actions for steps already passed are dropped; the chunk is followed on
+                   time (delay-aware: what real-time chunking and LeRobot's client do)
+    late: shift    the chunk's first action is played at the tick it arrives, as if the
+                   observation were fresh (what a client unaware of the delay does)
+
+    merge: latest    the newer chunk's action wins (LeRobot's latest_only)
+    merge: weighted  old * (1 - weight) + new * weight (LeRobot's weighted_average, 0.7)
+    merge: ensemble  every chunk that predicted the step, weighted exp(-k * i) with i = 0
+                     for the oldest (ACT's temporal ensembling, k = 0.01)
+
+The counts a bench and /metrics report are kept here: ticks with nothing queued, chunks
+taken, actions dropped as late, and the jump between consecutive actions where one chunk's
+actions give way to another's.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+Late = Literal["skip", "shift"]
+Merge = Literal["latest", "weighted", "ensemble"]
+
+
+class BadChunk(ValueError):
+    """A chunk the queue refuses (wrong shape, values that are not finite)."""
+
+
+@dataclass
+class Counts:
+    ticks: int = 0
+    empty_ticks: int = 0        # a tick with no action queued for it
+    chunks: int = 0             # chunks taken into the queue
+    stale_chunks: int = 0       # chunks all of whose actions were late
+    late_actions: int = 0       # actions dropped because their step had passed
+    switches: int = 0           # ticks whose action came from another chunk than the last
+    jumps: list[float] = field(default_factory=list)  # |a_t - a_t-1| at those switches
+
+
+@dataclass
+class Slot:
+    """The actions predicted for one step, oldest chunk first, with the chunk each is from."""
+
+    actions: list[np.ndarray] = field(default_factory=list)
+    chunks: list[int] = field(default_factory=list)
+
+
+class ActionQueue:
+    """Thread-safe: the loop's tick thread takes, the thread that receives chunks puts."""
+
+    def __init__(self, action_dim: int, late: Late = "skip", merge: Merge = "latest",
+                 weight: float = 0.7, ensemble_k: float = 0.01) -> None:
+        self.action_dim = action_dim
+        self.late = late
+        self.merge = merge
+        self.weight = weight
+        self.ensemble_k = ensemble_k
+        self.counts = Counts()
+        self._slots: dict[int, Slot] = {}
+        self._lock = threading.Lock()
+        self._last: np.ndarray | None = None
+        self._last_chunk = -1
+        self._chunk_ids = 0
+
+    def put(self, actions: np.ndarray, observation_step: int, now: int) -> int:
+        """Queues a chunk that answers the observation of `observation_step`, arriving when
+        the robot is at step `now`; returns how many of its actions were queued."""
+        chunk = np.asarray(actions, dtype=np.float64)
+        if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
+            raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
+                           f"{self.action_dim}]")
+        if not np.isfinite(chunk).all():
+            raise BadChunk("a chunk with values that are not finite")
+        first = observation_step + 1 if self.late == "skip" else now + 1
+        with self._lock:
+            self._chunk_ids += 1
+            self.counts.chunks += 1
+            queued = 0
+            for i, action in enumerate(chunk):
+                step = first + i
+                if step <= now:
+                    self.counts.late_actions += 1
+                    continue
+                slot = self._slots.setdefault(step, Slot())
+                slot.actions.append(action)
+                slot.chunks.append(self._chunk_ids)
+                queued += 1
+            if queued == 0:
+                self.counts.stale_chunks += 1
+            return queued
+
+    def take(self, step: int) -> np.ndarray | None:
+        """The action for `step` (None when nothing is queued for it); steps before it are
+        forgotten."""
+        with self._lock:
+            self.counts.ticks += 1
+            for passed in [s for s in self._slots if s < step]:
+                del self._slots[passed]
+            slot = self._slots.pop(step, None)
+            if slot is None:
+                self.counts.empty_ticks += 1
+                return None
+            action = self._combine(slot)
+            chunk = slot.chunks[-1]
+            if self._last is not None and chunk != self._last_chunk:
+                self.counts.switches += 1
+                self.counts.jumps.append(float(np.max(np.abs(action - self._last))))
+            self._last, self._last_chunk = action, chunk
+            return action
+
+    def remaining(self, step: int) -> int:
+        """Actions queued for steps from `step` on, without a gap."""
+        with self._lock:
+            count = 0
+            while step + count in self._slots:
+                count += 1
+            return count
+
+    def committed(self, step: int) -> tuple[int, np.ndarray]:
+        """The actions queued from `step` on as the robot will play them (for real-time
+        chunking: sent with the next request)."""
+        with self._lock:
+            rows = []
+            while step + len(rows) in self._slots:
+                rows.append(self._combine(self._slots[step + len(rows)]))
+        return step, np.array(rows).reshape(-1, self.action_dim)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._slots.clear()
+            self._last = None
+            self._last_chunk = -1
+
+    def _combine(self, slot: Slot) -> np.ndarray:
+        actions = slot.actions
+        if len(actions) == 1 or self.merge == "latest":
+            return actions[-1]
+        if self.merge == "weighted":
+            merged = actions[0]
+            for newer in actions[1:]:
+                merged = merged * (1 - self.weight) + newer * self.weight
+            return merged
+        weights = np.array([math.exp(-self.ensemble_k * i) for i in range(len(actions))])
+        return np.asarray((weights[:, None] * np.stack(actions)).sum(0) / weights.sum())
