@@ -132,7 +132,7 @@ class ActionQueue:
         """The actions queued from `step` on as the robot will play them (for real-time
         chunking: sent with the next request)."""
         with self._lock:
-            rows = []
+            rows: list[np.ndarray] = []
             while step + len(rows) in self._slots:
                 rows.append(self._combine(self._slots[step + len(rows)]))
         return step, np.array(rows).reshape(-1, self.action_dim)
