@@ -1,10 +1,11 @@
 """The action queue of a control loop: each chunk's actions by the step they are for, merged
 where chunks overlap, one action taken per tick.
 
-A policy answers an observation of step `s` with a chunk whose action `i` is for step
-`s + 1 + i` (the step after the one it saw). By the time the chunk arrives the robot may be
-at step `s + d`: how the late part is treated (`late`) and how actions two chunks give for
-one step are combined (`merge`) are the loop's settings:
+A policy answers an observation with a chunk whose action `i` is for step `start + i`, its
+`start_step` (oricf.v1.ActionChunk: the observation's own step for ORICF's policies). By the
+time the chunk arrives the robot may be `d` steps further: how the late part is treated
+(`late`) and how actions two chunks give for one step are combined (`merge`) are the loop's
+settings:
 
     late: skip     actions for steps already passed are dropped; the chunk is followed on
                    time (delay-aware: what real-time chunking and LeRobot's client do)
@@ -74,16 +75,17 @@ class ActionQueue:
         self._last_chunk = -1
         self._chunk_ids = 0
 
-    def put(self, actions: np.ndarray, observation_step: int, now: int) -> int:
-        """Queues a chunk that answers the observation of `observation_step`, arriving when
-        the robot is at step `now`; returns how many of its actions were queued."""
+    def put(self, actions: np.ndarray, start_step: int, now: int) -> int:
+        """Queues a chunk whose first action is for `start_step`, arriving when the robot is
+        at step `now` (its action for `now` already played); returns how many of its actions
+        were queued."""
         chunk = np.asarray(actions, dtype=np.float64)
         if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
             raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
                            f"{self.action_dim}]")
         if not np.isfinite(chunk).all():
             raise BadChunk("a chunk with values that are not finite")
-        first = observation_step + 1 if self.late == "skip" else now + 1
+        first = start_step if self.late == "skip" else now + 1
         with self._lock:
             self._chunk_ids += 1
             self.counts.chunks += 1

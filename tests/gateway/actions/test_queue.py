@@ -16,8 +16,8 @@ def chunk(first: float, n: int, dim: int = 2) -> np.ndarray:
 
 def test_a_late_chunk_is_followed_on_time_when_late_actions_are_skipped() -> None:
     queue = ActionQueue(2, late="skip")
-    # It answers step 10's observation and arrives at step 13: its actions for 11-13 passed.
-    assert queue.put(chunk(11, 8), observation_step=10, now=13) == 5
+    # Its first action is for step 11 and it arrives at step 13: its actions for 11-13 passed.
+    assert queue.put(chunk(11, 8), start_step=11, now=13) == 5
     assert queue.counts.late_actions == 3
     assert queue.remaining(14) == 5
     assert [queue.take(step)[0] for step in range(14, 19)] == [14, 15, 16, 17, 18]
@@ -27,14 +27,14 @@ def test_a_late_chunk_is_followed_on_time_when_late_actions_are_skipped() -> Non
 
 def test_a_shifted_chunk_starts_at_the_tick_after_it_arrives() -> None:
     queue = ActionQueue(2, late="shift")
-    assert queue.put(chunk(0, 4), observation_step=10, now=13) == 4
+    assert queue.put(chunk(0, 4), start_step=11, now=13) == 4
     assert [queue.take(step)[0] for step in range(14, 18)] == [0, 1, 2, 3]
     assert queue.counts.late_actions == 0
 
 
 def test_a_chunk_all_late_is_counted_stale_and_queues_nothing() -> None:
     queue = ActionQueue(2)
-    assert queue.put(chunk(0, 3), observation_step=10, now=20) == 0
+    assert queue.put(chunk(0, 3), start_step=11, now=20) == 0
     assert (queue.counts.stale_chunks, queue.counts.late_actions) == (1, 3)
     assert queue.take(21) is None
 
@@ -46,17 +46,17 @@ def test_a_chunk_all_late_is_counted_stale_and_queues_nothing() -> None:
 ])
 def test_overlapping_chunks_are_merged(merge: str, expected: float) -> None:
     queue = ActionQueue(1, merge=merge)  # type: ignore[arg-type]
-    queue.put(np.ones((4, 1)), observation_step=0, now=0)          # steps 1-4
-    queue.put(np.full((4, 1), 100.0), observation_step=2, now=2)    # steps 3-6
+    queue.put(np.ones((4, 1)), start_step=1, now=0)          # steps 1-4
+    queue.put(np.full((4, 1), 100.0), start_step=3, now=2)    # steps 3-6
     assert queue.take(3)[0] == pytest.approx(expected)
     assert queue.take(5)[0] == 100.0  # one chunk alone: as it is
 
 
 def test_steps_passed_are_forgotten_and_switches_measure_the_jump() -> None:
     queue = ActionQueue(1)
-    queue.put(chunk(1, 4, dim=1), observation_step=0, now=0)         # 1, 2, 3, 4
+    queue.put(chunk(1, 4, dim=1), start_step=1, now=0)         # 1, 2, 3, 4
     assert queue.take(1)[0] == 1 and queue.take(2)[0] == 2
-    queue.put(chunk(10, 4, dim=1), observation_step=2, now=2)        # 3 -> 10, ...
+    queue.put(chunk(10, 4, dim=1), start_step=3, now=2)        # 3 -> 10, ...
     assert queue.take(3)[0] == 10
     assert (queue.counts.switches, queue.counts.jumps) == (1, [8.0])
     assert queue.take(5)[0] == 12  # step 4's action went unplayed: gone
@@ -65,8 +65,8 @@ def test_steps_passed_are_forgotten_and_switches_measure_the_jump() -> None:
 
 def test_the_committed_actions_are_what_will_be_played() -> None:
     queue = ActionQueue(1, merge="weighted")
-    queue.put(np.ones((3, 1)), observation_step=0, now=0)
-    queue.put(np.full((3, 1), 2.0), observation_step=1, now=1)
+    queue.put(np.ones((3, 1)), start_step=1, now=0)
+    queue.put(np.full((3, 1), 2.0), start_step=2, now=1)
     start, rows = queue.committed(2)
     assert start == 2 and rows[:, 0].tolist() == pytest.approx([1.7, 1.7, 2.0])
     assert queue.committed(9)[1].shape == (0, 1)
@@ -76,7 +76,7 @@ def test_the_committed_actions_are_what_will_be_played() -> None:
                                  np.array([[1.0, np.nan]]), np.array([[np.inf, 0.0]])])
 def test_bad_chunks_are_refused_and_leave_the_queue_as_it_was(bad: np.ndarray) -> None:
     queue = ActionQueue(2)
-    queue.put(chunk(1, 2), observation_step=0, now=0)
+    queue.put(chunk(1, 2), start_step=1, now=0)
     with pytest.raises(BadChunk):
-        queue.put(bad, observation_step=0, now=0)
+        queue.put(bad, start_step=1, now=0)
     assert queue.remaining(1) == 2 and queue.counts.chunks == 1
