@@ -1,0 +1,88 @@
+"""The Act method on the real policy service: a state of the simulated Hopper in, the
+policy's action out as a chunk placed by its start step; the actions already queued go with
+the request; bad records and refused observations are clear errors."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import grpc
+import numpy as np
+import pytest
+
+from oricf.errors import InvalidInput
+from oricf.gateway.components import METHODS
+from oricf.gateway.endpoints import Endpoint, EndpointConfig
+from oricf.gateway.methods.act import ActCall, Actions
+from oricf.gateway.products import ProductStore
+from tests.support.pybullet_sim import forward, hopper, reference_arrays
+from tests.support.services import RunningService, running_service
+
+
+@pytest.fixture(scope="module")
+def policy() -> Iterator[RunningService]:
+    with running_service("policy") as service:
+        yield service
+
+
+@pytest.fixture
+def act(policy: RunningService) -> Iterator[object]:
+    endpoint = Endpoint("policy", EndpointConfig(address=policy.address, deadline_ms=2000),
+                        METHODS["Act"])
+    try:
+        yield METHODS["Act"].bind(ActCall(method="Act", service="policy"), endpoint,
+                                  ProductStore())
+    finally:
+        endpoint.close()
+
+
+def hopper_state() -> np.ndarray:
+    env = hopper(seed=0)
+    env.reset()
+    state, *_ = env.step(np.zeros(3))
+    return np.asarray(state, np.float64)
+
+
+def test_a_hopper_state_gets_the_policys_action(act: object) -> None:
+    state = hopper_state()
+    result = act({"state": state, "step": 41, "capture_time_ns": 5})  # type: ignore[operator]
+    assert isinstance(result, Actions)
+    assert (result.start_step, result.observation_step) == (41, 41)
+    assert result.actions.shape == (1, 3)
+    arrays = reference_arrays("HopperBulletEnv_v0")[0]
+    expected = np.clip(forward(arrays, state.astype(np.float32)), -1.0, 1.0)
+    assert result.actions[0] == pytest.approx(expected, abs=1e-5)
+
+
+def test_committed_actions_go_with_the_request_and_bad_ones_are_refused(act: object) -> None:
+    state = hopper_state()
+    good = act({"state": state, "step": 3,  # type: ignore[operator]
+                "committed": (4, np.zeros((2, 3)))})
+    assert good.start_step == 3
+    with pytest.raises(grpc.RpcError) as refused:
+        act({"state": state, "step": 3,  # type: ignore[operator]
+             "committed": (4, np.zeros((1, 2)))})
+    assert refused.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert "not a whole number of actions" in str(refused.value.details())
+
+
+@pytest.mark.parametrize(("record", "message"), [
+    ({}, "needs a state vector"),
+    ({"state": np.zeros((2, 2))}, "needs a state vector"),
+    ({"state": [1.0, 2.0]}, "needs a state vector"),
+])
+def test_a_record_without_a_state_vector_is_refused(act: object, record: dict[str, object],
+                                                   message: str) -> None:
+    with pytest.raises(InvalidInput, match=message):
+        act(record)  # type: ignore[operator]
+
+
+def test_a_state_the_policy_cannot_take_is_invalid_argument(act: object) -> None:
+    state = hopper_state()
+    state[2] = np.nan
+    with pytest.raises(grpc.RpcError) as refused:
+        act({"state": state, "step": 1})  # type: ignore[operator]
+    assert refused.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    with pytest.raises(grpc.RpcError) as short:
+        act({"state": state[:5], "step": 1})  # type: ignore[operator]
+    assert short.value.code() == grpc.StatusCode.INVALID_ARGUMENT
