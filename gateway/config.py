@@ -39,7 +39,24 @@ from oricf.gateway.listeners import ControlConfig, LiveViewConfig
 from oricf.metrics import MetricsConfig
 
 
-class InputBase(Schema):
+class ComponentKeys(Schema):
+    """A schema whose keys are the registered components' own, added by create_model once
+    the registry has found them: a type checker cannot know them, so any key reads as Any."""
+
+    if TYPE_CHECKING:
+        def __init__(self, **keys: Any) -> None: ...
+
+        def __getattr__(self, key: str) -> Any: ...
+
+
+def with_options(name: str, base: type[Schema], kinds: Iterable[Any]) -> Any:
+    """`base` with every registered kind's options (their keys, each optional) as one flat
+    schema, keeping the error paths users' files were always told."""
+    return create_model(name, __base__=(base, *(kind.options for kind in kinds)),
+                        __module__=__name__)
+
+
+class InputBase(ComponentKeys):
     """Where a route's items come from: exactly one of the registered sources' keys
     (oricf.gateway.sources), with that source's other keys, and how items wait."""
 
@@ -75,21 +92,15 @@ class InputBase(Schema):
             return self.keep
         return "latest" if SOURCES[self.source].latest(self) else "queue"
 
-    if TYPE_CHECKING:  # the keys are the registered sources', known once they are found
-        def __init__(self, **keys: Any) -> None: ...
-
-        def __getattr__(self, key: str) -> Any: ...
 
 
 if TYPE_CHECKING:
     InputConfig = InputBase
 else:
-    InputConfig = create_model(
-        "InputConfig", __base__=(InputBase, *(kind.options for kind in SOURCES.values())),
-        __module__=__name__)
+    InputConfig = with_options("InputConfig", InputBase, SOURCES.values())
 
 
-class OutputBase(Schema):
+class OutputBase(ComponentKeys):
     """A route output: exactly one of the registered sinks' keys (oricf.gateway.sinks), and
     the record field it sends."""
 
@@ -107,21 +118,15 @@ class OutputBase(Schema):
         """The key that names this output's sink."""
         return next(key for key in SINKS if getattr(self, key) is not None)
 
-    if TYPE_CHECKING:  # the keys are the registered sinks', known once they are found
-        def __init__(self, **keys: Any) -> None: ...
-
-        def __getattr__(self, key: str) -> Any: ...
 
 
 if TYPE_CHECKING:
     OutputConfig = OutputBase
 else:
-    OutputConfig = create_model(
-        "OutputConfig", __base__=(OutputBase, *(kind.options for kind in SINKS.values())),
-        __module__=__name__)
+    OutputConfig = with_options("OutputConfig", OutputBase, SINKS.values())
 
 
-class PostStepBase(Schema):
+class PostStepBase(ComponentKeys):
     """One post step: exactly one of the registered steps' keys (oricf.gateway.post)."""
 
     @model_validator(mode="after")
@@ -137,10 +142,6 @@ class PostStepBase(Schema):
     def build(self) -> Step:
         return STEPS[self.kind].build(getattr(self, self.kind))
 
-    if TYPE_CHECKING:  # the keys are the registered steps', known once they are found
-        def __init__(self, **steps: Any) -> None: ...
-
-        def __getattr__(self, key: str) -> Any: ...
 
 
 if TYPE_CHECKING:

@@ -23,6 +23,14 @@ from oricf.store import ModelStore
 log = logging.getLogger(__name__)
 
 
+
+def require_finite(values: np.ndarray, name: str) -> None:
+    """InvalidInput naming the first value of `name` that is NaN or infinite."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise InvalidInput(f"{name}[{bad[0]}] is {values[bad[0]]}: every value must be "
+                           f"finite")
+
 class PolicyFailed(InvalidInput):
     """The model answered NaN or infinity for a valid observation: nothing is sent."""
 
@@ -73,10 +81,7 @@ class PolicyModel:
         size = self.task.state.size
         if state.shape != (size,):
             raise InvalidInput(f"state: {state.size} values, policy {self.name} takes {size}")
-        bad = np.flatnonzero(~np.isfinite(state))
-        if bad.size:
-            raise InvalidInput(f"state[{bad[0]}] is {state[bad[0]]}: every value must be "
-                               f"finite")
+        require_finite(state, "state")
 
     def act(self, state: np.ndarray) -> np.ndarray:
         """[chunk, dim] actions for one state vector (float32, checked here)."""

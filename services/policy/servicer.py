@@ -15,7 +15,7 @@ import grpc
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.models.policy import PolicyModel
+from oricf.models.policy import PolicyModel, require_finite
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import status_for
 from oricf.services.runtime.info import model_info_response
@@ -79,7 +79,4 @@ def _check_committed(committed: policy_pb2.CommittedActions, dim: int) -> None:
     if values.size % dim:
         raise InvalidInput(f"committed.actions: {values.size} values is not a whole number "
                            f"of actions of {dim}")
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        raise InvalidInput(f"committed.actions[{bad[0]}] is {values[bad[0]]}: every value "
-                           f"must be finite")
+    require_finite(values, "committed.actions")

@@ -89,10 +89,12 @@ def spoken_demo_run(folder: Path) -> DemoRun:
 def viewed_run(command: OricfCommand, port: int
                ) -> tuple[str, dict[str, list[Socket]], Received]:
     """The demo watched from the gateway's start to Ctrl-C; the address it printed, the
-    sockets held once the gateway counted and what the viewer got."""
-    url = command.wait_for(r"live view: (ws://\S+)", timeout=60).group(1)
-    wait_listening(port, command)
-    with watching(url) as received:
+    sockets held once the gateway counted and what the viewer got. The viewer is started
+    before the live view listens, so it is subscribed before the question can be asked
+    (under load, a viewer started afterwards could miss the one transcript)."""
+    with watching(f"ws://127.0.0.1:{port}", early=True) as received:
+        url = command.wait_for(r"live view: (ws://\S+)", timeout=60).group(1)
+        wait_listening(port, command)
         command.wait_for("the gateway counts people", timeout=600)
         sockets = held_sockets(command)
         command.wait_for(r"stays open at ws://", timeout=600)

@@ -7,8 +7,9 @@ const WebSocket = require("ws");
 
 const [url, seconds, token] = process.argv.slice(2);
 const headers = token ? { Authorization: `Bearer ${token}` } : {};
-const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL], { headers });
-const client = new FoxgloveClient({ ws });
+// With FOXGLOVE_CLIENT_RETRY=1 a refused connection is tried again every 100 ms, so a viewer
+// started before its server listens is subscribed the moment the server starts.
+const retry = process.env.FOXGLOVE_CLIENT_RETRY === "1";
 const channels = new Map();
 let done = false;
 const print = (line) => done || process.stdout.write(JSON.stringify(line) + "\n");
@@ -18,25 +19,39 @@ const finish = () => {
   process.stdout.write("", () => process.exit(0));
 };
 
-client.on("serverInfo", (info) => print({ serverInfo: info }));
-client.on("advertise", (advertised) => {
-  print({ advertise: advertised });
-  for (const channel of advertised) {
-    channels.set(client.subscribe(channel.id), channel.id);
-  }
-});
-client.on("message", ({ subscriptionId, timestamp, data }) => {
-  const bytes = Buffer.from(data.buffer, data.byteOffset, data.byteLength);
-  print({ message: { channelId: channels.get(subscriptionId), logTime: String(timestamp),
-                     data: bytes.toString("base64") } });
-});
-client.on("error", (error) => print({ error: String(error) }));
-client.on("close", (event) => {
-  print({ close: event.code });
-  finish();
-});
+let current = null;
+function connect() {
+  const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL], { headers });
+  let opened = false;
+  ws.on("open", () => { opened = true; });
+  const client = new FoxgloveClient({ ws });
+  current = client;
+  client.on("serverInfo", (info) => print({ serverInfo: info }));
+  client.on("advertise", (advertised) => {
+    print({ advertise: advertised });
+    for (const channel of advertised) {
+      channels.set(client.subscribe(channel.id), channel.id);
+    }
+  });
+  client.on("message", ({ subscriptionId, timestamp, data }) => {
+    const bytes = Buffer.from(data.buffer, data.byteOffset, data.byteLength);
+    print({ message: { channelId: channels.get(subscriptionId), logTime: String(timestamp),
+                       data: bytes.toString("base64") } });
+  });
+  client.on("error", (error) => (retry && !opened) || print({ error: String(error) }));
+  client.on("close", (event) => {
+    if (retry && !opened && !done) {
+      setTimeout(connect, 100);
+      return;
+    }
+    print({ close: event.code });
+    finish();
+  });
+}
+
+connect();
 process.on("SIGTERM", finish);
 setTimeout(() => {
-  client.close();
+  current.close();
   finish();
 }, Number(seconds) * 1000);

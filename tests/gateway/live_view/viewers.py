@@ -91,11 +91,14 @@ def publishing_client(url: str, count: int, seconds: float) -> Received:
 
 
 @contextmanager
-def watching(url: str) -> Iterator[list[Received]]:
+def watching(url: str, early: bool = False) -> Iterator[list[Received]]:
     """foxglove_client.js watching until the block ends; then what it received is in the
     list yielded. Its output goes to a file: a pipe nobody reads until the end would fill
-    and make it a slow viewer, which the server rightly drops messages for."""
+    and make it a slow viewer, which the server rightly drops messages for. `early`: started
+    before the server listens, it connects (and subscribes) the moment the server does."""
     command, env = client_command(url, 3600)
+    if early:
+        env["FOXGLOVE_CLIENT_RETRY"] = "1"
     got: list[Received] = []
     with tempfile.TemporaryFile("w+") as out:
         client = subprocess.Popen(command, stdout=out, stderr=subprocess.PIPE, text=True,
