@@ -50,6 +50,14 @@ class Counts:
     jumps: list[float] = field(default_factory=list)  # |a_t - a_t-1| at those switches
 
 
+@dataclass(frozen=True)
+class Origin:
+    """The observation a chunk answers: its step and its capture time (the robot's clock)."""
+
+    step: int
+    capture_time_ns: int = 0
+
+
 @dataclass
 class Slot:
     """The actions predicted for one step, oldest chunk first, with the chunk each is from."""
@@ -74,11 +82,16 @@ class ActionQueue:
         self._last: np.ndarray | None = None
         self._last_chunk = -1
         self._chunk_ids = 0
+        self._origins: dict[int, Origin] = {}
+        # The observation behind the action `take` returned last (for its age).
+        self.last_origin: Origin | None = None
 
-    def put(self, actions: np.ndarray, start_step: int, now: int) -> int:
+    def put(self, actions: np.ndarray, start_step: int, now: int,
+            origin: Origin | None = None) -> int:
         """Queues a chunk whose first action is for `start_step`, arriving when the robot is
         at step `now` (its action for `now` already played); returns how many of its actions
-        were queued."""
+        were queued. `origin`: the observation it answers (the observation step is
+        `start_step` when not given)."""
         chunk = np.asarray(actions, dtype=np.float64)
         if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
             raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
@@ -89,6 +102,7 @@ class ActionQueue:
         with self._lock:
             self._chunk_ids += 1
             self.counts.chunks += 1
+            self._origins[self._chunk_ids] = origin or Origin(start_step)
             queued = 0
             for i, action in enumerate(chunk):
                 step = first + i
@@ -113,14 +127,24 @@ class ActionQueue:
             slot = self._slots.pop(step, None)
             if slot is None:
                 self.counts.empty_ticks += 1
+                self.last_origin = None
                 return None
             action = self._combine(slot)
             chunk = slot.chunks[-1]
+            self.last_origin = self._origins[chunk]
+            self._forget_origins()
             if self._last is not None and chunk != self._last_chunk:
                 self.counts.switches += 1
                 self.counts.jumps.append(float(np.max(np.abs(action - self._last))))
             self._last, self._last_chunk = action, chunk
             return action
+
+    def _forget_origins(self) -> None:
+        """Origins of chunks no slot holds any more (and not the one taken last)."""
+        held = {chunk for slot in self._slots.values() for chunk in slot.chunks}
+        held.add(self._last_chunk)
+        for chunk in [c for c in self._origins if c not in held]:
+            del self._origins[chunk]
 
     def remaining(self, step: int) -> int:
         """Actions queued for steps from `step` on, without a gap."""
@@ -142,8 +166,10 @@ class ActionQueue:
     def clear(self) -> None:
         with self._lock:
             self._slots.clear()
+            self._origins.clear()
             self._last = None
             self._last_chunk = -1
+            self.last_origin = None
 
     def _combine(self, slot: Slot) -> np.ndarray:
         actions = slot.actions

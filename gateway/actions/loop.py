@@ -1,0 +1,145 @@
+"""What a control loop does at each tick, apart from its clock and its transport: decide
+whether to ask the policy for the next chunk with the observation just captured (`ask`),
+then take the action for the step from the queue, or the safe action (`act`). A policy that
+answers at once (onboard) is asked before the action is taken, so its answer is used on the
+same tick. The gateway's control input (oricf.gateway.sources.control) runs it
+on the robot's clock; `oricf bench control` runs it on a simulator's steps.
+
+    request_at   ask for the next chunk when this many actions (or fewer) are queued from
+                 the current step on: 0 asks only once the queue is dry (so a policy of one
+                 action per answer is asked at every tick)
+    max_in_flight  requests pending at once (more than 1 pipelines a policy of one action
+                 per answer over a link slower than a tick)
+    deadline     steps a request may stay unanswered before the loop asks again (the edge
+                 stalled, or the answer was lost); a late answer is still taken, its late
+                 actions skipped
+    hold_steps   ticks the last action is repeated when nothing is queued, before the safe
+                 action (0: the safe action at once)
+
+A chunk is refused when it answers an observation older than one already answered, or one
+answered already (an answer that arrives late, or twice, moves nothing).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from oricf.gateway.actions.queue import ActionQueue, Origin
+
+
+@dataclass(frozen=True)
+class Request:
+    """An observation to send to the policy."""
+
+    step: int
+    state: np.ndarray
+    capture_time_ns: int
+    committed: tuple[int, np.ndarray] | None   # (first step, actions) already queued
+
+
+@dataclass(frozen=True)
+class Tick:
+    step: int
+    action: np.ndarray
+    safe: bool                    # the safe action: nothing queued, nothing to hold
+    origin: Origin | None         # the observation behind the action (None: safe or held)
+
+
+@dataclass
+class LoopCounts:
+    safe_ticks: int = 0           # ticks that sent the safe action
+    held_ticks: int = 0           # ticks that repeated the last action
+    requests: int = 0
+    answers: int = 0
+    expired: int = 0              # requests left unanswered past the deadline
+    refused_chunks: int = 0       # answers to an observation older than one answered
+    failed: int = 0               # calls that failed (the route told the loop)
+
+
+class ControlLoop:
+    """Thread-safe: ticks on the loop's thread, answers from the thread that called."""
+
+    def __init__(self, queue: ActionQueue, safe_action: np.ndarray, request_at: int,
+                 deadline: int, hold_steps: int = 0, send_committed: bool = False,
+                 max_in_flight: int = 1) -> None:
+        self.queue = queue
+        self.safe_action = np.asarray(safe_action, np.float64)
+        self.request_at = request_at
+        self.deadline = deadline
+        self.hold_steps = hold_steps
+        self.send_committed = send_committed
+        self.max_in_flight = max_in_flight
+        self.counts = LoopCounts()
+        self._lock = threading.Lock()
+        self._in_flight: dict[int, int] = {}     # observation step -> when it was asked
+        self._answered = -1                       # the newest observation step answered
+        self._last: np.ndarray | None = None
+        self._dry = 0                             # ticks since the queue gave an action
+
+    def ask(self, step: int, state: np.ndarray, now_ns: int = 0) -> Request | None:
+        """Before the action for `step` is taken: the request to send for the observation
+        captured at `step`, if the queue is short enough and no request is pending (or
+        fewer than `max_in_flight`)."""
+        with self._lock:
+            for asked_step in list(self._in_flight):
+                if step - asked_step > self.deadline:
+                    del self._in_flight[asked_step]
+                    self.counts.expired += 1
+            if (len(self._in_flight) >= self.max_in_flight
+                    or self.queue.remaining(step) > self.request_at):
+                return None
+            self._in_flight[step] = step
+            self.counts.requests += 1
+        committed = self.queue.committed(step) if self.send_committed else None
+        return Request(step, state, now_ns, committed)
+
+    def act(self, step: int) -> Tick:
+        """The action for `step`: the queue's, else the last one held, else the safe one."""
+        action = self.queue.take(step)
+        origin = self.queue.last_origin
+        safe = False
+        with self._lock:
+            if action is not None:
+                self._dry = 0
+            else:
+                self._dry += 1
+                if self._last is not None and self._dry <= self.hold_steps:
+                    action = self._last
+                    self.counts.held_ticks += 1
+                else:
+                    action, safe = self.safe_action, True
+                    self.counts.safe_ticks += 1
+            self._last = None if safe else action
+        return Tick(step, action, safe, origin)
+
+    def deliver(self, actions: np.ndarray, start_step: int, origin: Origin, now: int) -> int:
+        """A chunk answering the observation of `origin`, arriving after the action for
+        `now` was taken (`step - 1` when it arrives before the action for `step`);
+        returns how many of its actions were queued (0 if refused).
+        Raises queue.BadChunk for a malformed chunk."""
+        with self._lock:
+            self._in_flight.pop(origin.step, None)
+            if origin.step <= self._answered:
+                self.counts.refused_chunks += 1
+                return 0
+        queued = self.queue.put(actions, start_step, now, origin)
+        with self._lock:
+            self._answered = max(self._answered, origin.step)
+            self.counts.answers += 1
+        return queued
+
+    def failed(self, observation_step: int) -> None:
+        """The request for this observation failed: the next tick may ask again."""
+        with self._lock:
+            self._in_flight.pop(observation_step, None)
+            self.counts.failed += 1
+
+    def stop(self) -> None:
+        """Nothing queued is played any more; the next tick sends the safe action."""
+        self.queue.clear()
+        with self._lock:
+            self._last = None
+            self._in_flight.clear()
