@@ -81,6 +81,17 @@ def chain(steps: Iterable[Builds]) -> Run:
     return run
 
 
+class TopicIo(Protocol):
+    """ROS topics for components that read and write them themselves (a control loop): the
+    ROS node's, given by the shell, so that no component imports rclpy."""
+
+    def subscribe(self, topic: str, type_: str, take: Callable[[Any], None]) -> None:
+        """Calls `take(message)` with each message, newest only (depth 1)."""
+
+    def publisher(self, topic: str, type_: str) -> Callable[[dict[str, Any]], None]:
+        """A function that publishes a message given as nested fields."""
+
+
 @dataclass
 class ComponentContext:
     """What a pipeline gives the components it builds (its sources and sinks)."""
@@ -90,6 +101,7 @@ class ComponentContext:
     speaking: Speaking       # whether a speaker plays, and barge-in
     # Where topic outputs go: the ROS node's publishers, or in a replay the recording.
     ros: Callable[[Any, Any, Record], None] | None = None
+    topics: TopicIo | None = None    # the ROS node's topics, for sources that use them
 
 
 class Sink(Protocol):
@@ -162,6 +174,7 @@ class SourceKind:
     more_fields: Callable[[Any], frozenset[str]] = lambda input_config: frozenset()
     ros: bool = False                             # read through the ROS node (a topic)
     channel: Callable[[Any], str | None] = names_no_channel  # the text channel it reads
+    acts: bool = False      # sends its route's answers on its own (a control loop's actions)
     rank: int = 100
 
 

@@ -173,7 +173,13 @@ class RouteConfig(Schema):
     input: InputConfig
     call: CallConfig
     post: list[PostStep] = Field(default_factory=list)
-    outputs: list[OutputConfig] = Field(min_length=1)
+    outputs: list[OutputConfig] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _has_outputs(self) -> RouteConfig:
+        if not self.outputs and not SOURCES[self.input.source].acts:
+            raise ValueError("outputs: at least one (only a control input acts on its own)")
+        return self
 
 
 class PipelineConfig(Schema):

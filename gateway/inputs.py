@@ -9,16 +9,18 @@ from __future__ import annotations
 import functools
 
 from oricf.gateway.channels.server import Channels
-from oricf.gateway.components import SOURCES, ComponentContext, OnEnd, Source, Submit
+from oricf.gateway.components import SOURCES, ComponentContext, OnEnd, Source, Submit, TopicIo
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.speaking import Speaking
 
 
 def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEnd,
-                 channels: Channels, speaking: Speaking | None = None) -> list[Source]:
-    """One source per route whose input has a source here; `submit[route]` feeds the route."""
-    context = ComponentContext(config, channels, speaking or Speaking())
+                 channels: Channels, speaking: Speaking | None = None,
+                 topics: TopicIo | None = None) -> list[Source]:
+    """One source per route whose input has a source here; `submit[route]` feeds the route;
+    `topics`: the ROS node's, for sources that read and write topics themselves."""
+    context = ComponentContext(config, channels, speaking or Speaking(), topics=topics)
     sources = []
     for name, route in config.routes.items():
         opener = SOURCES[route.input.source].open
@@ -27,11 +29,12 @@ def make_sources(config: PipelineConfig, submit: dict[str, Submit], on_end: OnEn
     return sources
 
 
-def pipeline_sources(pipeline: Pipeline, channels: Channels, on_end: OnEnd) -> list[Source]:
+def pipeline_sources(pipeline: Pipeline, channels: Channels, on_end: OnEnd,
+                     topics: TopicIo | None = None) -> list[Source]:
     """The pipeline's sources that are no ROS topics, each feeding its route."""
     submit: dict[str, Submit] = {name: functools.partial(pipeline.submit, name)
                                  for name in pipeline.config.routes}
-    return make_sources(pipeline.config, submit, on_end, channels, pipeline.speaking)
+    return make_sources(pipeline.config, submit, on_end, channels, pipeline.speaking, topics)
 
 
 __all__ = ["make_sources", "pipeline_sources"]

@@ -44,7 +44,9 @@ TOLD_IN_FULL = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.OUT_OF_RANGE,
 
 
 class Asker(Protocol):
-    """Who asked for a record (its `reply_to` field): told when the record fails."""
+    """Who asked for a record (its `reply_to` field): told when the record fails, and, if
+    it has an `answered(record)` method (a control loop), given the record once it went
+    through."""
 
     def fail(self, message: str) -> None: ...
 
@@ -139,6 +141,9 @@ class Route:
             record = load()
             self.send(self.run(record))
             self.latest = (time.monotonic(), record)
+            answered = getattr(record.get("reply_to"), "answered", None)
+            if answered is not None:
+                answered(record)
         except Skip as exc:
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -33,6 +34,9 @@ import numpy as np
 
 Late = Literal["skip", "shift"]
 Merge = Literal["latest", "weighted", "ensemble"]
+
+
+JUMPS_KEPT = 10_000
 
 
 class BadChunk(ValueError):
@@ -47,7 +51,8 @@ class Counts:
     stale_chunks: int = 0       # chunks all of whose actions were late
     late_actions: int = 0       # actions dropped because their step had passed
     switches: int = 0           # ticks whose action came from another chunk than the last
-    jumps: list[float] = field(default_factory=list)  # |a_t - a_t-1| at those switches
+    # |a_t - a_t-1| (largest value) at the last JUMPS_KEPT of those switches
+    jumps: deque[float] = field(default_factory=lambda: deque(maxlen=JUMPS_KEPT))
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.actuation.senders import MakeSender
-from oricf.gateway.components import OnEnd, Source
+from oricf.gateway.components import OnEnd, Source, TopicIo
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.host.surfaces import make_view, serve_control, start_live_view
 from oricf.gateway.inputs import pipeline_sources
@@ -91,12 +91,15 @@ class Gateway:
             raise LifecycleError("the gateway is not configured")
         return self._outlets
 
-    def configure(self, ros: RosOutputs | None = None, on_end: OnEnd = no_end) -> None:
-        """Builds every part; `ros` takes topic outputs, `on_end` hears of ended sources."""
+    def configure(self, ros: RosOutputs | None = None, on_end: OnEnd = no_end,
+                  topics: TopicIo | None = None) -> None:
+        """Builds every part; `ros` takes topic outputs, `on_end` hears of ended sources,
+        `topics` are the ROS node's for sources that use their own (a control loop)."""
         self._outlets = Outlets(self.config, ros)
         try:
             self._pipeline = Pipeline(self.config, self._outlets)
-            self.inputs = pipeline_sources(self._pipeline, self._outlets.channels, on_end)
+            self.inputs = pipeline_sources(self._pipeline, self._outlets.channels, on_end,
+                                           topics)
         except BaseException:
             self.cleanup()
             raise

@@ -35,6 +35,7 @@ from oricf.gateway.ros import messages
 from oricf.gateway.ros.camera import CameraReceiver
 from oricf.gateway.ros.commands import RosSender
 from oricf.gateway.ros.publishers import TopicPublishers
+from oricf.gateway.ros.topic_io import NodeTopics
 from oricf.gateway.topics.types import IMAGE_INPUTS
 
 log = logging.getLogger(__name__)
@@ -73,7 +74,8 @@ class GatewayNode(Node):
         """Every ROS entity is made here, before any thread starts: a SIGTERM during
         start-up makes creating one fail (the context is shut down), and then nothing is
         left running."""
-        self.gateway.configure(TopicPublishers(self, self.config, self._recorder))
+        self.gateway.configure(TopicPublishers(self, self.config, self._recorder),
+                               topics=NodeTopics(self))
         for name, route in self.config.routes.items():
             if route.input.topic is not None:
                 self._subscribe(name, route.input)

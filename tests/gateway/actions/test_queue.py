@@ -58,7 +58,7 @@ def test_steps_passed_are_forgotten_and_switches_measure_the_jump() -> None:
     assert queue.take(1)[0] == 1 and queue.take(2)[0] == 2
     queue.put(chunk(10, 4, dim=1), start_step=3, now=2)        # 3 -> 10, ...
     assert queue.take(3)[0] == 10
-    assert (queue.counts.switches, queue.counts.jumps) == (1, [8.0])
+    assert (queue.counts.switches, list(queue.counts.jumps)) == (1, [8.0])
     assert queue.take(5)[0] == 12  # step 4's action went unplayed: gone
     assert queue.take(4) is None
 

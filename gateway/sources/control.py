@@ -1,0 +1,243 @@
+"""control: a route that ticks at the policy's rate instead of once per message: the
+observation assembled from the newest state messages, a request to the route's policy
+(`call: {method: Act}`) when the queue runs short, one action a tick through the target's
+policy (bounds, rate, deadman), the safe action when nothing is queued.
+
+    routes:
+      arm:
+        input:
+          control:
+            rate_hz: 80
+            state: [{topic: /arm/joint_states, type: sensor_msgs/JointState,
+                     fields: [position, velocity]}]
+            max_age_ms: 50          # an older state part: nothing is asked
+            action_dim: 4
+            safe_action: [0, 0, 0, 0]
+            request_at: 6           # ask when this many actions are left queued
+            deadline_steps: 12      # ask again when an answer is this late
+            late: skip              # or shift (oricf.gateway.actions.queue)
+            merge: ensemble         # latest, weighted or ensemble
+            target: {topic: /arm/command, type: std_msgs/Float64MultiArray,
+                     bounds: [[-1, 1], [-1, 1], [-1, 1], [-1, 1]], deadman_ms: 100}
+        call: {method: Act, service: arm_policy}
+
+The loop's logic is oricf.gateway.actions.loop; this runs it on the robot's clock (a thread
+that ticks on an absolute schedule, so a late tick does not shift the ones after it: steps
+are time) and hands its requests to the route, whose answer comes back through `reply_to`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from oricf.config import Schema
+from oricf.errors import ConfigError
+from oricf.gateway.actions.loop import ControlLoop, Request
+from oricf.gateway.actions.observation import MissingState, Observation, StatePart
+from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
+from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
+from oricf.gateway.components import ComponentContext, OnEnd, Source, SourceKind, Submit
+from oricf.gateway.throttle import ThrottledLog
+from oricf.gateway.values import Record
+from oricf.metrics import LatencyHistogram
+
+log = logging.getLogger(__name__)
+
+
+class ControlSettings(Schema):
+    rate_hz: float = Field(gt=0, le=1000, description="ticks a second (the policy's rate)")
+    state: list[StatePart] = Field(min_length=1, max_length=32)
+    max_age_ms: float = Field(100.0, gt=0, le=10_000)
+    action_dim: int = Field(ge=1, le=4096)
+    safe_action: list[float] | None = Field(None, description="sent when nothing is "
+                                            "queued (default: zeros)")
+    hold_steps: int = Field(0, ge=0, le=10_000, description="ticks the last action is "
+                            "repeated before the safe action")
+    request_at: int = Field(0, ge=0, le=10_000)
+    deadline_steps: int = Field(10, ge=1, le=100_000)
+    max_in_flight: int = Field(1, ge=1, le=64)
+    late: Literal["skip", "shift"] = "skip"
+    merge: Literal["latest", "weighted", "ensemble"] = "latest"
+    send_committed: bool = False
+    target: ActionTargetConfig
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ControlSettings:
+        if self.safe_action is not None and len(self.safe_action) != self.action_dim:
+            raise ValueError(f"safe_action: {len(self.safe_action)} values for action_dim "
+                             f"{self.action_dim}")
+        size = self.target.size()
+        if size is not None and size != self.action_dim:
+            raise ValueError(f"target: its joints, fields or bounds give {size} values for "
+                             f"action_dim {self.action_dim}")
+        return self
+
+    def safe(self) -> np.ndarray:
+        return np.asarray(self.safe_action or [0.0] * self.action_dim, np.float64)
+
+
+class ControlInput(Schema):
+    control: ControlSettings | None = None
+
+
+class LoopStats:
+    """What /metrics and the bench read: the loop's and the queue's counts, the age of the
+    observation behind each action sent, and the ticks that started late."""
+
+    def __init__(self) -> None:
+        self.action_age = LatencyHistogram()
+        self.action_age_steps: deque[int] = deque(maxlen=1000)   # the last ones
+        self.missing_state = 0
+        self.late_ticks = 0
+
+    def observe_age(self, seconds: float, steps: int) -> None:
+        self.action_age.observe(seconds)
+        self.action_age_steps.append(steps)
+
+
+class Asked:
+    """One request as the route's loader; the route tells it its answer or its failure."""
+
+    def __init__(self, source: ControlSource, request: Request) -> None:
+        self.source = source
+        self.request = request
+
+    def __call__(self) -> Record:
+        request = self.request
+        return {"state": request.state, "step": request.step,
+                "capture_time_ns": request.capture_time_ns, "committed": request.committed,
+                "reply_to": self}
+
+    def answered(self, record: Record) -> None:
+        self.source.answered(self.request, record)
+
+    def fail(self, message: str) -> None:
+        self.source.failed(self.request, message)
+
+    def on_drop(self, reason: str) -> None:
+        self.source.failed(self.request, reason)
+
+
+class ControlSource:
+    def __init__(self, route: str, settings: ControlSettings, submit: Submit,
+                 context: ComponentContext) -> None:
+        if context.topics is None:
+            raise ConfigError(f"routes.{route}.input.control: reads and writes ROS topics: "
+                              f"run the gateway with ROS")
+        self.route = route
+        self.settings = settings
+        self.stats = LoopStats()
+        queue = ActionQueue(settings.action_dim, settings.late, settings.merge)
+        self.loop = ControlLoop(queue, settings.safe(), settings.request_at,
+                                settings.deadline_steps, settings.hold_steps,
+                                settings.send_committed, settings.max_in_flight)
+        self.observation = Observation(settings.state, _state_size(settings), settings.max_age_ms)
+        self.target = ActionTarget(settings.target, context.topics.publisher(
+            settings.target.topic, settings.target.type), settings.safe())
+        for index, part in enumerate(settings.state):
+            context.topics.subscribe(part.topic, part.type, self._taker(index))
+        self._submit = submit
+        self._throttle = ThrottledLog(log)
+        self._acted = -1
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name=f"control-{route}")
+
+    def _taker(self, index: int) -> Any:
+        def take(msg: Any) -> None:
+            try:
+                self.observation.take(index, msg)
+            except MissingState as exc:
+                self._throttle.warning(f"state:{index}", "route %s: state refused: %s",
+                                       self.route, exc)
+        return take
+
+    def start(self) -> None:
+        log.info("route %s: control loop at %g Hz -> %s (%s)", self.route,
+                 self.settings.rate_hz, self.settings.target.topic, self.settings.target.type)
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stops ticking; the target's last message is the safe action."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+        self.loop.stop()
+        self.target.close()
+
+    def _run(self) -> None:
+        period = 1.0 / self.settings.rate_hz
+        started = time.monotonic()
+        step = 0
+        while not self._stop.is_set():
+            self._tick(step)
+            step += 1
+            due = started + step * period
+            wait = due - time.monotonic()
+            if wait < 0:  # behind: the steps whose time passed are not played
+                missed = int(-wait / period)
+                self.stats.late_ticks += 1
+                step += missed
+                wait += missed * period
+            self._stop.wait(max(0.0, wait))
+
+    def _tick(self, step: int) -> None:
+        now = time.monotonic_ns()
+        try:
+            state, received_ns = self.observation.assemble(now)
+        except MissingState as exc:
+            self.stats.missing_state += 1
+            self._throttle.warning("missing", "route %s: no observation: %s", self.route, exc)
+        else:
+            request = self.loop.ask(step, state, received_ns)
+            if request is not None:
+                self._submit(Asked(self, request))
+        tick = self.loop.act(step)
+        self._acted = step
+        self.target.send(tick.action)
+        if tick.origin is not None:
+            self.stats.observe_age((now - tick.origin.capture_time_ns) / 1e9,
+                                   step - tick.origin.step)
+
+    def answered(self, request: Request, record: Record) -> None:
+        origin = Origin(int(record["observation_step"]), request.capture_time_ns)
+        try:
+            queued = self.loop.deliver(record["actions"], int(record["start_step"]), origin,
+                                       now=self._acted)
+        except BadChunk as exc:
+            self._throttle.warning("bad_chunk", "route %s: chunk refused: %s", self.route, exc)
+            return
+        if queued == 0 and self.settings.late == "skip":
+            self._throttle.warning(
+                "stale", "route %s: a chunk for step %d came at step %d, after all its "
+                "actions' steps (late: shift plays a chunk from its arrival; a longer chunk "
+                "or a policy placed nearer keeps to time)", self.route, origin.step, self._acted)
+
+    def failed(self, request: Request, message: str) -> None:
+        self.loop.failed(request.step)
+
+
+def _state_size(settings: ControlSettings) -> int:
+    """The state's length as the parts say, or -1 when a part does not say (checked on the
+    first observation against what arrives)."""
+    sizes = [part.size if part.type == "std_msgs/Float64MultiArray" else
+             len(part.joints) * len(part.fields) if part.joints is not None else None
+             for part in settings.state]
+    return -1 if None in sizes else sum(s or 0 for s in sizes)
+
+
+def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
+                context: ComponentContext) -> Source:
+    return ControlSource(route, config.control, submit, context)
+
+
+COMPONENT = SourceKind("control", ControlInput, lambda config: "state", open_source,
+                       latest=lambda config: True, ros=True, acts=True,
+                       more_fields=lambda config: frozenset(
+                           {"step", "capture_time_ns", "committed"}), rank=6)

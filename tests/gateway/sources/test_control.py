@@ -1,0 +1,225 @@
+"""The control input over real DDS: a Hopper observation of the real simulator published at
+the policy's rate, the gateway's loop asking pybullet's trained policy (`oricf serve policy`)
+and publishing its action on time; the safe action when the observation stops, turns bad or
+the policy goes away, and last when the gateway stops."""
+
+from __future__ import annotations
+
+import queue
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
+
+from oricf.errors import ConfigError
+from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.shells.ros_node import GatewayNode
+from oricf.gateway.sources.control import ControlSource
+from tests.gateway.ros.gateway_node import spinning, wait_for
+from tests.support.pybullet_sim import forward, hopper, reference_arrays
+from tests.support.services import RunningService, running_service
+
+RATE_HZ = 60.606
+
+
+@pytest.fixture(scope="module")
+def policy() -> Iterator[RunningService]:
+    with running_service("policy") as service:
+        yield service
+
+
+@pytest.fixture(scope="module")
+def hopper_state() -> np.ndarray:
+    env = hopper(seed=0)
+    env.reset()
+    state, *_ = env.step(np.zeros(3))
+    return np.asarray(state, np.float64)
+
+
+def control_config(address: str, target: dict[str, Any] | None = None,
+                   **settings: Any) -> PipelineConfig:
+    control = {"rate_hz": RATE_HZ, "action_dim": 3, "max_age_ms": 200,
+               "state": [{"topic": "/hopper/state", "type": "std_msgs/Float64MultiArray",
+                          "size": 15}],
+               "target": target or {"topic": "/hopper/action",
+                                    "bounds": [[-1, 1]] * 3, "deadman_ms": 300}} | settings
+    return parse_pipeline({
+        "endpoints": {"hopper": {"address": address, "deadline_ms": 2000}},
+        "routes": {"hopper": {"input": {"control": control},
+                              "call": {"method": "Act", "service": "hopper"}}}},
+        "test control pipeline")
+
+
+class Robot:
+    """The robot's side: its state published, every action it is sent collected."""
+
+    def __init__(self, context: Context, action_type: Any = Float64MultiArray,
+                 action_topic: str = "/hopper/action") -> None:
+        self.node = Node("control_test_robot", context=context)
+        self.actions: queue.Queue[Any] = queue.Queue()
+        self.state = self.node.create_publisher(Float64MultiArray, "/hopper/state",
+                                                QoSProfile(depth=1))
+        self.node.create_subscription(action_type, action_topic, self.actions.put, 50)
+        self.publishing: list[float] | None = None
+        self.node.create_timer(1 / RATE_HZ, self._publish)
+
+    def _publish(self) -> None:
+        if self.publishing is not None:
+            self.state.publish(Float64MultiArray(data=self.publishing))
+
+    def drain(self) -> list[Any]:
+        got = []
+        while not self.actions.empty():
+            got.append(self.actions.get())
+        return got
+
+    def next_actions(self, count: int, timeout: float = 10.0) -> list[Any]:
+        return [self.actions.get(timeout=timeout) for _ in range(count)]
+
+
+def source_of(gateway: GatewayNode) -> ControlSource:
+    source = gateway.gateway.inputs[0]
+    assert isinstance(source, ControlSource)
+    return source
+
+
+def running(config: PipelineConfig, context: Context, robot: Robot) -> Any:
+    gateway = GatewayNode(config, context=context)
+    gateway.configure()
+    gateway.activate()
+    return gateway
+
+
+def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
+        policy: RunningService, ros_context: Context, hopper_state: np.ndarray) -> None:
+    arrays = reference_arrays("HopperBulletEnv_v0")[0]
+    expected = np.clip(forward(arrays, hopper_state.astype(np.float32)), -1, 1)
+    robot = Robot(ros_context)
+    # One action per answer: whatever the link, it comes after its step, so it is played on
+    # arrival, asked for while one is still queued, and held for a tick or two of jitter.
+    config = control_config(policy.address, late="shift", request_at=1, hold_steps=3)
+    gateway = running(config, ros_context, robot)
+    stopped = False
+    try:
+        with spinning(ros_context, gateway, robot.node):
+            source = source_of(gateway)
+            # Before any state arrives: the safe action, and nothing asked.
+            first = robot.next_actions(3)
+            assert all(list(msg.data) == [0.0, 0.0, 0.0] for msg in first)
+            assert source.loop.counts.requests == 0
+
+            robot.publishing = hopper_state.tolist()
+            wait_for(lambda: source.loop.counts.answers >= 20)
+            robot.drain()
+            for msg in robot.next_actions(10):
+                np.testing.assert_allclose(msg.data, expected, atol=1e-5)
+            # One action per answer, so every tick asks; each action's observation is
+            # measured (its age in steps and in time).
+            assert source.stats.action_age.snapshot()[0][-1][1] > 0
+            assert source.stats.action_age_steps
+            assert min(source.stats.action_age_steps) >= 0
+
+            # The robot stops publishing: its state goes stale, the safe action follows.
+            missing = source.stats.missing_state
+            robot.publishing = None
+            wait_for(lambda: source.stats.missing_state > missing + 5)
+            robot.drain()
+            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+
+            # A state with a value that is not finite: refused, the safe action.
+            robot.publishing = [float("nan"), *hopper_state.tolist()[1:]]
+            missing = source.stats.missing_state
+            wait_for(lambda: source.stats.missing_state > missing + 5)
+            robot.drain()
+            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+
+            robot.publishing = hopper_state.tolist()
+            answers = source.loop.counts.answers
+            wait_for(lambda: source.loop.counts.answers > answers + 5)
+            gateway.shutdown()
+            stopped = True
+            # The last message the robot gets from a stopping gateway is the safe action
+            # (the loop's thread has stopped: nothing comes after it).
+            got: list[Any] = []
+            wait_for(lambda: bool(got.extend(robot.drain()) or got)
+                     and list(got[-1].data) == [0.0, 0.0, 0.0])
+            assert source.loop.queue.remaining(0) == 0
+    finally:
+        if not stopped:
+            gateway.shutdown()
+        robot.node.destroy_node()
+        gateway.destroy_node()
+
+
+def test_the_safe_action_goes_out_while_the_policy_is_gone(
+        ros_context: Context, hopper_state: np.ndarray) -> None:
+    service = running_service("policy")
+    policy = service.__enter__()
+    robot = Robot(ros_context)
+    config = control_config(policy.address, safe_action=[0.1, 0.2, 0.3], late="shift",
+                            request_at=1)
+    gateway = running(config, ros_context, robot)
+    try:
+        with spinning(ros_context, gateway, robot.node):
+            source = source_of(gateway)
+            robot.publishing = hopper_state.tolist()
+            wait_for(lambda: source.loop.counts.answers >= 5)
+            service.__exit__(None, None, None)
+            wait_for(lambda: source.loop.counts.failed >= 2)
+            robot.drain()
+            for msg in robot.next_actions(5):
+                assert list(msg.data) == pytest.approx([0.1, 0.2, 0.3])
+            assert source.loop.counts.safe_ticks > 0
+    finally:
+        gateway.shutdown()
+        robot.node.destroy_node()
+        gateway.destroy_node()
+
+
+def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
+        policy: RunningService, ros_context: Context, hopper_state: np.ndarray) -> None:
+    target = {"topic": "/hopper/trajectory", "type": "trajectory_msgs/JointTrajectory",
+              "joints": ["thigh", "leg", "foot"], "time_from_start_ms": 1500,
+              "bounds": [[-0.01, 0.01]] * 3}
+    robot = Robot(ros_context, JointTrajectory, "/hopper/trajectory")
+    gateway = running(control_config(policy.address, target, late="shift", request_at=1),
+                      ros_context,
+                      robot)
+    try:
+        with spinning(ros_context, gateway, robot.node):
+            source = source_of(gateway)
+            robot.publishing = hopper_state.tolist()
+            wait_for(lambda: source.loop.counts.answers >= 5 and source.target.clamped > 0)
+            robot.drain()
+            msg = robot.next_actions(1)[0]
+            assert list(msg.joint_names) == ["thigh", "leg", "foot"]
+            (point,) = msg.points
+            assert all(abs(v) <= 0.01 for v in point.positions)
+            assert (point.time_from_start.sec, point.time_from_start.nanosec) == (1, 500_000_000)
+    finally:
+        gateway.shutdown()
+        robot.node.destroy_node()
+        gateway.destroy_node()
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"safe_action": [0.0, 0.0]}, "safe_action: 2 values for action_dim 3"),
+    ({"target": {"topic": "/a", "type": "trajectory_msgs/JointTrajectory", "joints": ["a"]}},
+     "target: its joints, fields or bounds give 1 values for action_dim 3"),
+    ({"target": {"topic": "/a", "type": "geometry_msgs/Twist", "fields": ["linear.q"]}},
+     "fields: geometry_msgs/Twist has no linear.q"),
+    ({"target": {"topic": "/a", "type": "std_msgs/Float64MultiArray", "joints": ["a"]}},
+     "joints: given with trajectory_msgs/JointTrajectory, and only with it"),
+])
+def test_settings_that_cannot_work_are_refused_naming_the_key(change: dict[str, Any],
+                                                             message: str) -> None:
+    with pytest.raises(ConfigError) as caught:
+        control_config("127.0.0.1:1", **change)
+    assert "routes.hopper.input.control" in str(caught.value)
+    assert message in str(caught.value)
