@@ -33,6 +33,7 @@ import grpc
 from pydantic import Field
 
 from oricf.config import Schema
+from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.channels.server import Channels
 from oricf.gateway.endpoints import Endpoint, Ready
 from oricf.gateway.products import ProductStore
@@ -102,6 +103,8 @@ class ComponentContext:
     # Where topic outputs go: the ROS node's publishers, or in a replay the recording.
     ros: Callable[[Any, Any, Record], None] | None = None
     topics: TopicIo | None = None    # the ROS node's topics, for sources that use them
+    # The pipeline's control loops by route (its /metrics and status read them).
+    loops: dict[str, ControlLoop] = dataclasses.field(default_factory=dict)
 
 
 class Sink(Protocol):

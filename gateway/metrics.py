@@ -20,9 +20,11 @@ from prometheus_client.metrics_core import (
     GaugeMetricFamily,
     HistogramMetricFamily,
     Metric,
+    SummaryMetricFamily,
 )
 from prometheus_client.registry import Collector
 
+from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.endpoints.placement import REASONS
@@ -39,11 +41,33 @@ class Pipeline(Protocol):
     workers: Mapping[str, RouteWorker[Any]]
     endpoints: Mapping[str, Endpoint]
     speakers: Mapping[str, Any]  # device -> oricf.gateway.sinks.speaker.Speaker
+    loops: Mapping[str, ControlLoop]  # route -> its control loop (control inputs)
 
 ROUTE = ("route",)
 ENDPOINT = ("endpoint",)
 DEVICE = ("device",)
 CALL_CODES = frozenset(grpc.StatusCode.__members__)
+AGE_STEPS = (0, 1, 2, 4, 8, 16, 32, 64)
+# (name, help, where the count is kept) of a control loop's counters
+LOOP_COUNTS = (
+    ("ticks", "Ticks of the loop (one action each).", "queue", "ticks"),
+    ("empty_ticks", "Ticks with no action queued for their step.", "queue", "empty_ticks"),
+    ("safe_ticks", "Ticks that sent the safe action.", "loop", "safe_ticks"),
+    ("held_ticks", "Ticks that repeated the last action (hold_steps).", "loop", "held_ticks"),
+    ("missing_state", "Ticks without an observation (a state part missing, stale or bad).",
+     "loop", "missing_state"),
+    ("late_ticks", "Ticks that started after their time; the steps passed are skipped.",
+     "loop", "late_ticks"),
+    ("requests", "Observations sent to the policy.", "loop", "requests"),
+    ("chunks", "Chunks taken into the queue.", "loop", "answers"),
+    ("expired", "Requests left unanswered past deadline_steps.", "loop", "expired"),
+    ("refused_chunks", "Chunks for an observation older than, or as old as, one answered.",
+     "loop", "refused_chunks"),
+    ("failed", "Requests whose call failed.", "loop", "failed"),
+    ("late_actions", "Actions dropped because their step had passed (late: skip).", "queue",
+     "late_actions"),
+    ("stale_chunks", "Chunks all of whose actions came too late.", "queue", "stale_chunks"),
+)
 
 
 class PipelineCollector(Collector):
@@ -55,6 +79,7 @@ class PipelineCollector(Collector):
         yield from self._outcomes()
         yield from self._endpoints()
         yield from self._speakers()
+        yield from self._loops()
 
     def _inputs(self) -> Iterable[Metric]:
         received = CounterMetricFamily(
@@ -161,6 +186,33 @@ class PipelineCollector(Collector):
             cut.add_metric((device,), stats.cut)
             playing.add_metric((device,), 1 if speaker.playing else 0)
         yield from (played, dropped, cut, playing)
+
+    def _loops(self) -> Iterable[Metric]:
+        counters = {name: CounterMetricFamily(f"oricf_gateway_control_{name}", text,
+                                              labels=ROUTE)
+                    for name, text, _, _ in LOOP_COUNTS}
+        age = HistogramMetricFamily(
+            "oricf_gateway_control_action_age_seconds", "Age of the observation behind each "
+            "action sent (from receiving its state to sending the action).", labels=ROUTE)
+        age_steps = HistogramMetricFamily(
+            "oricf_gateway_control_action_age_steps", "Age in control steps of the "
+            "observation behind each action sent (the last 10000).", labels=ROUTE)
+        jumps = SummaryMetricFamily(
+            "oricf_gateway_control_switch_jump", "Where one chunk's actions give way to "
+            "another's: the largest change of a value between the two actions.", labels=ROUTE)
+        for route, loop in self._pipeline.loops.items():
+            for name, _, owner, attr in LOOP_COUNTS:
+                counts = loop.queue.counts if owner == "queue" else loop.counts
+                counters[name].add_metric((route,), getattr(counts, attr))
+            buckets, total = loop.ages.seconds.snapshot()
+            age.add_metric((route,), buckets, total)
+            kept = list(loop.ages.steps)
+            age_steps.add_metric((route,), [(str(b), float(sum(a <= b for a in kept)))
+                                            for b in AGE_STEPS] + [("+Inf", float(len(kept)))],
+                                 float(sum(kept)))
+            counts = loop.queue.counts
+            jumps.add_metric((route,), counts.switches, counts.jump_sum)
+        yield from (*counters.values(), age, age_steps, jumps)
 
 
 def pipeline_registry(pipeline: Pipeline) -> CollectorRegistry:

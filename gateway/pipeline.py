@@ -10,6 +10,7 @@ import logging
 from collections.abc import Callable, Collection
 from typing import Any
 
+from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
@@ -46,6 +47,8 @@ class Pipeline:
                 if output.product is not None:
                     self.products.declare(output.product, output.max_age_s)
         self.metrics_server: MetricsServer | None = None
+        # Control inputs' loops by route (oricf.gateway.sources.control), for /metrics.
+        self.loops: dict[str, ControlLoop] = {}
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}
         for name, rc in config.routes.items():

@@ -23,11 +23,15 @@ answered already (an answer that arrives late, or twice, moves nothing).
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from oricf.gateway.actions.queue import ActionQueue, Origin
+from oricf.metrics import LatencyHistogram
+
+AGES_KEPT = 10_000
 
 
 @dataclass(frozen=True)
@@ -57,6 +61,21 @@ class LoopCounts:
     expired: int = 0              # requests left unanswered past the deadline
     refused_chunks: int = 0       # answers to an observation older than one answered
     failed: int = 0               # calls that failed (the route told the loop)
+    missing_state: int = 0        # ticks without an observation (stale, missing, bad)
+    late_ticks: int = 0           # ticks that started after their time (steps skipped)
+
+
+@dataclass
+class Ages:
+    """How old the observation behind each action was when the action went out."""
+
+    seconds: LatencyHistogram = field(default_factory=LatencyHistogram)
+    steps: deque[int] = field(default_factory=lambda: deque(maxlen=AGES_KEPT))  # the last
+
+    def percentile(self, q: float) -> float | None:
+        """The q-th percentile of the ages in steps kept (None before any)."""
+        kept = sorted(self.steps)
+        return float(kept[min(len(kept) - 1, int(q / 100 * len(kept)))]) if kept else None
 
 
 class ControlLoop:
@@ -73,6 +92,7 @@ class ControlLoop:
         self.send_committed = send_committed
         self.max_in_flight = max_in_flight
         self.counts = LoopCounts()
+        self.ages = Ages()
         self._lock = threading.Lock()
         self._in_flight: dict[int, int] = {}     # observation step -> when it was asked
         self._answered = -1                       # the newest observation step answered
@@ -96,10 +116,15 @@ class ControlLoop:
         committed = self.queue.committed(step) if self.send_committed else None
         return Request(step, state, now_ns, committed)
 
-    def act(self, step: int) -> Tick:
-        """The action for `step`: the queue's, else the last one held, else the safe one."""
+    def act(self, step: int, now_ns: int | None = None) -> Tick:
+        """The action for `step`: the queue's, else the last one held, else the safe one;
+        the age of its observation is kept (in time too, given the clock's `now_ns`)."""
         action = self.queue.take(step)
         origin = self.queue.last_origin
+        if origin is not None:
+            self.ages.steps.append(step - origin.step)
+            if now_ns is not None:
+                self.ages.seconds.observe((now_ns - origin.capture_time_ns) / 1e9)
         safe = False
         with self._lock:
             if action is not None:

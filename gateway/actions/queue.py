@@ -53,6 +53,7 @@ class Counts:
     switches: int = 0           # ticks whose action came from another chunk than the last
     # |a_t - a_t-1| (largest value) at the last JUMPS_KEPT of those switches
     jumps: deque[float] = field(default_factory=lambda: deque(maxlen=JUMPS_KEPT))
+    jump_sum: float = 0.0       # of every jump, for the mean
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,9 @@ class ActionQueue:
             self._forget_origins()
             if self._last is not None and chunk != self._last_chunk:
                 self.counts.switches += 1
-                self.counts.jumps.append(float(np.max(np.abs(action - self._last))))
+                jump = float(np.max(np.abs(action - self._last)))
+                self.counts.jumps.append(jump)
+                self.counts.jump_sum += jump
             self._last, self._last_chunk = action, chunk
             return action
 

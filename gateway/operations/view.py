@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import asdict
 from typing import Any
 
 import grpc
@@ -111,7 +112,20 @@ class PipelineView:
                             "mean_ms": mean_ms(stats.latency),
                             "received": self.pipeline.workers[name].stats.received,
                             "dropped": self.pipeline.workers[name].stats.dropped}
-        return {"endpoints": endpoints, "routes": routes, "agent_calls": self.audit.counts()}
+        return {"endpoints": endpoints, "routes": routes, "control": self._control_status(),
+                "agent_calls": self.audit.counts()}
+
+    def _control_status(self) -> Json:
+        """Each control loop's counts and the age of its actions' observations (steps)."""
+        status = {}
+        for name, loop in self.pipeline.loops.items():
+            status[name] = {**asdict(loop.counts), "empty_ticks": loop.queue.counts.empty_ticks,
+                            "ticks": loop.queue.counts.ticks,
+                            "switches": loop.queue.counts.switches,
+                            "late_actions": loop.queue.counts.late_actions,
+                            "action_age_steps_p50": loop.ages.percentile(50),
+                            "action_age_steps_p99": loop.ages.percentile(99)}
+        return status
 
     def policy(self) -> Json:
         if self.actuation is None:

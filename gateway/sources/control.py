@@ -31,7 +31,6 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import deque
 from typing import Any, Literal
 
 import numpy as np
@@ -46,7 +45,6 @@ from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
 from oricf.gateway.components import ComponentContext, OnEnd, Source, SourceKind, Submit
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
-from oricf.metrics import LatencyHistogram
 
 log = logging.getLogger(__name__)
 
@@ -87,21 +85,6 @@ class ControlInput(Schema):
     control: ControlSettings | None = None
 
 
-class LoopStats:
-    """What /metrics and the bench read: the loop's and the queue's counts, the age of the
-    observation behind each action sent, and the ticks that started late."""
-
-    def __init__(self) -> None:
-        self.action_age = LatencyHistogram()
-        self.action_age_steps: deque[int] = deque(maxlen=1000)   # the last ones
-        self.missing_state = 0
-        self.late_ticks = 0
-
-    def observe_age(self, seconds: float, steps: int) -> None:
-        self.action_age.observe(seconds)
-        self.action_age_steps.append(steps)
-
-
 class Asked:
     """One request as the route's loader; the route tells it its answer or its failure."""
 
@@ -133,7 +116,6 @@ class ControlSource:
                               f"run the gateway with ROS")
         self.route = route
         self.settings = settings
-        self.stats = LoopStats()
         queue = ActionQueue(settings.action_dim, settings.late, settings.merge)
         self.loop = ControlLoop(queue, settings.safe(), settings.request_at,
                                 settings.deadline_steps, settings.hold_steps,
@@ -143,6 +125,7 @@ class ControlSource:
             settings.target.topic, settings.target.type), settings.safe())
         for index, part in enumerate(settings.state):
             context.topics.subscribe(part.topic, part.type, self._taker(index))
+        context.loops[route] = self.loop
         self._submit = submit
         self._throttle = ThrottledLog(log)
         self._acted = -1
@@ -182,7 +165,7 @@ class ControlSource:
             wait = due - time.monotonic()
             if wait < 0:  # behind: the steps whose time passed are not played
                 missed = int(-wait / period)
-                self.stats.late_ticks += 1
+                self.loop.counts.late_ticks += 1
                 step += missed
                 wait += missed * period
             self._stop.wait(max(0.0, wait))
@@ -192,18 +175,15 @@ class ControlSource:
         try:
             state, received_ns = self.observation.assemble(now)
         except MissingState as exc:
-            self.stats.missing_state += 1
+            self.loop.counts.missing_state += 1
             self._throttle.warning("missing", "route %s: no observation: %s", self.route, exc)
         else:
             request = self.loop.ask(step, state, received_ns)
             if request is not None:
                 self._submit(Asked(self, request))
-        tick = self.loop.act(step)
+        tick = self.loop.act(step, time.monotonic_ns())
         self._acted = step
         self.target.send(tick.action)
-        if tick.origin is not None:
-            self.stats.observe_age((now - tick.origin.capture_time_ns) / 1e9,
-                                   step - tick.origin.step)
 
     def answered(self, request: Request, record: Record) -> None:
         origin = Origin(int(record["observation_step"]), request.capture_time_ns)

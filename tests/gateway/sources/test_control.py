@@ -19,9 +19,11 @@ from trajectory_msgs.msg import JointTrajectory
 
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.operations.view import PipelineView
 from oricf.gateway.shells.ros_node import GatewayNode
 from oricf.gateway.sources.control import ControlSource
 from tests.gateway.ros.gateway_node import spinning, wait_for
+from tests.support.metrics import scrape
 from tests.support.pybullet_sim import forward, hopper, reference_arrays
 from tests.support.services import RunningService, running_service
 
@@ -50,6 +52,7 @@ def control_config(address: str, target: dict[str, Any] | None = None,
                "target": target or {"topic": "/hopper/action",
                                     "bounds": [[-1, 1]] * 3, "deadman_ms": 300}} | settings
     return parse_pipeline({
+        "metrics": {"listen": "127.0.0.1:0"},
         "endpoints": {"hopper": {"address": address, "deadline_ms": 2000}},
         "routes": {"hopper": {"input": {"control": control},
                               "call": {"method": "Act", "service": "hopper"}}}},
@@ -121,21 +124,30 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
                 np.testing.assert_allclose(msg.data, expected, atol=1e-5)
             # One action per answer, so every tick asks; each action's observation is
             # measured (its age in steps and in time).
-            assert source.stats.action_age.snapshot()[0][-1][1] > 0
-            assert source.stats.action_age_steps
-            assert min(source.stats.action_age_steps) >= 0
+            assert source.loop.ages.seconds.snapshot()[0][-1][1] > 0
+            assert source.loop.ages.steps and min(source.loop.ages.steps) >= 0
+            # What /metrics and the status say are those counts.
+            server = gateway.pipeline.metrics_server
+            assert server is not None
+            metrics = scrape(server.url)
+            assert metrics.value("oricf_gateway_control_chunks_total", route="hopper") >= 20
+            assert metrics.value("oricf_gateway_control_action_age_seconds_count",
+                                 route="hopper") > 0
+            assert metrics.value("oricf_gateway_control_safe_ticks_total", route="hopper") >= 3
+            status = PipelineView(gateway.pipeline).status()["control"]["hopper"]
+            assert status["answers"] >= 20 and status["action_age_steps_p50"] is not None
 
             # The robot stops publishing: its state goes stale, the safe action follows.
-            missing = source.stats.missing_state
+            missing = source.loop.counts.missing_state
             robot.publishing = None
-            wait_for(lambda: source.stats.missing_state > missing + 5)
+            wait_for(lambda: source.loop.counts.missing_state > missing + 5)
             robot.drain()
             assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
 
             # A state with a value that is not finite: refused, the safe action.
             robot.publishing = [float("nan"), *hopper_state.tolist()[1:]]
-            missing = source.stats.missing_state
-            wait_for(lambda: source.stats.missing_state > missing + 5)
+            missing = source.loop.counts.missing_state
+            wait_for(lambda: source.loop.counts.missing_state > missing + 5)
             robot.drain()
             assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
 
