@@ -178,6 +178,8 @@ class SourceKind:
     ros: bool = False                             # read through the ROS node (a topic)
     channel: Callable[[Any], str | None] = names_no_channel  # the text channel it reads
     acts: bool = False      # sends its route's answers on its own (a control loop's actions)
+    # The rate it ticks at (a control loop), for an endpoint's latency budget in steps.
+    rate_hz: Callable[[Any], float | None] = lambda input_config: None
     rank: int = 100
 
 

@@ -218,6 +218,14 @@ class PipelineConfig(Schema):
             e.placement is not None and e.placement.battery_topic is not None
             for e in self.endpoints.values())
 
+    def step_of(self, endpoint: str) -> float | None:
+        """The control period (s) of the route that calls an endpoint at a rate, if one."""
+        for route in self.routes.values():
+            rate = SOURCES[route.input.source].rate_hz(route.input)
+            if route.call.service == endpoint and rate is not None:
+                return 1.0 / rate
+        return None
+
     def method_of(self, endpoint: str) -> str:
         """The method the routes call on an endpoint (one gRPC service per endpoint)."""
         for route in self.routes.values():
@@ -301,6 +309,16 @@ def _reference_problems(config: PipelineConfig) -> Iterator[str]:
         yield from route_fields(name, route)
 
 
+def _budget_problems(config: PipelineConfig) -> Iterator[str]:
+    """A latency budget in steps needs a control input calling the endpoint."""
+    for name, endpoint in config.endpoints.items():
+        placement = endpoint.placement
+        if placement is not None and placement.latency_budget_steps is not None \
+                and config.step_of(name) is None:
+            yield (f"endpoints.{name}.placement.latency_budget_steps: no control input calls "
+                   f"this endpoint (give latency_budget_ms)")
+
+
 def _protocol_problems(route: str, method: str, endpoint: EndpointConfig | None
                        ) -> Iterator[str]:
     """The endpoint's servers must speak a protocol the method has calls in."""
@@ -319,7 +337,8 @@ def parse_pipeline(data: Any, source: str, base_dir: Path | None = None) -> Pipe
     config = validate(data, PipelineConfig, source, base_dir)
     config._origin = source
     problems = [f"{source}: {problem}" for problem in
-                (*_reference_problems(config), *_channel_problems(config))]
+                (*_reference_problems(config), *_channel_problems(config),
+                 *_budget_problems(config))]
     if problems:
         raise ConfigError("\n".join(problems))
     return config

@@ -50,7 +50,9 @@ class Endpoint:
     channel, `service.ready` asks whether a gRPC server is ready (the probe that ends a
     failover); an OpenAI-compatible target has its own client and probe."""
 
-    def __init__(self, name: str, config: EndpointConfig, service: Service) -> None:
+    def __init__(self, name: str, config: EndpointConfig, service: Service,
+                 step_s: float | None = None) -> None:
+        """`step_s`: the control period of the loop that calls it (a budget in steps)."""
         self.name = name
         self.config = config
         targets = config.targets
@@ -66,7 +68,7 @@ class Endpoint:
         self._stop = threading.Event()
         self._probe: threading.Thread | None = None
         self._closers: list[Callable[[list[Any]], None]] = []
-        self.placement = (Placement(name, config.placement)
+        self.placement = (Placement(name, config.placement, step_s)
                           if config.placement is not None else None)
         if self.placement is not None:
             threading.Thread(target=self._probe_placement, daemon=True,
@@ -102,6 +104,8 @@ class Endpoint:
         """Runs the work for the active target's protocol; fails over once on UNAVAILABLE or
         DEADLINE_EXCEEDED, and runs the fallback's work there."""
         target = self.active
+        if self._hedges(target):
+            return self._hedged(target, work)
         try:
             return self._attempts(target, work)
         except grpc.RpcError as exc:
@@ -116,9 +120,31 @@ class Endpoint:
                 raise
             return self._attempts(self.primary, work)
 
-    def _attempts(self, target: Any, work: Mapping[str, Work[T]]) -> T:
+    def _hedges(self, target: Any) -> bool:
+        placement = self.placement
+        return (placement is not None and placement.config.hedge and self.fallback is not None
+                and target is self.preferred)
+
+    def _hedged(self, target: Any, work: Mapping[str, Work[T]]) -> T:
+        """The preferred place given the budget only; past it, or failed, the other place
+        answers (its answer taken, the call counted as hedged)."""
+        assert self.placement is not None
+        budget_s = self.placement.budget_ms / 1e3
+        try:
+            return self._attempts(target, work, min(budget_s, self.deadline_s))
+        except grpc.RpcError as exc:
+            if exc.code() not in FAILOVER_CODES:
+                raise
+            if exc.code() == grpc.StatusCode.DEADLINE_EXCEEDED:
+                self.placement.call_took(budget_s)  # at least: its percentile sees it
+            self.placement.hedged(exc.code().name)
+        other = self.target(self.placement.config.other)
+        return self._attempts(other, work)
+
+    def _attempts(self, target: Any, work: Mapping[str, Work[T]],
+                  deadline_s: float | None = None) -> T:
         """One target, its deadline, and retries while it refuses the call as busy."""
-        deadline = time.monotonic() + self.deadline_s
+        deadline = time.monotonic() + (deadline_s or self.deadline_s)
         for attempt in itertools.count(1):
             started = time.monotonic()
             try:

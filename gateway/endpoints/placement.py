@@ -45,13 +45,20 @@ MIN_SAMPLES = 5  # a decision needs at least this many latencies
 Place = Literal["address", "fallback"]
 PROC_STAT = Path("/proc/stat")
 # Why calls moved, as the metrics count it.
-REASONS = ("over_budget", "back_within_budget", "failed", "cpu_over_ceiling", "battery_low")
+REASONS = ("over_budget", "back_within_budget", "failed", "cpu_over_ceiling", "battery_low",
+           "hedged")
 
 
 class PlacementConfig(Schema):
-    latency_budget_ms: float = Field(gt=0, le=600_000,
-                                     description="a call to the preferred place should take "
-                                                 "at most this")
+    latency_budget_ms: float | None = Field(None, gt=0, le=600_000,
+                                            description="a call to the preferred place should "
+                                                        "take at most this")
+    latency_budget_steps: int | None = Field(
+        None, ge=1, le=10_000, description="the budget in control steps of the control input "
+                                           "that calls the endpoint (instead of ms)")
+    hedge: bool = Field(False, description="a call the preferred place has not answered "
+                                           "within the budget goes to the other place, whose "
+                                           "answer is taken")
     prefer: Place = Field("address", description="where calls go while it answers within the "
                                                  "budget: address or fallback")
     window: int = Field(20, ge=MIN_SAMPLES, le=10_000,
@@ -75,6 +82,8 @@ class PlacementConfig(Schema):
 
     @model_validator(mode="after")
     def _robot_inputs_need_onboard(self) -> PlacementConfig:
+        if (self.latency_budget_ms is None) == (self.latency_budget_steps is None):
+            raise ValueError("give exactly one of latency_budget_ms or latency_budget_steps")
         for key in ("onboard_cpu_ceiling", "battery_topic"):
             if getattr(self, key) is not None and self.onboard is None:
                 raise ValueError(f"{key}: needs `onboard` (address or fallback: which of the "
@@ -110,9 +119,22 @@ class Placement:
     """Where calls go (the preferred place or the other) by the preferred place's observed
     latency and, with a ceiling, the robot's CPU use."""
 
-    def __init__(self, endpoint: str, config: PlacementConfig) -> None:
+    def __init__(self, endpoint: str, config: PlacementConfig,
+                 step_s: float | None = None) -> None:
+        """`step_s`: the control period of the loop that calls the endpoint, for a budget
+        in steps."""
         self.endpoint = endpoint
         self.config = config
+        if config.latency_budget_steps is not None:
+            if step_s is None:
+                raise ValueError("latency_budget_steps needs the control rate")
+            self.budget_ms = config.latency_budget_steps * step_s * 1e3
+            self.budget_text = (f"{self.budget_ms:.1f} ms ({config.latency_budget_steps} "
+                                f"steps at {1 / step_s:g} Hz)")
+        else:
+            assert config.latency_budget_ms is not None
+            self.budget_ms = config.latency_budget_ms
+            self.budget_text = f"{self.budget_ms:.0f} ms"
         self.moved = False  # calls go to the other place
         self.decisions: Counter[str] = Counter()  # reason -> count
         self.robot_cpu: float | None = None  # the last reading, with a ceiling
@@ -157,16 +179,26 @@ class Placement:
             if len(self._calls) < MIN_SAMPLES:
                 return
             observed = p90(self._calls)
-            budget = self.config.latency_budget_ms
-            if observed <= budget:
+            if observed <= self.budget_ms:
                 if self._probes:
                     self._beyond_probe_ms = max(
                         0.0, statistics.median(self._calls) - statistics.median(self._probes))
                 return
             if self.moved or self._bars(self.config.other):
                 return
-            self._move(True, f"p90 {observed:.0f} ms over the budget of {budget:.0f} ms",
+            self._move(True, f"p90 {observed:.1f} ms over the budget of {self.budget_text}",
                        "over_budget")
+
+    def hedged(self, code: str) -> None:
+        """A call the preferred place did not answer within the budget (or failed) was
+        answered by the other place."""
+        with self._lock:
+            self.decisions["hedged"] += 1
+            count = self.decisions["hedged"]
+        if count == 1 or count % 100 == 0:  # every switch counted; the log kept readable
+            log.warning("endpoint %s: a call not answered within the budget of %s by its %s "
+                        "(%s) was answered by its %s (%d so far)", self.endpoint,
+                        self.budget_text, self.config.prefer, code, self.config.other, count)
 
     def failed(self, place: Place, code: str) -> bool:
         """A call to `place` failed (unavailable, deadline): if calls go there, they move to
@@ -190,7 +222,7 @@ class Placement:
                 return
             estimate = p90(self._probes) + self._beyond_probe_ms
             now = time.monotonic()
-            if estimate > self.config.latency_budget_ms or self._bars(self.config.prefer):
+            if estimate > self.budget_ms or self._bars(self.config.prefer):
                 self._within_since = None
                 return
             self._within_since = self._within_since or now

@@ -219,5 +219,6 @@ def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
 
 COMPONENT = SourceKind("control", ControlInput, lambda config: "state", open_source,
                        latest=lambda config: True, ros=True, acts=True,
+                       rate_hz=lambda config: config.control.rate_hz,
                        more_fields=lambda config: frozenset(
                            {"step", "capture_time_ns", "committed"}), rank=6)
