@@ -96,7 +96,7 @@ class Observation:
         part = self.parts[index]
         try:
             values = values_of(part, msg)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, AttributeError) as exc:  # not what its type says
             with self._lock:
                 self.refused += 1
                 self._latest[index] = None  # the part's last good value is not used on

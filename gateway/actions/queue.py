@@ -37,6 +37,8 @@ Merge = Literal["latest", "weighted", "ensemble"]
 
 
 JUMPS_KEPT = 10_000
+MAX_CHUNK = 4096     # actions in one chunk
+MAX_AHEAD = 4096     # steps a chunk may start after the current one
 
 
 class BadChunk(ValueError):
@@ -102,8 +104,12 @@ class ActionQueue:
         if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
             raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
                            f"{self.action_dim}]")
+        if len(chunk) > MAX_CHUNK:
+            raise BadChunk(f"a chunk of {len(chunk)} actions (at most {MAX_CHUNK})")
         if not np.isfinite(chunk).all():
             raise BadChunk("a chunk with values that are not finite")
+        if not -MAX_CHUNK <= start_step - now <= MAX_AHEAD:
+            raise BadChunk(f"a chunk for step {start_step} at step {now}: not near now")
         first = start_step if self.late == "skip" else now + 1
         with self._lock:
             self._chunk_ids += 1

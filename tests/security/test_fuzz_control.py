@@ -1,0 +1,97 @@
+"""Property-based fuzzing of a control loop's parts with what a hostile or broken robot and
+edge can send: state messages of any length with NaN, infinity and huge values; chunks of
+any shape and values, for any step, late, early, repeated; and the loop's own ticks in any
+order. Whatever arrives, every action that goes out is finite, the right length and within
+the target's bounds, the queue stays bounded, and only the typed refusals are raised."""
+
+from __future__ import annotations
+
+import contextlib
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from oricf.gateway.actions.loop import ControlLoop
+from oricf.gateway.actions.observation import MissingState, Observation, StatePart
+from oricf.gateway.actions.queue import MAX_AHEAD, MAX_CHUNK, ActionQueue, BadChunk, Origin
+from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
+
+DIM = 3
+BOUNDS = [(-1.0, 1.0)] * DIM
+SAFE = np.zeros(DIM)
+hostile = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                    st.sampled_from([1e308, -1e308, 0.0, float("nan"), float("inf")]))
+
+
+def state_message() -> st.SearchStrategy[Any]:
+    return st.one_of(
+        st.builds(lambda data: SimpleNamespace(data=data), st.lists(hostile, max_size=40)),
+        st.builds(lambda data: SimpleNamespace(data=data),
+                  st.lists(st.floats(-10, 10), min_size=DIM * 2, max_size=DIM * 2)),
+        st.just(SimpleNamespace(data="not numbers")),
+        st.just(SimpleNamespace()))
+
+
+def chunk() -> st.SearchStrategy[Any]:
+    return st.one_of(
+        st.builds(np.array, st.lists(st.lists(hostile, min_size=DIM, max_size=DIM),
+                                     max_size=20)),
+        st.integers(0, 5).flatmap(lambda width: st.builds(np.array, st.lists(
+            st.lists(hostile, min_size=width, max_size=width), max_size=5))),
+        st.builds(lambda n: np.zeros((n, DIM)), st.sampled_from([0, 1, MAX_CHUNK + 1])),
+        st.builds(np.array, st.lists(st.floats(-5, 5), max_size=7)))
+
+
+event = st.one_of(
+    st.tuples(st.just("state"), state_message()),
+    st.tuples(st.just("tick"), st.integers(0, 3)),
+    st.tuples(st.just("answer"), chunk(),
+              st.one_of(st.integers(-5, 50), st.integers(-MAX_AHEAD * 2, MAX_AHEAD * 2)),
+              st.integers(-5, 50)),
+    st.tuples(st.just("fail"), st.integers(-5, 50)),
+)
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(event, max_size=40), st.sampled_from(["skip", "shift"]),
+       st.sampled_from(["latest", "weighted", "ensemble"]))
+def test_whatever_arrives_only_finite_bounded_actions_go_out(
+        events: list[Any], late: str, merge: str) -> None:
+    sent: list[dict[str, Any]] = []
+    target = ActionTarget(ActionTargetConfig(topic="/a", bounds=BOUNDS), sent.append, SAFE)
+    loop = ControlLoop(ActionQueue(DIM, late, merge), SAFE, request_at=2,  # type: ignore[arg-type]
+                       deadline=5, hold_steps=1, send_committed=True, max_in_flight=2)
+    observation = Observation([StatePart(topic="/s", type="std_msgs/Float64MultiArray",
+                                         size=DIM * 2)], DIM * 2, max_age_ms=1e6)
+    step = 0
+    for kind, *args in events:
+        if kind == "state":
+            with contextlib.suppress(MissingState):
+                observation.take(0, args[0], received_ns=1)
+        elif kind == "tick":
+            for _ in range(args[0] + 1):
+                try:
+                    state, received = observation.assemble(2)
+                except MissingState:
+                    pass
+                else:
+                    request = loop.ask(step, state, received)
+                    assert request is None or np.isfinite(request.state).all()
+                target._last_sent = -np.inf  # every tick's action is looked at, not rated
+                target.send(loop.act(step).action)
+                step += 1
+        elif kind == "answer":
+            with contextlib.suppress(BadChunk):
+                loop.deliver(args[0], args[1], Origin(args[2]), now=step - 1)
+        else:
+            loop.failed(args[0])
+        assert loop.queue.remaining(step) <= MAX_CHUNK
+    assert loop.queue.counts.ticks == step
+    for message in sent:
+        values = np.asarray(message["data"])
+        assert values.shape == (DIM,) and np.isfinite(values).all()
+        assert (np.abs(values) <= 1.0).all()
+    target.close()
