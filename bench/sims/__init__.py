@@ -1,0 +1,11 @@
+"""Simulators that `oricf bench control` runs policies in, one module per family.
+
+`open_sim(name)` opens one by name: a pybullet robot (`hopper`, `ant`,
+`inverted-double-pendulum`) or a metaworld v3 task (`pick-place-v3`, ...). Each is headless,
+seeded at `reset(seed)`, and stepped one action at a time (`Step`). The simulators come with
+the dev extra (pybullet, metaworld); nothing is imported until one is opened.
+"""
+
+from oricf.bench.sims.base import Sim, Step, open_sim, sim_names
+
+__all__ = ["Sim", "Step", "open_sim", "sim_names"]
