@@ -9,7 +9,7 @@
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
     oricf bench detector|asr|llm|tts|voice|gateway|models|link|rtsp|offload|edge|tracking|soak
-                [...]
+                |control [...]
 
 SERVICE is one of oricf.services.SERVICES (`oricf serve --help` lists them). Verbs with
 options of their own hand the rest of the command line to their module's main().
@@ -43,7 +43,7 @@ DELEGATED = {
 # Modules that run a pipeline in this process: grpc's client polls in the calling thread.
 RUN_PIPELINES = {"oricf.gateway.shells.main", "oricf.gateway.shells.mcp"}
 BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
-              "offload", "edge", "tracking", "soak")
+              "offload", "edge", "tracking", "soak", "control")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:
@@ -146,7 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
     models.add_argument("--force", action="store_true", help="fetch again even if present")
     models.set_defaults(run=cmd_models)
 
-    bench = verbs.add_parser("bench", help="measure a service or the gateway (see --help of each)")
+    bench = verbs.add_parser("bench", help="measure a service, the gateway or a policy's "
+                             "control loop (see --help of each)")
     bench.add_argument("target", choices=BENCHMARKS)
     bench.add_argument("rest", nargs=argparse.REMAINDER)
     # oricf.bench.entry names a package a benchmark needs and lacks in one line.

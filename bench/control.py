@@ -1,0 +1,216 @@
+"""`oricf bench control`: learned policies in simulators against the delay of an edge,
+every way of running them side by side in one run.
+
+The policies are declared models (PolicyModel, onnxruntime): pybullet's trained Hopper, Ant
+and InvertedDoublePendulum (configs/models/policies/, one action per answer, 60.6 Hz) and,
+for a metaworld v3 task, a chunk policy behaviour-cloned from its scripted expert
+(bench/train_chunk_policy.py, 16 actions per answer, 80 Hz, trained once and cached). Each
+runs through the gateway's control loop (oricf.gateway.actions) in simulated time: a round
+trip of `delay_ms` is `ceil(delay_ms / step_ms)` steps, and an answer to the observation of
+step `t` is delivered before the action for `t + d` (bench/control_run.py), so every figure
+but the CPU is the same on any machine for the same seed.
+
+    onboard        the policy on the robot, no delay (once per task: the reference)
+    edge-sync      a client unaware of delay: asks when its queue is dry, plays the chunk
+                   from its arrival (late: shift), holds the last action meanwhile; a
+                   policy of one action is pipelined (d + 1 requests out), so the robot
+                   acts on observations d steps old
+    edge-latest    delay-aware (late: skip), asking again as soon as an answer is in (one
+    edge-weighted  request out); overlapping chunks merged latest only, weighted (0.7 new)
+    edge-ensemble  or by ACT's temporal ensembling
+    placed         where the gateway's placement puts it with a latency budget in steps
+                   (--budget-steps), having timed the edge's round trip: onboard when
+                   that is over the budget, else on the edge; the reason printed
+
+For pybullet's robots the figure is the return (no success); for metaworld, the success
+rate and the steps to success. `--json` writes one row per task, mode and delay.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+from pathlib import Path
+
+from oricf.bench.control_report import Row, print_goals, print_task, summarise
+from oricf.bench.control_run import (
+    MODES,
+    Episode,
+    Placed,
+    default_budget,
+    delay_steps,
+    placement,
+    run_episode,
+    setting,
+)
+from oricf.bench.entry import need
+from oricf.bench.sims import Sim, open_sim, sim_names
+from oricf.bench.sims.pybullet import ROBOTS
+from oricf.config import REPO_ROOT
+from oricf.errors import ConfigError
+from oricf.models.declaration import load_declaration
+from oricf.models.policy import PolicyModel
+from oricf.store import ModelStore
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TASKS = ("hopper", "ant", "inverted-double-pendulum", "pick-place-v3")
+PYBULLET_DELAYS_MS = (0.0, 16.5, 33.0, 66.0, 132.0)    # 0, 1, 2, 4, 8 steps at 60.6 Hz
+METAWORLD_DELAYS_MS = (0.0, 25.0, 50.0, 100.0, 150.0, 200.0)  # 0-16 steps at 80 Hz
+POLICIES = REPO_ROOT / "configs" / "models" / "policies"
+
+
+def parse_delays(text: str) -> list[float]:
+    """`0,50,100` -> [0.0, 50.0, 100.0]; ConfigError naming a value that is not a
+    non-negative number."""
+    delays: list[float] = []
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            raise ConfigError(f"--delays-ms: {part.strip()!r} is not a number of "
+                              f"milliseconds (e.g. --delays-ms 0,50,100)") from None
+        if not math.isfinite(value) or value < 0:
+            raise ConfigError(f"--delays-ms: {part.strip()}: must be 0 or more milliseconds")
+        delays.append(value)
+    return sorted(set(delays))
+
+
+def check_tasks(tasks: list[str]) -> None:
+    """ConfigError for a task that is neither a pybullet robot nor a metaworld v3 task;
+    MissingPackage when it could be the latter and metaworld is not installed."""
+    known = sim_names()
+    for task in tasks:
+        if task in known:
+            continue
+        need("metaworld", "dev", f"--task {task} (not a pybullet robot: a metaworld task?)")
+        raise ConfigError(f"--task {task}: no such simulator; the pybullet robots are "
+                          f"{', '.join(ROBOTS)}, the metaworld v3 tasks are named like "
+                          f"pick-place-v3")
+
+
+def load_policy(task: str) -> PolicyModel:
+    """The declared policy of a pybullet robot, or the chunk policy trained for a metaworld
+    task (trained now when it is not cached)."""
+    if task in ROBOTS:
+        declaration = POLICIES / f"{task}.yaml"
+    else:
+        from oricf.bench.train_chunk_policy import trained_policy
+
+        declaration = trained_policy(task)
+    policy = PolicyModel(load_declaration(declaration), ModelStore())
+    policy.load()
+    return policy
+
+
+def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Placed]
+         ) -> list[tuple[str, int]]:
+    """The runs to make, as (mode, round trip in steps): onboard once, each edge mode once
+    per distinct round trip (delays of as many steps give the same episodes), and what a
+    placed policy runs as."""
+    runs = [("onboard", 0)]
+    for ms, d in steps.items():
+        wanted = [m for m in modes if m not in ("onboard", "placed")]
+        if "placed" in modes:
+            wanted.append(placements[ms].mode)
+        runs += [(m, 0 if m == "onboard" else d) for m in wanted]
+    return list(dict.fromkeys(runs))
+
+
+def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) -> list[Row]:
+    sim: Sim = open_sim(task)
+    policy = load_policy(task)
+    try:
+        chunk = policy.task.chunk
+        budget = default_budget(chunk) if args.budget_steps is None else args.budget_steps
+        steps = {ms: delay_steps(ms, sim.rate_hz) for ms in delays_ms}
+        placements = {ms: placement(ms, sim.rate_hz, budget, chunk) for ms in delays_ms}
+        runs = plan(args.modes, steps, placements)
+        max_steps = args.max_steps or sim.max_steps
+        episodes: dict[tuple[str, int], list[Episode]] = {run: [] for run in runs}
+        for i in range(args.episodes):  # interleaved, episode by episode (the CPU figures)
+            for mode, d in runs:
+                episodes[mode, d].append(run_episode(sim, policy, setting(mode, d, chunk),
+                                                     args.seed + i, max_steps))
+        metaworld = task not in ROBOTS
+        rows = [summarise(task, "onboard", 0.0, 0, episodes["onboard", 0], metaworld)]
+        for ms, d in steps.items():
+            for mode in [m for m in args.modes if m != "onboard"]:
+                placed = placements[ms] if mode == "placed" else None
+                run_as = placed.mode if placed else mode
+                row = summarise(task, mode, ms, d, episodes[run_as, 0 if run_as == "onboard"
+                                                            else d], metaworld)
+                if placed:
+                    row.placed_onboard, row.reason = placed.onboard, placed.reason
+                    row.budget_steps = budget
+                rows.append(row)
+        return rows
+    finally:
+        policy.close()
+        sim.close()
+
+
+def parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="oricf bench control", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--task", action="append", help="a pybullet robot (hopper, ant, "
+                        "inverted-double-pendulum) or a metaworld v3 task (pick-place-v3, "
+                        "...); repeatable (default: " + ", ".join(DEFAULT_TASKS) + ")")
+    parser.add_argument("--delays-ms", type=str, default=None,
+                        help="round trips to the edge, e.g. 0,50,100 (default: "
+                        f"{','.join(f'{d:g}' for d in PYBULLET_DELAYS_MS)} for pybullet's "
+                        f"robots, {','.join(f'{d:g}' for d in METAWORLD_DELAYS_MS)} for "
+                        "metaworld)")
+    parser.add_argument("--episodes", type=int, default=5, help="episodes per mode and delay")
+    parser.add_argument("--seed", type=int, default=0, help="the first episode's seed")
+    parser.add_argument("--modes", type=str, default=",".join(MODES),
+                        help="comma-separated, of " + ", ".join(MODES) + " (onboard, the "
+                        "reference, always runs)")
+    parser.add_argument("--budget-steps", type=int, default=None,
+                        help="the placed policy's latency budget in control steps, 1 or more "
+                        "(default: 1 for a policy of one action, half a chunk for a chunk "
+                        "policy)")
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help="cap on an episode's steps (default: the simulator's)")
+    parser.add_argument("--json", type=Path, default=None, help="write the rows here")
+    return parser
+
+
+def options(argv: list[str] | None) -> argparse.Namespace:
+    args = parser().parse_args(argv)
+    args.task = args.task or list(DEFAULT_TASKS)
+    check_tasks(args.task)
+    args.delays = parse_delays(args.delays_ms) if args.delays_ms is not None else None
+    args.modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    unknown = [m for m in args.modes if m not in MODES]
+    if unknown or not args.modes:
+        raise ConfigError(f"--modes: {', '.join(unknown) or 'none given'}: the modes are "
+                          f"{', '.join(MODES)}")
+    for name in ("episodes", "max_steps"):
+        if getattr(args, name) is not None and getattr(args, name) < 1:
+            raise ConfigError(f"--{name.replace('_', '-')}: must be 1 or more")
+    if args.budget_steps is not None and args.budget_steps < 1:
+        raise ConfigError("--budget-steps: must be 1 or more")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = options(argv)
+    rows: list[Row] = []
+    for task in args.task:
+        delays = args.delays or list(PYBULLET_DELAYS_MS if task in ROBOTS
+                                     else METAWORLD_DELAYS_MS)
+        task_rows = measure_task(task, delays, args)
+        print_task(task, task_rows)
+        rows += task_rows
+    print_goals(rows)
+    if args.json is not None:
+        args.json.write_text(json.dumps([row.as_dict() for row in rows], indent=1) + "\n")
+        print(f"\nrows: {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

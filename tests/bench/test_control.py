@@ -1,0 +1,120 @@
+"""`oricf bench control` on pybullet's real Hopper policy in the real simulator, through
+the gateway's control loop in simulated time: short episodes, a fixed seed, so the figures
+do not depend on the machine's speed (only the CPU does, and nothing asserts on it)."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from oricf.bench import control
+from oricf.bench.control_report import Row
+from oricf.bench.control_run import delay_steps, placement
+from oricf.errors import ConfigError
+
+STEPS = 300  # Hopper hops forward well within this
+EDGE_MODES = ["edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "placed"]
+
+
+def bench(tmp_path: Path, *args: str) -> list[dict[str, object]]:
+    out = tmp_path / "rows.json"
+    assert control.main(["--task", "hopper", "--episodes", "1", "--max-steps", str(STEPS),
+                         "--json", str(out), *args]) == 0
+    rows: list[dict[str, object]] = json.loads(out.read_text())
+    return rows
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, object]]:
+    # 0 and 1 step at 60.6 Hz
+    return bench(tmp_path_factory.mktemp("control"), "--delays-ms", "0,16.5")
+
+
+def row(rows: list[dict[str, object]], mode: str, steps: int) -> dict[str, object]:
+    [found] = [r for r in rows if r["mode"] == mode and r["delay_steps"] == steps]
+    return found
+
+
+def test_a_row_per_mode_and_delay_with_every_field(rows: list[dict[str, object]]) -> None:
+    fields = set(Row.__dataclass_fields__)
+    assert all(set(r) == fields for r in rows)
+    expected = [("onboard", 0)] + [(m, d) for d in (0, 1) for m in EDGE_MODES]
+    assert [(r["mode"], r["delay_steps"]) for r in rows] == expected
+    assert all(r["task"] == "hopper" and r["episodes"] == 1 for r in rows)
+    assert all(r["success_rate"] is None for r in rows)  # a return, no success
+
+
+def test_onboard_the_policy_hops_the_whole_episode(rows: list[dict[str, object]]) -> None:
+    onboard = row(rows, "onboard", 0)
+    assert onboard["mean_steps"] == STEPS and onboard["mean_return"] > 500  # type: ignore[operator]
+    assert onboard["action_age_p99"] == 0 and onboard["empty_ticks"] == 0
+
+
+def test_a_client_unaware_of_one_step_of_delay_makes_hopper_fall(
+        rows: list[dict[str, object]]) -> None:
+    onboard, sync = row(rows, "onboard", 0), row(rows, "edge-sync", 1)
+    assert sync["mean_return"] < 0.5 * onboard["mean_return"]  # type: ignore[operator]
+    assert sync["mean_steps"] < STEPS  # type: ignore[operator]
+    assert sync["action_age_p50"] == 1
+
+
+def test_skipping_late_actions_leaves_a_one_action_policy_nothing_to_play(
+        rows: list[dict[str, object]]) -> None:
+    latest = row(rows, "edge-latest", 1)
+    # every answer's one action is for a step already played; the first tick waits too
+    assert latest["late_actions"] == latest["empty_ticks"] - 1  # type: ignore[operator]
+    assert latest["action_age_p50"] is None
+
+
+def test_an_edge_over_a_one_step_budget_leaves_hopper_onboard_and_says_why(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rows = bench(tmp_path, "--delays-ms", "30", "--budget-steps", "1", "--modes", "placed")
+    onboard, placed = row(rows, "onboard", 0), row(rows, "placed", 2)
+    assert placed["placed_onboard"] is True and placed["budget_steps"] == 1
+    assert placed["mean_return"] == pytest.approx(onboard["mean_return"], rel=1e-3)
+    reason = ("onboard: the edge's round trip of 30 ms (2 steps) is over the budget of "
+              "16.5 ms (1 steps at 60.6061 Hz)")
+    assert placed["reason"] == reason and reason in capsys.readouterr().out
+
+
+def test_within_its_budget_the_policy_is_placed_on_the_edge(
+        rows: list[dict[str, object]]) -> None:
+    placed, sync = row(rows, "placed", 1), row(rows, "edge-sync", 1)
+    assert placed["placed_onboard"] is False
+    assert str(placed["reason"]).startswith("edge (edge-sync): the edge's round trip of "
+                                            "16.5 ms (1 step) is within the budget")
+    assert placed["mean_return"] == sync["mean_return"]
+
+
+def test_a_round_trip_is_whole_steps() -> None:
+    pybullet = 1 / 0.0165
+    assert [delay_steps(ms, pybullet) for ms in (0, 16.5, 17, 30, 33, 66, 132)] == \
+        [0, 1, 2, 2, 2, 4, 8]
+    assert [delay_steps(ms, 80.0) for ms in (50, 100, 200)] == [4, 8, 16]
+    assert placement(16.5, pybullet, 1, chunk=1).mode == "edge-sync"
+    assert placement(100, 80.0, 8, chunk=16).mode == "edge-latest"
+    assert placement(101, 80.0, 8, chunk=16).mode == "onboard"
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--task", "walker"], "--task walker: no such simulator"),
+    (["--delays-ms", "0,fast"], "--delays-ms: 'fast' is not a number of milliseconds"),
+    (["--delays-ms", "-5"], "--delays-ms: -5: must be 0 or more milliseconds"),
+    (["--modes", "edge-lazy"], "--modes: edge-lazy: the modes are onboard"),
+])
+def test_bad_input_is_one_line(args: list[str], message: str) -> None:
+    with pytest.raises(ConfigError, match="^" + re.escape(message)):
+        control.options(args)
+
+
+def test_the_command_says_it_in_one_line_and_exits_2() -> None:
+    done = subprocess.run([sys.executable, "-m", "oricf", "bench", "control", "--task",
+                           "walker"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stdout + done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--task walker: no such simulator" in lines[0], done.stderr
