@@ -114,15 +114,16 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     try:
         result = robot.episode(args.seed, args.max_steps or sim.max_steps, args.wait_s, stop)
+        print(json.dumps(result), flush=True)
     except KeyboardInterrupt:
         return 130
     finally:
         stop.set()
         executor.shutdown()
+        spinner.join(5)
         node.destroy_node()
         rclpy.try_shutdown()
         sim.close()
-    print(json.dumps(result), flush=True)
     return 0
 
 
