@@ -3,7 +3,7 @@
 # compose/stack.sh build (and up) run it with the build arguments the compose files declare:
 #
 #   compose/build-image.sh TAG EXTRAS [MODEL ...]
-#   e.g. compose/build-image.sh oricf:local asr,llm yolox-nano whisper-tiny-en gemma3-270m piper-joe-medium
+#   e.g. compose/build-image.sh oricf:local asr,llm yolox-nano whisper-tiny-en gemma3-270m piper-joe-medium pybullet-hopper
 #
 # 1. Engine: $ORICF_ENGINE, else the one compose/stack.sh picks (its `env`).
 # 2. Base image: $ORICF_BASE_IMAGE; else python:3.11-slim if present; else

@@ -7,7 +7,7 @@
 #   compose/.models/  the models named in MODELS, copied from the local model store
 #                     (the image build still checks each file's sha256)
 #
-#   compose/prepare-build.sh                     the edge image: asr,llm and its four models
+#   compose/prepare-build.sh                     the edge image: asr,llm and its five models
 #   compose/prepare-build.sh EXTRAS [MODEL ...]  e.g. `ros` (the gateway image: no models)
 #
 # The llama.cpp wheel is compiled for this machine's CPU: an image made with it runs on CPUs
@@ -20,7 +20,7 @@ if (($#)); then
     MODELS=("$@")
 else
     EXTRAS="asr,llm"
-    MODELS=(yolox-nano whisper-tiny-en gemma3-270m piper-joe-medium)
+    MODELS=(yolox-nano whisper-tiny-en gemma3-270m piper-joe-medium pybullet-hopper)
 fi
 PY="${ORICF_VENV:-.venv}/bin/python"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"

@@ -22,8 +22,10 @@
 #    container's own health check: `compose/stack.sh wait`), then calls each
 #    one with grpcurl, its client certificate and the token, and checks the answer: Detect
 #    finds a person in darknet's person.jpg, Transcribe of espeak-ng speech gives the words
-#    back, Generate with the fact people_count=3 answers with the count. Then checks that each
-#    service refuses a call without a token (Unauthenticated), with a wrong one
+#    back, Generate with the fact people_count=3 answers with the count, Synthesize speaks
+#    the sentence, Act with a Hopper observation answers it with the actions the same policy
+#    gives on this machine (the image's converted weights). Then checks that each service
+#    refuses a call without a token (Unauthenticated), with a wrong one
 #    (PermissionDenied), in plaintext, without a client certificate, and reflection.
 #    With --robot: publishes vtest.avi frames and a question from this machine on a private
 #    ROS_DOMAIN_ID and checks the containerized gateway, which presents the client
@@ -50,10 +52,11 @@ export ORICF_PROJECT=oricf-smoke
 export ORICF_IMAGE="${ORICF_IMAGE:-oricf:local}"
 export ORICF_GATEWAY_IMAGE="${ORICF_GATEWAY_IMAGE:-oricf-gateway:local}"
 TIMEOUT="${ORICF_SMOKE_TIMEOUT:-600}"
-SERVICES=(detector asr llm tts)
-declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053 [tts]=50054)
+SERVICES=(detector asr llm tts policy)
+declare -A PORTS=([detector]=50051 [asr]=50052 [llm]=50053 [tts]=50054 [policy]=50055)
 declare -A RPCS=([detector]=oricf.v1.Detector/Detect [asr]=oricf.v1.SpeechRecognizer/Transcribe
-                 [llm]=oricf.v1.LanguageModel/Generate [tts]=oricf.v1.SpeechSynthesizer/Synthesize)
+                 [llm]=oricf.v1.LanguageModel/Generate [tts]=oricf.v1.SpeechSynthesizer/Synthesize
+                 [policy]=oricf.v1.Policy/Act)
 HEALTH=grpc.health.v1.Health/Check
 
 step() { printf '\n==> %s\n' "$*"; }

@@ -1,14 +1,14 @@
 """Request bodies and answer checks for compose/smoke-test.sh (which calls grpcurl).
 
-    python compose/smoke_check.py request detector|asr|llm|tts   > request.json
-    grpcurl ... -d @ < request.json | python compose/smoke_check.py check detector|asr|llm|tts
+    python compose/smoke_check.py request detector|asr|llm|tts|policy   > request.json
+    grpcurl ... -d @ < request.json | python compose/smoke_check.py check SERVICE
     python compose/smoke_check.py ros     (the robot side: a gateway on this DDS domain)
     python compose/smoke_check.py protoset > oricf.protoset
 
 `check` prints what it found and exits 1 when the answer is wrong. `ros` publishes vtest.avi
 frames on camera/image_raw until /human_counter answers, then a question on /question,
 and checks that /answer states the count. `protoset` writes the schemas grpcurl needs (the
-four services' and grpc.health.v1), since the services serve no reflection.
+five services' and grpc.health.v1), since the services serve no reflection.
 """
 
 from __future__ import annotations
@@ -23,6 +23,12 @@ from typing import Any
 
 QUESTION = "How many people do you see?"
 PEOPLE = 3
+# pybullet's Hopper 20 steps after a reset with no action (its observation, already
+# normalised by the environment): the policy service's state.
+HOPPER_STATE = [-0.0428, 0.0, 1.0, -0.0524, 0.0, -0.0075, 0.0, -0.1474, 0.8902, -0.0773,
+                1.0317, 0.0001, -0.0618, -0.002, 1.0]
+HOPPER_STEP = 20
+CAPTURE_TIME_NS = 1_234_567_890_123   # below 2**53: exact wherever JSON makes it a float
 
 
 def detector_request() -> dict[str, Any]:
@@ -50,6 +56,10 @@ def tts_request() -> dict[str, Any]:
     return {"text": f"I can see {PEOPLE} people.", "voice": "joe"}
 
 
+def policy_request() -> dict[str, Any]:
+    return {"step": HOPPER_STEP, "capture_time_ns": CAPTURE_TIME_NS, "state": HOPPER_STATE}
+
+
 def detector_check(reply: dict[str, Any]) -> str | None:
     people = sum(d.get("label") == "person" for d in reply.get("detections", []))
     return None if people >= 1 else f"no person found in person.jpg: {reply}"
@@ -74,10 +84,50 @@ def tts_check(reply: dict[str, Any]) -> str | None:
     return f"no plausible speech: {len(audio)} bytes, {seconds} s, text {reply.get('text')!r}"
 
 
+def field(reply: dict[str, Any], name: str, default: Any = None) -> Any:
+    """A field by its proto name or its JSON name (grpcurl's: camelCase)."""
+    head, *rest = name.split("_")
+    return reply.get(name, reply.get(head + "".join(w.title() for w in rest), default))
+
+
+def expected_actions() -> list[float]:
+    """What the policy the service's YAML names answers HOPPER_STATE with, here."""
+    import numpy as np
+
+    from oricf.config import config_dir, load_config
+    from oricf.models.declaration import load_declaration
+    from oricf.models.policy import PolicyModel
+    from oricf.services.policy.config import PolicyConfig
+    from oricf.store import ModelStore
+
+    config = load_config(config_dir() / "services" / "policy.yaml", PolicyConfig)
+    policy = PolicyModel(load_declaration(config.model), ModelStore())
+    policy.load()
+    try:
+        return [float(a) for a in policy.act(np.asarray(HOPPER_STATE)).ravel()]
+    finally:
+        policy.close()
+
+
+def policy_check(reply: dict[str, Any]) -> str | None:
+    actions = [float(a) for a in reply.get("actions", [])]
+    echoed = (int(field(reply, "observation_step", 0)), int(field(reply, "capture_time_ns", 0)))
+    if echoed != (HOPPER_STEP, CAPTURE_TIME_NS):
+        return f"the answer is not for the observation sent: step, capture time {echoed}"
+    expected = expected_actions()
+    if int(field(reply, "action_dim", 0)) != 3 or len(actions) != len(expected):
+        return f"not one Hopper action (3 values): {reply}"
+    if any(abs(a - e) > 1e-4 for a, e in zip(actions, expected, strict=True)):
+        return f"actions {actions}, the same policy here gives {expected}"
+    return None
+
+
 REQUESTS: dict[str, Callable[[], dict[str, Any]]] = {
-    "detector": detector_request, "asr": asr_request, "llm": llm_request, "tts": tts_request}
+    "detector": detector_request, "asr": asr_request, "llm": llm_request, "tts": tts_request,
+    "policy": policy_request}
 CHECKS: dict[str, Callable[[dict[str, Any]], str | None]] = {
-    "detector": detector_check, "asr": asr_check, "llm": llm_check, "tts": tts_check}
+    "detector": detector_check, "asr": asr_check, "llm": llm_check, "tts": tts_check,
+    "policy": policy_check}
 
 
 def ros_check(timeout_s: float = 120.0) -> int:
@@ -144,11 +194,11 @@ def typed_answer(node: Any, deadline: float) -> str | None:
 
 
 def protoset() -> bytes:
-    """A FileDescriptorSet of the four services and grpc.health.v1, dependencies first."""
+    """A FileDescriptorSet of the five services and grpc.health.v1, dependencies first."""
     from google.protobuf import descriptor_pb2
     from grpc_health.v1 import health_pb2
 
-    from oricf.v1 import detector_pb2, language_pb2, speech_pb2, synthesis_pb2
+    from oricf.v1 import detector_pb2, language_pb2, policy_pb2, speech_pb2, synthesis_pb2
 
     files = descriptor_pb2.FileDescriptorSet()
     added: set[str] = set()
@@ -160,7 +210,8 @@ def protoset() -> bytes:
             added.add(file.name)
             file.CopyToProto(files.file.add())
 
-    for module in (detector_pb2, speech_pb2, language_pb2, synthesis_pb2, health_pb2):
+    for module in (detector_pb2, speech_pb2, language_pb2, synthesis_pb2, policy_pb2,
+                   health_pb2):
         add(module.DESCRIPTOR)
     return files.SerializeToString()
 
@@ -183,7 +234,7 @@ def main(argv: list[str]) -> int:
     if problem:
         print(f"FAIL {service}: {problem[:500]}")
         return 1
-    shown = {k: v for k, v in reply.items() if k in ("text", "timings")}
+    shown = {k: v for k, v in reply.items() if k in ("text", "timings", "actions")}
     if "detections" in reply:
         shown["labels"] = [d.get("label") for d in reply["detections"]]
     print(f"ok   {service}: {json.dumps(shown)}")

@@ -112,7 +112,7 @@ def resolve_in_mounts(table: dict[str, Path], container_path: str) -> Path | Non
 
 def test_published_ports_and_health_checks_match_the_listen_ports() -> None:
     services = model_services(load(COMPOSE / "edge.yaml"))
-    assert set(services) == {"detector", "asr", "llm", "tts"}
+    assert set(services) == {"detector", "asr", "llm", "tts", "policy"}
     for name, service in services.items():
         assert service["command"][:2] == ["serve", name]
         config_path = service["command"][service["command"].index("--config") + 1]
@@ -155,6 +155,20 @@ def test_images_bake_the_models_the_services_load() -> None:
             assert weights is not None and weights.catalog is not None
             model = {"name": weights.catalog}
         assert model["name"] in baked, f"{name} loads a model the image lacks"
+
+
+def test_the_image_converts_the_baked_weights_that_need_it() -> None:
+    """The services' user cannot write the image's store: a declared model whose weights
+    are converted (the policy service's) must be converted during the build."""
+    text = (COMPOSE / "Dockerfile").read_text()
+    models_stage = text.split("\nFROM ")[2]
+    assert models_stage.startswith("${BASE_IMAGE} AS models")
+    pull = models_stage.index("oricf models pull $MODELS")
+    assert models_stage.index("convert_models.py $MODELS") > pull
+    assert "COPY configs/models/ /opt/oricf/configs/models/" in models_stage
+    assert "COPY compose/convert_models.py " in models_stage
+    rules = (COMPOSE / "Dockerfile.dockerignore").read_text().splitlines()
+    assert "!compose/convert_models.py" in rules  # in the build context
 
 
 def test_dockerfile_follows_the_container_rules() -> None:

@@ -1,8 +1,9 @@
 """compose/smoke-test.sh on each engine, in the engines suite (`-m engines`, docs/testing.md):
-the edge image built, the stack started through compose/stack.sh, every service SERVING
-through its container's health check, each answering correctly over mTLS with the token and
-refusing callers without credentials, and torn down with no container left. On Docker that
-is Docker's compose (v2, else v1 as Debian ships it) and BuildKit; on podman, podman-compose.
+the edge image built, the stack started through compose/stack.sh, every service (the
+control policy's included) SERVING through its container's health check, each answering
+correctly over mTLS with the token and refusing callers without credentials, and torn down
+with no container left. On Docker that is Docker's compose (v2, else v1 as Debian ships it)
+and BuildKit; on podman, podman-compose.
 An engine that is not installed fails the test, naming what to install."""
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ def test_the_edge_stack_passes_the_smoke_test(engine: str) -> None:
     output = result.stdout + result.stderr
     assert result.returncode == 0, output[-6000:]
     assert f"engine:          {engine} (" in result.stdout
-    for service in ("detector", "asr", "llm", "tts"):
+    for service in ("detector", "asr", "llm", "tts", "policy"):
         assert f"{service} SERVING after" in result.stdout  # its container's health check
         assert f"ok   {service}: " in result.stdout
         assert f"ok   {service} refuses: no token" in result.stdout
