@@ -102,7 +102,8 @@ class PipelineView:
                 "fallback": endpoint.fallback.address if endpoint.fallback else None,
                 "on_fallback": endpoint.active is not endpoint.primary,
                 "failovers": endpoint.failovers, "recoveries": endpoint.recoveries,
-                "retries": endpoint.retries, "deadline_ms": endpoint.config.deadline_ms}
+                "retries": endpoint.retries, "deadline_ms": endpoint.config.deadline_ms,
+                **placement_status(endpoint)}
         routes = {}
         for name, route in self.pipeline.routes.items():
             stats = route.stats
@@ -307,3 +308,13 @@ def plain(value: Any) -> Any:
     if isinstance(value, Frame):
         return {"image": f"{value.width}x{value.height} {value.encoding}"}
     return str(value)[:1000]
+
+
+def placement_status(endpoint: Any) -> Json:
+    """Where a placement sends the endpoint's calls, its budget, and its moves by reason."""
+    placement = endpoint.placement
+    if placement is None:
+        return {}
+    return {"placement": {"place": placement.place, "budget_ms": round(placement.budget_ms, 2),
+                          "moves": {k: v for k, v in placement.decisions.items() if v}}}
+

@@ -19,6 +19,7 @@ from oricf.errors import ConfigError
 from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.operations.view import placement_status
 from oricf.gateway.products import ProductStore
 from tests.support.pybullet_sim import hopper
 from tests.support.services import RunningService, running_service
@@ -76,6 +77,8 @@ def test_an_edge_over_a_one_step_budget_loses_the_policy_to_onboard(
         assert endpoint.active is endpoint.fallback
         assert endpoint.answered["fallback"] > 0
         assert "over the budget of 16.5 ms (1 steps at 60.606 Hz)" in caplog.text
+        assert placement_status(endpoint) == {"placement": {
+            "place": "fallback", "budget_ms": 16.5, "moves": {"over_budget": 1}}}
     finally:
         endpoint.close()
         relay.close()
