@@ -18,7 +18,8 @@
 # 3. Work around podman 4.3 (Debian bookworm): before 4.4 a Secret volume panics without
 #    `optional` and gets its files still base64-encoded, so a Secret is played as a ConfigMap
 #    of its decoded files; no podman creates the folders of a ConfigMap item's path
-#    (labels/coco80.txt), so their volumes are made first with those folders in them; podman
+#    (labels/coco80.txt, policies/hopper.yaml), so their volumes are made first with those
+#    folders in them (one volume per ConfigMap: pods that mount one share its items); podman
 #    publishes each containerPort on the host's every address, so the containers' `ports`
 #    (declarations only, in Kubernetes) are left out and each pod is reached at its address.
 # 4. `podman kube play`, then each pod's own health port (50050, grpc.health.v1, plaintext)
@@ -67,7 +68,7 @@ render() {  # the manifests podman plays (Deployments: all, or those named), int
     local files=(ca.pem server.pem server.key tokens) file copy secrets_as=secret
     for file in "${files[@]}"; do
         [[ -e "$CERTS/$file" ]] || die "missing $CERTS/$file. Make the certificates once:
-  oricf certs $CERTS --host detector.oricf.svc.cluster.local --host asr.oricf.svc.cluster.local --host llm.oricf.svc.cluster.local --host tts.oricf.svc.cluster.local"
+  oricf certs $CERTS --host detector.oricf.svc.cluster.local --host asr.oricf.svc.cluster.local --host llm.oricf.svc.cluster.local --host tts.oricf.svc.cluster.local --host policy.oricf.svc.cluster.local"
     done
     mkdir -p "$WORK"
     # kustomize reads ../certs: a copy of the tree when the certificates live elsewhere

@@ -8,7 +8,6 @@ in its certificate."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -16,7 +15,6 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import grpc
@@ -33,18 +31,21 @@ from oricf.v1 import (
     detector_pb2_grpc,
     language_pb2,
     language_pb2_grpc,
+    policy_pb2,
+    policy_pb2_grpc,
     speech_pb2,
     speech_pb2_grpc,
     synthesis_pb2,
     synthesis_pb2_grpc,
 )
+from tests.compose.smoke import smoke_check
 from tests.support.data import video_path
 
 pytestmark = pytest.mark.engines
 
 PLAY = REPO_ROOT / "compose" / "kubernetes" / "play.sh"
-HOSTS = [f"{name}.oricf.svc.cluster.local" for name in ("detector", "asr", "llm", "tts")]
-PORTS = {"detector": 50051, "asr": 50052, "llm": 50053, "tts": 50054}
+PORTS = {"detector": 50051, "asr": 50052, "llm": 50053, "tts": 50054, "policy": 50055}
+HOSTS = [f"{name}.oricf.svc.cluster.local" for name in PORTS]
 HEALTH_PORT = 50050
 CALLS: dict[str, tuple[Any, str, Any]] = {
     "detector": (detector_pb2_grpc.DetectorStub, "Detect", detector_pb2.DetectRequest),
@@ -52,17 +53,8 @@ CALLS: dict[str, tuple[Any, str, Any]] = {
     "llm": (language_pb2_grpc.LanguageModelStub, "Generate", language_pb2.GenerateRequest),
     "tts": (synthesis_pb2_grpc.SpeechSynthesizerStub, "Synthesize",
             synthesis_pb2.SynthesizeRequest),
+    "policy": (policy_pb2_grpc.PolicyStub, "Act", policy_pb2.Observation),
 }
-
-
-def smoke_check() -> ModuleType:
-    """compose/smoke_check.py: the same requests and answer checks as the compose smoke test."""
-    spec = importlib.util.spec_from_file_location("smoke_check", REPO_ROOT / "compose" /
-                                                  "smoke_check.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @dataclass

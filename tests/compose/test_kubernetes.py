@@ -109,7 +109,7 @@ def test_what_the_objects_name_exists(rendered: dict[str, list[Document]]) -> No
     documents = rendered["kserve"]
     deployments = by_kind(documents, "Deployment")
     runtimes = by_kind(documents, "ServingRuntime")
-    assert set(deployments) == {"detector", "asr", "llm", "tts"}
+    assert set(deployments) == {"detector", "asr", "llm", "tts", "policy"}
     pods = [d["spec"]["template"]["spec"] for d in deployments.values()]
     pods += [r["spec"] for r in runtimes.values()]
     for kind, source in {s for pod in pods for s in volume_sources(pod)}:
@@ -149,3 +149,26 @@ def test_probes_ask_the_plaintext_health_port_and_pods_are_locked_down(
         assert user.get("runAsUser", context.get("runAsUser")) == 10001 and user["runAsNonRoot"]
     keys = {k for s in by_kind(documents, "Secret").values() for k in s["data"]}
     assert keys == {"ca.pem", "server.pem", "server.key", "tokens"}  # no client key, no CA key
+
+
+def test_the_network_policy_admits_each_pods_grpc_port_and_its_metrics_to_prometheus(
+        rendered: dict[str, list[Document]]) -> None:
+    health_port = int(read_yaml(OVERLAY)["server"]["health_listen"].rpartition(":")[2])
+    documents = rendered["kserve"]
+    (policy,) = by_kind(documents, "NetworkPolicy").values()
+    anyone, prometheus = policy["spec"]["ingress"]
+    assert "from" not in anyone and prometheus["from"][0]["podSelector"]["matchLabels"] == {
+        "app.kubernetes.io/name": "prometheus"}
+    open_ports = {p["port"] for p in anyone["ports"]}
+    metrics_ports = {p["port"] for p in prometheus["ports"]}
+    containers = [d["spec"]["template"]["spec"]["containers"][0]
+                  for d in by_kind(documents, "Deployment").values()]
+    containers += [r["spec"]["containers"][0]
+                   for r in by_kind(documents, "ServingRuntime").values()]
+    for container in containers:
+        ports = {p["name"]: p["containerPort"] for p in container["ports"]}
+        grpc_port = next(port for name_, port in ports.items() if name_ not in
+                         ("metrics", "health"))
+        assert grpc_port in open_ports, container["name"]
+        assert ports["metrics"] in metrics_ports, container["name"]
+        assert health_port not in open_ports | metrics_ports   # the plaintext probe port

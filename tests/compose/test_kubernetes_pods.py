@@ -2,7 +2,8 @@
 here: its ConfigMaps and Secret written where its volumes mount them (under a temporary
 root instead of /), its container's arguments as rendered, KServe's {{.Name}} filled in. The
 service must come up SERVING on the plaintext health port its probes ask, and answer on its
-own port only with the client certificate (mTLS) and the token."""
+own port only with the client certificate (mTLS) and the token: the detector and the
+policy answer correctly, the policy with the Hopper model its models volume declares."""
 
 from __future__ import annotations
 
@@ -11,18 +12,20 @@ from typing import Any
 
 import grpc
 import pytest
+from google.protobuf import json_format
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.tls import ClientTls
-from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
+from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc, policy_pb2, policy_pb2_grpc
 from tests.compose.kubernetes import Document, by_kind, file_contents, render, workspace
+from tests.compose.smoke import smoke_check
 from tests.support.data import image
 from tests.support.detections import count
 from tests.support.processes import free_port, oricf_process, wait_serving
 
-PODS = ["detector", "asr", "llm", "tts", "oricf-models/yolox-nano"]
+PODS = ["detector", "asr", "llm", "tts", "policy", "oricf-models/yolox-nano"]
 
 
 @pytest.fixture(scope="module")
@@ -110,6 +113,8 @@ def test_the_pod_serves_as_rendered(cluster: tuple[Path, list[Document]], pod_na
                 reply = detector_pb2_grpc.DetectorStub(channel).Detect(request, timeout=10,
                                                                        metadata=token)
                 assert count(reply, "person") == 1
+            if pod_name == "policy":
+                assert_acts(policy_pb2_grpc.PolicyStub(channel), token)
             if isvc:
                 stub = oip_grpc.GRPCInferenceServiceStub(channel)
                 ready = stub.ModelReady(oip.ModelReadyRequest(name=isvc), timeout=10,
@@ -119,3 +124,15 @@ def test_the_pod_serves_as_rendered(cluster: tuple[Path, list[Document]], pod_na
                     stub.ModelReady(oip.ModelReadyRequest(name="yolov8-fall"), timeout=10,
                                     metadata=token)
                 assert refused.value.code() == grpc.StatusCode.NOT_FOUND
+
+
+def assert_acts(stub: policy_pb2_grpc.PolicyStub, token: tuple[tuple[str, str], ...]) -> None:
+    """Act on the compose smoke test's Hopper observation answers as the policy does here."""
+    check = smoke_check()
+    request = json_format.ParseDict(check.REQUESTS["policy"](), policy_pb2.Observation())
+    with pytest.raises(grpc.RpcError) as refused:
+        stub.Act(request, timeout=10)
+    assert refused.value.code() == grpc.StatusCode.UNAUTHENTICATED
+    reply = stub.Act(request, timeout=10, metadata=token)
+    answer = json_format.MessageToDict(reply, preserving_proto_field_name=True)
+    assert check.CHECKS["policy"](answer) is None, answer
