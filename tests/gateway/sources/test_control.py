@@ -17,6 +17,7 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
+from oricf.bench.relay import DelayRelay
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.operations.view import PipelineView
@@ -192,6 +193,37 @@ def test_the_safe_action_goes_out_while_the_policy_is_gone(
         gateway.shutdown()
         robot.node.destroy_node()
         gateway.destroy_node()
+
+
+def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
+        policy: RunningService, ros_context: Context, hopper_state: np.ndarray) -> None:
+    host, _, port = policy.address.rpartition(":")
+    relay = DelayRelay((host, int(port)), delay_s=0.0)
+    robot = Robot(ros_context)
+    config = control_config(relay.address, late="shift", request_at=1, hold_steps=2,
+                            deadline_steps=5)
+    gateway = running(config, ros_context, robot)
+    try:
+        with spinning(ros_context, gateway, robot.node):
+            source = source_of(gateway)
+            robot.publishing = hopper_state.tolist()
+            wait_for(lambda: source.loop.counts.answers >= 5)
+            relay.delay_s = 1.5  # mid-chunk: what is in flight now comes 1.5 s late
+            safe = source.loop.counts.safe_ticks
+            wait_for(lambda: source.loop.counts.safe_ticks > safe + 20)
+            robot.drain()
+            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+            assert source.loop.counts.expired > 0  # asked again past the deadline
+            relay.delay_s = 0.0
+            answers = source.loop.counts.answers
+            wait_for(lambda: source.loop.counts.answers > answers + 10)
+            robot.drain()
+            assert any(list(m.data) != [0.0, 0.0, 0.0] for m in robot.next_actions(10))
+    finally:
+        gateway.shutdown()
+        robot.node.destroy_node()
+        gateway.destroy_node()
+        relay.close()
 
 
 def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
