@@ -10,7 +10,8 @@ trip of `delay_ms` is `ceil(delay_ms / step_ms)` steps, and an answer to the obs
 step `t` is delivered before the action for `t + d` (bench/control_run.py), so every figure
 but the CPU is the same on any machine for the same seed.
 
-    onboard        the policy on the robot, no delay (once per task: the reference)
+    onboard        the policy on the robot, no delay (once per task: the reference); a
+                   chunk is played through before the next is asked for
     edge-sync      a client unaware of delay: asks when its queue is dry, plays the chunk
                    from its arrival (late: shift), holds the last action meanwhile; a
                    policy of one action is pipelined (d + 1 requests out), so the robot
@@ -163,7 +164,7 @@ def parser() -> argparse.ArgumentParser:
                         f"{','.join(f'{d:g}' for d in PYBULLET_DELAYS_MS)} for pybullet's "
                         f"robots, {','.join(f'{d:g}' for d in METAWORLD_DELAYS_MS)} for "
                         "metaworld)")
-    parser.add_argument("--episodes", type=int, default=5, help="episodes per mode and delay")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes per mode and delay")
     parser.add_argument("--seed", type=int, default=0, help="the first episode's seed")
     parser.add_argument("--modes", type=str, default=",".join(MODES),
                         help="comma-separated, of " + ", ".join(MODES) + " (onboard, the "

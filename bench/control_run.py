@@ -155,8 +155,8 @@ def ask_ahead(chunk: int) -> int:
 def setting(mode: str, delay_steps: int, chunk: int) -> Setting:
     """The loop's settings for `mode` (not `placed`: see placement) at a round trip of
     `delay_steps`."""
-    if mode == "onboard":
-        return Setting("skip", "latest", ask_ahead(chunk), 1, 0, True)
+    if mode == "onboard":  # each chunk played through, then the next asked for
+        return Setting("skip", "latest", 0, 1, 0, True)
     if mode == "edge-sync":
         if chunk == 1:  # pipelined: the robot acts on observations `d` steps old
             return Setting("shift", "latest", 1, delay_steps + 1, delay_steps, False)

@@ -8,14 +8,20 @@ import json
 import re
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from oricf.bench import control
-from oricf.bench.control_report import Row
-from oricf.bench.control_run import delay_steps, placement
+from oricf.bench.control_report import Row, summarise
+from oricf.bench.control_run import delay_steps, placement, run_episode, setting
+from oricf.bench.sims import Sim, open_sim
+from oricf.bench.train_chunk_policy import trained_policy
 from oricf.errors import ConfigError
+from oricf.models.declaration import load_declaration
+from oricf.models.policy import PolicyModel
+from oricf.store import ModelStore
 
 STEPS = 300  # Hopper hops forward well within this
 EDGE_MODES = ["edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "placed"]
@@ -118,3 +124,37 @@ def test_the_command_says_it_in_one_line_and_exits_2() -> None:
     assert done.returncode == 2, done.stdout + done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "--task walker: no such simulator" in lines[0], done.stderr
+
+
+@pytest.fixture(scope="module")
+def drawer(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Sim, PolicyModel]]:
+    """A small chunk policy for metaworld's drawer-close-v3 (the settings
+    tests/bench/test_chunk_policy.py trains: quick, and far from the edge)."""
+    root = tmp_path_factory.mktemp("models")
+    declaration = trained_policy("drawer-close-v3", root=root, demos=10, epochs=40)
+    policy = PolicyModel(load_declaration(declaration), ModelStore(root))
+    policy.load()
+    sim = open_sim("drawer-close-v3")
+    yield sim, policy
+    sim.close()
+    policy.close()
+
+
+@pytest.mark.parametrize(("mode", "steps"), [("onboard", 0), ("edge-latest", 4),
+                                             ("edge-ensemble", 4), ("edge-sync", 4)])
+def test_a_chunk_policy_closes_the_drawer_through_the_loop_behind_50_ms(
+        drawer: tuple[Sim, PolicyModel], mode: str, steps: int) -> None:
+    sim, policy = drawer
+    assert delay_steps(50, sim.rate_hz) == steps or mode == "onboard"
+    episodes = [run_episode(sim, policy, setting(mode, steps, policy.task.chunk), seed, 500)
+                for seed in (0, 1)]
+    result = summarise("drawer-close-v3", mode, 50, steps, episodes, metaworld=True)
+    assert result.success_rate == 1.0
+    assert all(e.steps == e.ticks < 500 for e in episodes)  # it ended at its success
+    if mode == "edge-sync":  # unaware: the last action held while each chunk is on its way
+        assert result.empty_ticks > steps and result.late_actions == 0
+    else:  # asked ahead: dry only while the first answer was on its way
+        assert result.empty_ticks == steps
+    if mode in ("edge-latest", "edge-ensemble"):  # delay-aware: the late actions dropped
+        assert result.late_actions > 0
+        assert result.action_age_p50 is not None and steps <= result.action_age_p50 < 2 * steps
