@@ -128,7 +128,7 @@ def metaworld_goal(rows: list[Row], delay_ms: float, share: float, steps_ratio: 
         met &= edge.success_rate >= share * onboard.success_rate
         if steps_ratio and onboard.mean_steps and edge.success_rate:
             met &= (edge.mean_steps or 0) <= steps_ratio * onboard.mean_steps
-        figures.append(f"{onboard.task}: onboard {_rate(onboard)}, {_rate(edge)}")
+        figures.append(f"{onboard.task}: {_rate(onboard)}, {_rate(edge)}")
     return Goal(name, "met" if met else "not met", "; ".join(figures))
 
 
