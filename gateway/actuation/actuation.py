@@ -124,8 +124,13 @@ class Deadman:
 
     def renew(self, target: str, seconds: float) -> None:
         with self._wake:
-            self._deadlines[target] = time.monotonic() + seconds
-            self._wake.notify()
+            deadline = time.monotonic() + seconds
+            earlier = deadline < self._deadlines.get(target, float("inf"))
+            self._deadlines[target] = deadline
+            # A later deadline needs no wake-up: the thread, woken at the earlier one, waits
+            # again (a control loop renews at every tick; a wake-up each costs CPU).
+            if earlier:
+                self._wake.notify()
 
     def armed(self, target: str) -> bool:
         with self._wake:

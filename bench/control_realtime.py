@@ -1,0 +1,201 @@
+"""`oricf bench control --realtime`: the same policies in real time over ROS 2, milliseconds
+through the delay relay instead of simulated steps. Per task and round trip: the policy
+service (`oricf serve policy`) behind the delay relay (half the round trip each way; none at
+0 ms, the onboard reference), the gateway's control loop in its own process (`oricf gateway`
+with a `control:` input), and each episode the simulator as a ROS 2 robot
+(`python -m oricf.bench.sim_node`) in real time at its rate. The figures are the episodes'
+(success or return, steps) and the gateway's own: its /metrics (action age in steps, empty
+ticks, chunks switched) and its process's CPU time per tick (the robot side of the loop:
+observation, call, merging, publishing, with ROS). Unlike simulated time, these move with the
+machine's load: quote medians of repeated runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from oricf.bench.common import stop
+from oricf.bench.control_report import Row
+from oricf.bench.control_run import delay_steps
+from oricf.bench.relay import DelayRelay
+from oricf.launch.health import free_port, wait_serving
+from oricf.models.declaration import load_declaration
+from oricf.models.policy_task import PolicyTask
+
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def oricf(*args: str) -> list[str]:
+    return [sys.executable, "-m", "oricf", "--log-level", "WARNING", *args]
+
+
+def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) -> dict[str, Any]:
+    """The loop's settings as `oricf bench control` runs them delay-aware: a chunk policy
+    followed on time (late: skip), asked again as an answer comes in; a policy of one action
+    played on arrival and asked while one is queued."""
+    one = chunk == 1
+    return {"rate_hz": rate_hz, "action_dim": action_dim, "max_age_ms": 200,
+            "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
+                       "size": state_size}],
+            "late": "shift" if one else "skip", "merge": "latest",
+            "request_at": 1 if one else chunk - 1, "hold_steps": 2 if one else 4,
+            "deadline_steps": max(8, 2 * chunk),
+            "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
+                       "deadman_ms": 250}}
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime + stime
+
+
+def scrape(port: int) -> dict[str, float]:
+    """The gateway's control metrics for its one route (samples by name and bucket)."""
+    import urllib.request
+
+    from prometheus_client.parser import text_string_to_metric_families
+
+    text = urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=10).read()
+    samples: dict[str, float] = {}
+    for family in text_string_to_metric_families(text.decode()):
+        for sample in family.samples:
+            if sample.name.startswith("oricf_gateway_control_"):
+                le = sample.labels.get("le")
+                samples[sample.name + (f"[{le}]" if le else "")] = sample.value
+    return samples
+
+
+def age_percentile(samples: dict[str, float], q: float) -> float | None:
+    """The smallest bucket bound of the action-age histogram (steps) holding q% of ages."""
+    name = "oricf_gateway_control_action_age_steps_bucket"
+    buckets = sorted((float(key[len(name) + 1:-1]), value) for key, value in samples.items()
+                     if key.startswith(name + "["))
+    total = buckets[-1][1] if buckets else 0
+    return next((bound for bound, count in buckets if count >= total * q / 100), None) \
+        if total else None
+
+
+def wait_ticking(port: int, gateway: subprocess.Popen[bytes], timeout: float = 120) -> float:
+    """Once the gateway's loop ticks: its ticks so far."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if gateway.poll() is not None:
+            raise RuntimeError(f"the gateway exited with {gateway.returncode}")
+        try:
+            ticks = scrape(port).get("oricf_gateway_control_ticks_total", 0.0)
+        except OSError:
+            ticks = 0.0
+        if ticks > 0:
+            return ticks
+        time.sleep(0.2)
+    raise RuntimeError("the gateway's control loop did not start ticking")
+
+
+def private_domain() -> dict[str, str]:
+    """This environment on a DDS domain of its own, discovery on this machine only, so the
+    bench's robot and gateway see no one else's /sim topics."""
+    from oricf.gateway.ros.dds import dds_profile
+
+    return {**os.environ, "ROS_DOMAIN_ID": str(random.randint(101, 200)),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile())}
+
+
+class RealtimeTask:
+    """One task's policy service, run once for all its round trips."""
+
+    def __init__(self, task: str, declaration: Path, folder: Path) -> None:
+        self.task = task
+        policy = load_declaration(declaration).task
+        assert isinstance(policy, PolicyTask), declaration
+        self.settings = (policy.rate_hz, policy.state.size, policy.action.dim, policy.chunk)
+        self.port = free_port()
+        config = folder / "policy.yaml"
+        config.write_text(yaml.safe_dump({"server": {"listen": f"127.0.0.1:{self.port}"},
+                                          "model": str(declaration)}))
+        self.service = subprocess.Popen(oricf("serve", "policy", "--config", str(config)),
+                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        wait_serving(f"127.0.0.1:{self.port}", timeout=120, process=self.service)
+        self.folder = folder
+
+    def close(self) -> None:
+        stop(self.service)
+
+    def row(self, delay_ms: float, seeds: list[int], metaworld: bool) -> Row:
+        relay = DelayRelay(("127.0.0.1", self.port), delay_ms / 2000) if delay_ms else None
+        address = relay.address if relay else f"127.0.0.1:{self.port}"
+        metrics = free_port()
+        pipeline = self.folder / f"control-{delay_ms:g}.yaml"
+        pipeline.write_text(yaml.safe_dump({
+            "metrics": {"listen": f"127.0.0.1:{metrics}"},
+            "endpoints": {"policy": {"address": address, "deadline_ms": 2000}},
+            "routes": {"policy": {"input": {"control": control_input(*self.settings)},
+                                  "call": {"method": "Act", "service": "policy"}}}}))
+        env = private_domain()
+        gateway = subprocess.Popen(oricf("gateway", "--config", str(pipeline)), env=env,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            ticks_before = wait_ticking(metrics, gateway)  # its start-up is not the loop's
+            cpu_before = cpu_seconds(gateway.pid)
+            results = [self._episode(seed, env) for seed in seeds]
+            samples = scrape(metrics)
+            cpu = cpu_seconds(gateway.pid) - cpu_before
+            ticks = samples.get("oricf_gateway_control_ticks_total", 0.0) - ticks_before
+        finally:
+            stop(gateway)
+            if relay is not None:
+                relay.close()
+        return self._summary(delay_ms, results, samples, cpu, ticks, metaworld)
+
+    def _episode(self, seed: int, env: dict[str, str]) -> dict[str, Any]:
+        done = subprocess.run([sys.executable, "-m", "oricf.bench.sim_node", "--sim", self.task,
+                               "--seed", str(seed), "--wait-s", "60"], env=env,
+                              capture_output=True, text=True, timeout=600)
+        if done.returncode != 0:
+            raise RuntimeError(f"sim_node {self.task} seed {seed}: {done.stderr[-2000:]}")
+        result: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
+        return result
+
+    def _summary(self, delay_ms: float, results: list[dict[str, Any]],
+                 samples: dict[str, float], cpu_s: float, ticks: float,
+                 metaworld: bool) -> Row:
+        successes = [r for r in results if r["success"]]
+        steps = [r["steps_to_success"] if metaworld else r["steps"]
+                 for r in (successes if metaworld else results)]
+        count = len(results)
+        switches = samples.get("oricf_gateway_control_switch_jump_count", 0.0)
+        jump_sum = samples.get("oricf_gateway_control_switch_jump_sum", 0.0)
+        return Row(
+            self.task, "realtime-onboard" if delay_ms == 0 else "realtime-edge", delay_ms,
+            delay_steps(delay_ms, self.settings[0]), count,
+            len(successes) / count if metaworld else None,
+            statistics.fmean(r["return"] for r in results),
+            statistics.fmean(steps) if steps else None,
+            age_percentile(samples, 50), age_percentile(samples, 99),
+            samples.get("oricf_gateway_control_empty_ticks_total", 0.0) / count,
+            samples.get("oricf_gateway_control_late_actions_total", 0.0) / count,
+            switches / count, jump_sum / switches if switches else None,
+            cpu_s * 1e6 / ticks if ticks else 0.0)
+
+
+def realtime_rows(task: str, declaration: Path, delays_ms: list[float], episodes: int,
+                  seed: int, metaworld: bool) -> list[Row]:
+    """The task's rows in real time: the onboard reference (0 ms) and each round trip."""
+    with tempfile.TemporaryDirectory(prefix="oricf-bench-control-") as folder:
+        runner = RealtimeTask(task, declaration, Path(folder))
+        try:
+            seeds = [seed + i for i in range(episodes)]
+            return [runner.row(ms, seeds, metaworld) for ms in sorted({0.0, *delays_ms})]
+        finally:
+            runner.close()
