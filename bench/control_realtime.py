@@ -5,8 +5,9 @@ service (`oricf serve policy`) behind the delay relay (half the round trip each 
 with a `control:` input), and each episode the simulator as a ROS 2 robot
 (`python -m oricf.bench.sim_node`) in real time at its rate. The figures are the episodes'
 (success or return, steps) and the gateway's own: its /metrics (action age in steps, empty
-ticks, chunks switched) and its process's CPU time per tick (the robot side of the loop:
-observation, call, merging, publishing, with ROS). Unlike simulated time, these move with the
+ticks, chunks switched) and the robot side's CPU time per tick: the gateway's process
+(observation, call, merging, publishing, with ROS), and the policy service's too when it runs
+onboard (0 ms). Unlike simulated time, these move with the
 machine's load: quote medians of repeated runs.
 """
 
@@ -147,10 +148,12 @@ class RealtimeTask:
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             ticks_before = wait_ticking(metrics, gateway)  # its start-up is not the loop's
-            cpu_before = cpu_seconds(gateway.pid)
+            # The robot's CPU: the gateway's, and the policy service's where it is onboard.
+            robot = [gateway.pid] if delay_ms else [gateway.pid, self.service.pid]
+            cpu_before = sum(cpu_seconds(pid) for pid in robot)
             results = [self._episode(seed, env) for seed in seeds]
             samples = scrape(metrics)
-            cpu = cpu_seconds(gateway.pid) - cpu_before
+            cpu = sum(cpu_seconds(pid) for pid in robot) - cpu_before
             ticks = samples.get("oricf_gateway_control_ticks_total", 0.0) - ticks_before
         finally:
             stop(gateway)
@@ -183,7 +186,9 @@ class RealtimeTask:
             statistics.fmean(r["return"] for r in results),
             statistics.fmean(steps) if steps else None,
             age_percentile(samples, 50), age_percentile(samples, 99),
-            samples.get("oricf_gateway_control_empty_ticks_total", 0.0) / count,
+            # Between episodes the robot publishes nothing: those ticks are not the loop's.
+            max(0.0, samples.get("oricf_gateway_control_empty_ticks_total", 0.0)
+                - samples.get("oricf_gateway_control_missing_state_total", 0.0)) / count,
             samples.get("oricf_gateway_control_late_actions_total", 0.0) / count,
             switches / count, jump_sum / switches if switches else None,
             cpu_s * 1e6 / ticks if ticks else 0.0)
