@@ -63,9 +63,9 @@ class PolicyModel:
         # One item: a batch of 1 when the input has a batch dimension.
         self._feed_shape = (1, self.task.state.size) if len(spec.shape) == 2 \
             else (self.task.state.size,)
-        log.info("policy %s: state %d, action %d x %d at %.1f Hz", self.name,
+        log.info("policy %s: state %d, action %d x %d at %.1f Hz, %d steps ahead", self.name,
                  self.task.state.size, self.task.chunk, self.task.action.dim,
-                 self.task.rate_hz)
+                 self.task.rate_hz, self.task.lead_steps)
 
     def close(self) -> None:
         self.model.close()
@@ -74,7 +74,8 @@ class PolicyModel:
         info = self.model.info()
         task = self.task
         info.parameters.update(state_size=str(task.state.size), action_dim=str(task.action.dim),
-                               chunk=str(task.chunk), rate_hz=f"{task.rate_hz:g}")
+                               chunk=str(task.chunk), rate_hz=f"{task.rate_hz:g}",
+                               lead_steps=str(task.lead_steps))
         return info
 
     def check_state(self, state: np.ndarray) -> None:

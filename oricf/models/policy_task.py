@@ -6,6 +6,8 @@
       action: {output: action, dim: 3, low: -1, high: 1}
       chunk: 1                                   # actions per answer, one per control step
       rate_hz: 60.606                            # the control rate the policy was trained at
+      lead_steps: 0                              # the chunk's first action: steps after the
+                                                 # observation (a policy acting ahead)
 
 The model file's shapes are checked against these at load (oricf.models.policy).
 """
@@ -19,6 +21,7 @@ from pydantic import Field, model_validator
 from oricf.config import Schema
 
 MAX_SIZE = 1 << 16  # values in a state or an action chunk
+MAX_LEAD = 1024  # steps ahead: far beyond any round trip a chunk could bridge
 
 
 class StateInput(Schema):
@@ -75,6 +78,10 @@ class PolicyTask(Schema):
     action: ActionOutput
     chunk: int = Field(1, ge=1, le=1024, description="actions per answer, one per step")
     rate_hz: float = Field(gt=0, le=10_000, description="the control rate, steps per second")
+    lead_steps: int = Field(
+        0, ge=0, le=MAX_LEAD,
+        description="the chunk's first action is for this many steps after the observation: "
+                    "a policy trained to act ahead of a known round trip")
 
     @model_validator(mode="after")
     def _chunk_size(self) -> PolicyTask:

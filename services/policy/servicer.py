@@ -1,8 +1,10 @@
 """oricf.v1.Policy: observations become state vectors, the policy's chunks become answers.
 
-An answer's first action is for the step of the observation it answers (these policies act
-on what they see); the robot compares that step and the echoed capture time with its own
-clock to know how old the action is.
+An answer's first action is for the step of the observation it answers plus the policy's
+declared `lead_steps` (0: the policy acts on what it sees; more: a policy trained to act
+ahead of a known round trip, its first action for the step the answer arrives at); the
+robot compares that step and the echoed capture time with its own clock to know how old
+the action is.
 """
 
 from __future__ import annotations
@@ -64,7 +66,7 @@ class PolicyServicer(policy_pb2_grpc.PolicyServicer):
         actions = policy.act(state)
         inference_ms = (time.perf_counter() - inference) * 1e3
         chunk = policy_pb2.ActionChunk(
-            start_step=request.step, observation_step=request.step,
+            start_step=request.step + policy.task.lead_steps, observation_step=request.step,
             capture_time_ns=request.capture_time_ns, action_dim=actions.shape[1],
             actions=actions.ravel().tolist(), model=policy.name)
         chunk.timings.inference_ms = inference_ms

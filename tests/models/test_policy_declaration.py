@@ -71,11 +71,22 @@ def test_a_declaration_that_disagrees_with_its_model_file_is_refused_at_load(
     ({"action": {"low": 2.0}}, r"task\.policy\.action: low: above high"),
     ({"images": ["wrist"]}, r"task\.policy\.images: List should have at most 0 items"),
     ({"rate_hz": 0}, r"task\.policy\.rate_hz: Input should be greater than 0"),
-], ids=["mean", "std", "bounds", "low above high", "images", "rate"])
+    ({"lead_steps": -1}, r"task\.policy\.lead_steps: Input should be greater than or equal "
+                         r"to 0"),
+    ({"lead_steps": 1025}, r"task\.policy\.lead_steps: Input should be less than or equal "
+                           r"to 1024"),
+], ids=["mean", "std", "bounds", "low above high", "images", "rate", "lead below 0",
+        "lead too far"])
 def test_a_declaration_at_odds_with_itself_is_refused_naming_file_and_key(
         tmp_path: Path, task: dict[str, Any], message: str) -> None:
     with pytest.raises(ConfigError, match=f"mine.yaml: {message}"):
         load_declaration(changed(tmp_path, **task))
+
+
+def test_a_policy_acts_on_what_it_sees_unless_declared_to_act_ahead(tmp_path: Path) -> None:
+    assert load_declaration(HOPPER).task.lead_steps == 0  # type: ignore[union-attr]
+    ahead = PolicyModel(load_declaration(changed(tmp_path, lead_steps=8)), ModelStore())
+    assert ahead.task.lead_steps == 8 and ahead.info().parameters["lead_steps"] == "8"
 
 
 def test_the_policy_service_refuses_a_model_that_is_no_policy() -> None:

@@ -8,10 +8,12 @@ import math
 import re
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 
 import grpc
 import numpy as np
 import pytest
+import yaml
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 
 from oricf.config import REPO_ROOT
@@ -95,7 +97,25 @@ def test_model_info_reports_the_policys_declaration(stub: policy_pb2_grpc.Policy
     assert (info.service, info.model) == ("policy", "pybullet-hopper")
     assert info.sha256 == "d8f4b122df13d96a3fc8315dbc0de529c20e46a1bcfb98f3d956e15758dd9986"
     assert dict(info.parameters) == {"threads": "1", "task": "policy", "state_size": "15",
-                                     "action_dim": "3", "chunk": "1", "rate_hz": "60.606"}
+                                     "action_dim": "3", "chunk": "1", "rate_hz": "60.606",
+                                     "lead_steps": "0"}
+
+
+def test_a_policy_declared_to_act_ahead_answers_chunks_starting_that_many_steps_later(
+        tmp_path: Path, arrays: dict[str, np.ndarray]) -> None:
+    declaration = yaml.safe_load(HOPPER.read_text())
+    declaration["task"]["lead_steps"] = 8
+    ahead = tmp_path / "hopper-ahead.yaml"
+    ahead.write_text(yaml.safe_dump(declaration))
+    with running_service("policy", {"model": str(ahead)}) as service:
+        stub = policy_pb2_grpc.PolicyStub(service.channel)
+        chunk = stub.Act(observe(7, GOOD), timeout=10)
+        streamed = list(stub.ActStream(iter([observe(3, GOOD), observe(4, GOOD)]), timeout=10))
+        info = stub.GetModelInfo(common_pb2.GetModelInfoRequest(), timeout=10)
+    assert (chunk.start_step, chunk.observation_step, chunk.capture_time_ns) == (15, 7, 1_007)
+    assert [(c.start_step, c.observation_step) for c in streamed] == [(11, 3), (12, 4)]
+    np.testing.assert_allclose(chunk.actions, expected(arrays, GOOD), atol=1e-5)
+    assert info.parameters["lead_steps"] == "8"
 
 
 GOOD = np.linspace(-0.5, 0.5, 15).astype(np.float32)
