@@ -1,5 +1,7 @@
 """Demonstrations of a metaworld task by its scripted expert, as training pairs for a
-chunk policy: each observation and the expert's next `chunk` actions from it.
+chunk policy: each observation and the expert's `chunk` actions from `lead` steps after it
+(lead 0: from the observation's own step on; a policy trained with a lead acts ahead of a
+known round trip).
 
 The executed action may carry Gaussian noise (DART) while the label is the expert's own
 clean action; a chunk that runs past the episode's end repeats its last action (the arm
@@ -57,15 +59,17 @@ def episode(sim: MetaworldSim, act: Callable[[np.ndarray], np.ndarray], reset_se
     return observations, actions, False
 
 
-def chunks(actions: np.ndarray, chunk: int) -> np.ndarray:
-    """[steps, chunk * dim]: row t holds actions t .. t+chunk-1, the last one repeated
-    past the end."""
+def chunks(actions: np.ndarray, chunk: int, lead: int = 0) -> np.ndarray:
+    """[steps, chunk * dim]: row t holds actions t+lead .. t+lead+chunk-1, the episode's
+    last action repeated past its end."""
     last = len(actions) - 1
-    index = np.minimum(np.arange(len(actions))[:, None] + np.arange(chunk)[None, :], last)
+    index = np.minimum(np.arange(len(actions))[:, None] + lead + np.arange(chunk)[None, :],
+                       last)
     return actions[index].reshape(len(actions), -1)
 
 
-def collect(task: str, demos: int, seed: int, noise: float, chunk: int) -> Demos:
+def collect(task: str, demos: int, seed: int, noise: float, chunk: int,
+            lead: int = 0) -> Demos:
     """`demos` successful episodes of the expert (at most 3x as many tried)."""
     sim = MetaworldSim(task)
     act = expert(task)
@@ -77,7 +81,7 @@ def collect(task: str, demos: int, seed: int, noise: float, chunk: int) -> Demos
             if success:
                 kept += 1
                 observations.append(np.asarray(obs))
-                targets.append(chunks(np.asarray(actions), chunk))
+                targets.append(chunks(np.asarray(actions), chunk, lead))
     finally:
         sim.close()
     if kept < demos:

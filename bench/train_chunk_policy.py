@@ -1,7 +1,7 @@
 """A chunk policy for a metaworld v3 task, behaviour-cloned from its scripted expert.
 
     python -m oricf.bench.train_chunk_policy --task pick-place-v3 [--demos 60] [--chunk 16]
-        [--seed 0] [--epochs N] [--noise SIGMA]
+        [--seed 0] [--epochs N] [--noise SIGMA] [--lead STEPS]
 
 Collects seeded expert demonstrations, fits an MLP (observation -> the next `chunk`
 actions) in numpy, and writes it as a declared policy: `policy.onnx` (MatMul/Add/Relu, as
@@ -14,6 +14,12 @@ serves what this writes like any declared model.
 DART-style noise: the executed actions are the expert's plus Gaussian noise (`--noise`),
 while the recorded labels stay the expert's clean actions, so the demonstrations cover the
 states a slightly late or imperfect policy drifts into and show how to recover from them.
+
+With `--lead L` the policy acts ahead of a round trip of L steps: the targets for the
+observation of step t are the expert's actions for t+L .. t+L+chunk-1, and the declaration
+says `lead_steps: L`, so the policy service answers chunks that start L steps after the
+observation (the step they arrive at, behind that round trip).
+
 Demonstration episodes are reset with seeds from 1,000,000 on (chunk_demos.demo_seed):
 an evaluation on seeds below that is on episodes the policy has not seen.
 """
@@ -41,7 +47,7 @@ from oricf.store import default_root, sha256_of
 
 log = logging.getLogger(__name__)
 
-FORMAT = 1  # bump when what a cached policy holds changes
+FORMAT = 2  # bump when what a cached policy holds changes
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,7 @@ class Settings:
     hidden: int = 256
     batch: int = 256
     lr: float = 1e-3
+    lead: int = 0  # steps after the observation the chunk's first action is for
 
 
 @dataclass(frozen=True)
@@ -86,7 +93,8 @@ def train_or_find(settings: Settings, root: Path | None = None) -> Trained:
         log.info("%s: cached in %s", settings.task, folder)
         return Trained(declaration, trained=False)
     started = time.monotonic()
-    demos = collect(settings.task, settings.demos, settings.seed, settings.noise, settings.chunk)
+    demos = collect(settings.task, settings.demos, settings.seed, settings.noise, settings.chunk,
+                    settings.lead)
     collected = time.monotonic()
     mean, std = demos.normalisation()
     layers = train((demos.observations - mean) / std, demos.targets,
@@ -131,8 +139,8 @@ def declaration_text(settings: Settings, key: str, model: Path, mean: np.ndarray
         f"{settings.task}\n# (python -m oricf.bench.train_chunk_policy; training.json: "
         f"its settings).\n"
         f"name: bc-{settings.task}-{key[:8]}\n"
-        f'description: "{settings.task}: an MLP, observation -> the next {settings.chunk} '
-        f'actions, cloned from {settings.demos} expert demonstrations"\n'
+        f'description: "{settings.task}: an MLP, observation -> {settings.chunk} actions from '
+        f'{settings.lead} steps on, cloned from {settings.demos} expert demonstrations"\n'
         f"license: MIT\n"
         f"weights: {{path: ./{model.name}, sha256: {sha256_of(model)}}}\n"
         f"backend: {{engine: onnxruntime, threads: 1}}\n"
@@ -140,7 +148,7 @@ def declaration_text(settings: Settings, key: str, model: Path, mean: np.ndarray
         f"  state:\n    input: observation\n    size: {mean.size}\n"
         f"    mean: {values(mean)}\n    std: {values(std)}\n"
         f"  action: {{output: action, dim: 4, low: -1.0, high: 1.0}}\n"
-        f"  chunk: {settings.chunk}\n  rate_hz: 80\n")
+        f"  chunk: {settings.chunk}\n  rate_hz: 80\n  lead_steps: {settings.lead}\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -154,10 +162,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--epochs", type=int, default=defaults.epochs)
     parser.add_argument("--noise", type=float, default=defaults.noise,
                         help="std of the noise added to the executed actions (0: none)")
+    parser.add_argument("--lead", type=int, default=defaults.lead,
+                        help="steps after the observation the chunk's first action is for")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     result = train_or_find(Settings(task=args.task, demos=args.demos, chunk=args.chunk,
-                                    seed=args.seed, epochs=args.epochs, noise=args.noise))
+                                    seed=args.seed, epochs=args.epochs, noise=args.noise,
+                                    lead=args.lead))
     print(f"{result.declaration} ({'trained' if result.trained else 'cached'})")
     return 0
 

@@ -11,7 +11,13 @@ import pytest
 
 from oricf.bench.chunk_demos import chunks
 from oricf.bench.sims import open_sim
-from oricf.bench.train_chunk_policy import Settings, cache_key, train_or_find, trained_policy
+from oricf.bench.train_chunk_policy import (
+    Settings,
+    cache_key,
+    declaration_text,
+    train_or_find,
+    trained_policy,
+)
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
 from oricf.store import ModelStore
@@ -70,3 +76,23 @@ def test_a_chunk_past_the_episodes_end_repeats_its_last_action() -> None:
     actions = np.arange(6, dtype=float).reshape(3, 2)  # three steps of two values
     np.testing.assert_array_equal(chunks(actions, 2), [[0, 1, 2, 3], [2, 3, 4, 5],
                                                        [4, 5, 4, 5]])
+
+
+def test_a_lead_shifts_the_targets_to_the_actions_that_many_steps_later() -> None:
+    actions = np.arange(10, dtype=float).reshape(5, 2)  # five steps of two values
+    np.testing.assert_array_equal(chunks(actions, 2, lead=2), [[4, 5, 6, 7], [6, 7, 8, 9],
+                                                               [8, 9, 8, 9], [8, 9, 8, 9],
+                                                               [8, 9, 8, 9]])
+    np.testing.assert_array_equal(chunks(actions, 3, lead=0), chunks(actions, 3))
+
+
+def test_the_lead_is_in_the_cache_key_and_the_declaration(tmp_path: Path) -> None:
+    assert cache_key(Settings(task=TASK, lead=8, **SMALL)) != \
+        cache_key(Settings(task=TASK, **SMALL))
+    model = tmp_path / "policy.onnx"
+    model.write_bytes(b"weights")  # only named by the declaration: never loaded here
+    text = declaration_text(Settings(task=TASK, lead=8), "k" * 20, model, np.zeros(39),
+                            np.ones(39))
+    declaration = tmp_path / "policy.yaml"
+    declaration.write_text(text)
+    assert load_declaration(declaration).task.lead_steps == 8  # type: ignore[union-attr]
