@@ -19,6 +19,10 @@ but the CPU is the same on any machine for the same seed.
     edge-latest    delay-aware (late: skip), asking again as soon as an answer is in (one
     edge-weighted  request out); overlapping chunks merged latest only, weighted (0.7 new)
     edge-ensemble  or by ACT's temporal ensembling
+    edge-ahead     metaworld only: a chunk policy trained to act as many steps ahead as
+                   the round trip (train_chunk_policy --lead d, one per round trip, trained
+                   once and cached), its chunk starting at the step it arrives at; late:
+                   skip, merged latest only, asking again as soon as an answer is in
     placed         where the gateway's placement puts it with a latency budget in steps
                    (--budget-steps), having timed the edge's round trip: onboard when
                    that is over the budget, else on the edge; the reason printed
@@ -38,6 +42,7 @@ from pathlib import Path
 from oricf.bench.control_report import Row, print_goals, print_task, summarise
 from oricf.bench.control_run import (
     MODES,
+    TRAINED_MODES,
     Episode,
     Placed,
     default_budget,
@@ -92,18 +97,32 @@ def check_tasks(tasks: list[str]) -> None:
                           f"pick-place-v3")
 
 
-def load_policy(task: str) -> PolicyModel:
+def load_policy(task: str, lead: int = 0) -> PolicyModel:
     """The declared policy of a pybullet robot, or the chunk policy trained for a metaworld
-    task (trained now when it is not cached)."""
+    task to act `lead` steps ahead (trained now when it is not cached)."""
     if task in ROBOTS:
         declaration = POLICIES / f"{task}.yaml"
     else:
         from oricf.bench.train_chunk_policy import trained_policy
 
-        declaration = trained_policy(task)
+        declaration = trained_policy(task, lead=lead)
     policy = PolicyModel(load_declaration(declaration), ModelStore())
     policy.load()
     return policy
+
+
+def task_modes(task: str, modes: list[str]) -> list[str]:
+    """The modes run for `task`: those that need a policy trained for the round trip
+    (edge-ahead) only where there is a trainer (metaworld)."""
+    return [m for m in modes if task not in ROBOTS or m not in TRAINED_MODES]
+
+
+def ahead_policies(task: str, runs: list[tuple[str, int]], policy: PolicyModel
+                   ) -> dict[int, PolicyModel]:
+    """The policy each edge-ahead run uses, by round trip in steps: one trained to act that
+    many steps ahead (at no delay, the policy itself)."""
+    leads = sorted({d for mode, d in runs if mode in TRAINED_MODES})
+    return {d: load_policy(task, d) if d else policy for d in leads}
 
 
 def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Placed]
@@ -123,22 +142,26 @@ def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Plac
 def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) -> list[Row]:
     sim: Sim = open_sim(task)
     policy = load_policy(task)
+    ahead: dict[int, PolicyModel] = {}
     try:
         chunk = policy.task.chunk
         budget = default_budget(chunk) if args.budget_steps is None else args.budget_steps
         steps = {ms: delay_steps(ms, sim.rate_hz) for ms in delays_ms}
         placements = {ms: placement(ms, sim.rate_hz, budget, chunk) for ms in delays_ms}
-        runs = plan(args.modes, steps, placements)
+        modes = task_modes(task, args.modes)
+        runs = plan(modes, steps, placements)
+        ahead = ahead_policies(task, runs, policy)
         max_steps = args.max_steps or sim.max_steps
         episodes: dict[tuple[str, int], list[Episode]] = {run: [] for run in runs}
         for i in range(args.episodes):  # interleaved, episode by episode (the CPU figures)
             for mode, d in runs:
-                episodes[mode, d].append(run_episode(sim, policy, setting(mode, d, chunk),
+                used = ahead[d] if mode in TRAINED_MODES else policy
+                episodes[mode, d].append(run_episode(sim, used, setting(mode, d, chunk),
                                                      args.seed + i, max_steps))
         metaworld = task not in ROBOTS
         rows = [summarise(task, "onboard", 0.0, 0, episodes["onboard", 0], metaworld)]
         for ms, d in steps.items():
-            for mode in [m for m in args.modes if m != "onboard"]:
+            for mode in [m for m in modes if m != "onboard"]:
                 placed = placements[ms] if mode == "placed" else None
                 run_as = placed.mode if placed else mode
                 row = summarise(task, mode, ms, d, episodes[run_as, 0 if run_as == "onboard"
@@ -149,6 +172,9 @@ def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) ->
                 rows.append(row)
         return rows
     finally:
+        for trained in ahead.values():
+            if trained is not policy:
+                trained.close()
         policy.close()
         sim.close()
 

@@ -11,7 +11,7 @@ from oricf.bench.common import print_table
 from oricf.bench.control_run import Episode, delay_steps
 from oricf.stats import percentile
 
-EDGE_MODES = ("edge-sync", "edge-latest", "edge-weighted", "edge-ensemble")
+EDGE_MODES = ("edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead")
 HOPPER_EDGE_MS = 30.0   # the goal's edge for Hopper, at a one-step budget
 PYBULLET_HZ = 1 / 0.0165
 

@@ -58,18 +58,18 @@ class Wire:
     """Answers on their way back, by the step they are delivered before."""
 
     delay_steps: int
-    due: dict[int, list[tuple[list[float], Origin]]] = field(
+    due: dict[int, list[tuple[list[float], int, Origin]]] = field(
         default_factory=lambda: defaultdict(list))
 
-    def send(self, step: int, answer: list[float], origin: Origin) -> None:
-        self.due[step + self.delay_steps].append((answer, origin))
+    def send(self, step: int, answer: list[float], start_step: int, origin: Origin) -> None:
+        self.due[step + self.delay_steps].append((answer, start_step, origin))
 
     def arrive(self, loop: ControlLoop, step: int, chunk: int, dim: int) -> None:
         """Delivers what is due before the action for `step` (the answer as the robot gets
-        it: a flat list, made an array here)."""
-        for answer, origin in self.due.pop(step, []):
+        it: a flat list, made an array here, and the step its first action is for)."""
+        for answer, start_step, origin in self.due.pop(step, []):
             actions = np.asarray(answer, np.float64).reshape(chunk, dim)
-            loop.deliver(actions, origin.step, origin, now=step - 1)
+            loop.deliver(actions, start_step, origin, now=step - 1)
 
 
 def answer(policy: PolicyModel, message: list[float]) -> list[float]:
@@ -105,7 +105,7 @@ def run_episode(sim: Sim, policy: PolicyModel, setting: Setting, seed: int,
             reply = answer(policy, message)
             if setting.policy_onboard:
                 episode.cpu_ns += time.thread_time_ns() - mark
-            send(wire, request, reply)
+            send(wire, request, reply, policy.task.lead_steps)
         start = time.thread_time_ns()
         wire.arrive(loop, step, chunk, dim)
         tick = loop.act(step)
@@ -128,8 +128,11 @@ def run_episode(sim: Sim, policy: PolicyModel, setting: Setting, seed: int,
     return episode
 
 
-def send(wire: Wire, request: Request, reply: list[float]) -> None:
-    wire.send(request.step, reply, Origin(request.step, request.capture_time_ns))
+def send(wire: Wire, request: Request, reply: list[float], lead_steps: int) -> None:
+    """The answer as the policy service gives it: its first action for the observation's
+    step plus the policy's declared lead."""
+    wire.send(request.step, reply, request.step + lead_steps,
+              Origin(request.step, request.capture_time_ns))
 
 
 def delay_steps(delay_ms: float, rate_hz: float) -> int:
@@ -138,7 +141,9 @@ def delay_steps(delay_ms: float, rate_hz: float) -> int:
     return max(0, math.ceil(delay_ms * rate_hz / 1000 - 1e-6))
 
 
-MODES = ("onboard", "edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "placed")
+MODES = ("onboard", "edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead",
+         "placed")
+TRAINED_MODES = ("edge-ahead",)  # need a policy trained for the round trip: metaworld only
 MERGES: dict[str, Merge] = {"edge-latest": "latest", "edge-weighted": "weighted",
                             "edge-ensemble": "ensemble"}
 
@@ -154,13 +159,17 @@ def ask_ahead(chunk: int) -> int:
 
 def setting(mode: str, delay_steps: int, chunk: int) -> Setting:
     """The loop's settings for `mode` (not `placed`: see placement) at a round trip of
-    `delay_steps`."""
+    `delay_steps`. `edge-ahead` is `edge-latest` for a policy trained to act `delay_steps`
+    ahead: its chunk starts at the step it arrives at, so `chunk` actions are queued then,
+    and asking at `chunk` asks as soon as it is in, as the other delay-aware modes do."""
     if mode == "onboard":  # each chunk played through, then the next asked for
         return Setting("skip", "latest", 0, 1, 0, True)
     if mode == "edge-sync":
         if chunk == 1:  # pipelined: the robot acts on observations `d` steps old
             return Setting("shift", "latest", 1, delay_steps + 1, delay_steps, False)
         return Setting("shift", "latest", 0, 1, delay_steps, False)
+    if mode == "edge-ahead":  # a chunk arrives with every action ahead: `chunk` queued
+        return Setting("skip", "latest", chunk, 1, delay_steps, False)
     return Setting("skip", MERGES[mode], ask_ahead(chunk), 1, delay_steps,
                    False)
 

@@ -15,7 +15,7 @@ import pytest
 
 from oricf.bench import control
 from oricf.bench.control_report import Row, summarise
-from oricf.bench.control_run import delay_steps, placement, run_episode, setting
+from oricf.bench.control_run import MODES, delay_steps, placement, run_episode, setting
 from oricf.bench.sims import Sim, open_sim
 from oricf.bench.train_chunk_policy import trained_policy
 from oricf.errors import ConfigError
@@ -127,24 +127,39 @@ def test_the_command_says_it_in_one_line_and_exits_2() -> None:
 
 
 @pytest.fixture(scope="module")
-def drawer(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Sim, PolicyModel]]:
+def drawer_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("models")
+
+
+def drawer_policy(root: Path, lead: int) -> PolicyModel:
     """A small chunk policy for metaworld's drawer-close-v3 (the settings
-    tests/bench/test_chunk_policy.py trains: quick, and far from the edge)."""
-    root = tmp_path_factory.mktemp("models")
-    declaration = trained_policy("drawer-close-v3", root=root, demos=10, epochs=40)
+    tests/bench/test_chunk_policy.py trains: quick, and far from the edge), acting `lead`
+    steps ahead."""
+    declaration = trained_policy("drawer-close-v3", root=root, demos=10, epochs=40, lead=lead)
     policy = PolicyModel(load_declaration(declaration), ModelStore(root))
     policy.load()
+    return policy
+
+
+@pytest.fixture(scope="module")
+def drawer(drawer_root: Path) -> Iterator[tuple[Sim, dict[str, PolicyModel]]]:
+    """The simulator, and the policy of each mode: edge-ahead's trained to act the round
+    trip of 50 ms (4 steps) ahead."""
+    policies = {"plain": drawer_policy(drawer_root, 0), "edge-ahead": drawer_policy(drawer_root, 4)}
     sim = open_sim("drawer-close-v3")
-    yield sim, policy
+    yield sim, policies
     sim.close()
-    policy.close()
+    for policy in policies.values():
+        policy.close()
 
 
 @pytest.mark.parametrize(("mode", "steps"), [("onboard", 0), ("edge-latest", 4),
-                                             ("edge-ensemble", 4), ("edge-sync", 4)])
+                                             ("edge-ensemble", 4), ("edge-sync", 4),
+                                             ("edge-ahead", 4)])
 def test_a_chunk_policy_closes_the_drawer_through_the_loop_behind_50_ms(
-        drawer: tuple[Sim, PolicyModel], mode: str, steps: int) -> None:
-    sim, policy = drawer
+        drawer: tuple[Sim, dict[str, PolicyModel]], mode: str, steps: int) -> None:
+    sim, policies = drawer
+    policy = policies.get(mode, policies["plain"])
     assert delay_steps(50, sim.rate_hz) == steps or mode == "onboard"
     episodes = [run_episode(sim, policy, setting(mode, steps, policy.task.chunk), seed, 500)
                 for seed in (0, 1)]
@@ -158,3 +173,13 @@ def test_a_chunk_policy_closes_the_drawer_through_the_loop_behind_50_ms(
     if mode in ("edge-latest", "edge-ensemble"):  # delay-aware: the late actions dropped
         assert result.late_actions > 0
         assert result.action_age_p50 is not None and steps <= result.action_age_p50 < 2 * steps
+    if mode == "edge-ahead":  # each chunk starts at the step it arrives at: nothing late
+        assert result.late_actions == 0
+        assert result.action_age_p50 is not None and steps <= result.action_age_p50 < 2 * steps
+
+
+def test_the_mode_acting_ahead_runs_where_a_policy_can_be_trained_for_it() -> None:
+    assert "edge-ahead" in control.task_modes("pick-place-v3", list(MODES))
+    assert control.task_modes("hopper", list(MODES)) == [m for m in MODES if m != "edge-ahead"]
+    runs = control.plan(["onboard", "edge-ahead"], {0.0: 0, 100.0: 8}, {})
+    assert runs == [("onboard", 0), ("edge-ahead", 0), ("edge-ahead", 8)]
