@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from oricf.bench.sims.base import Sim, open_sim
+from oricf.bench.sims import Sim, open_sim
 
 log = logging.getLogger(__name__)
 

@@ -6,6 +6,7 @@ seeded at `reset(seed)`, and stepped one action at a time (`Step`). The simulato
 the dev extra (pybullet, metaworld); nothing is imported until one is opened.
 """
 
-from oricf.bench.sims.base import Sim, Step, open_sim, sim_names
+from oricf.bench.sims.base import Sim, Step
+from oricf.bench.sims.names import open_sim, sim_names
 
 __all__ = ["Sim", "Step", "open_sim", "sim_names"]

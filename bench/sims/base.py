@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from oricf.errors import ConfigError, InvalidInput
+from oricf.errors import InvalidInput
 from oricf.models.policy import require_finite
 
 log = logging.getLogger(__name__)
@@ -59,23 +59,3 @@ def checked_action(sim: Sim, action: np.ndarray, over: bool) -> np.ndarray:
                            f"{sim.action_dim}")
     require_finite(values, "action")
     return np.clip(values, sim.action_low, sim.action_high)
-
-
-def sim_names() -> list[str]:
-    """Every name open_sim takes (the metaworld tasks when metaworld is installed)."""
-    from oricf.bench.sims import metaworld, pybullet
-
-    return [*pybullet.ROBOTS, *metaworld.task_names()]
-
-
-def open_sim(name: str) -> Sim:
-    """The simulator `name`: a pybullet robot or a metaworld v3 task."""
-    from oricf.bench.sims import metaworld, pybullet
-
-    if name in pybullet.ROBOTS:
-        return pybullet.PybulletSim(name)
-    if name in metaworld.task_names():
-        return metaworld.MetaworldSim(name)
-    raise ConfigError(f"no simulator {name!r}: the pybullet robots are "
-                      f"{', '.join(pybullet.ROBOTS)}; the metaworld v3 tasks are "
-                      f"{', '.join(metaworld.task_names()) or '(metaworld is not installed)'}")
