@@ -121,8 +121,12 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
             robot.publishing = hopper_state.tolist()
             wait_for(lambda: source.loop.counts.answers >= 20)
             robot.drain()
-            for msg in robot.next_actions(10):
-                np.testing.assert_allclose(msg.data, expected, atol=1e-5)
+            # The policy's action for that state; the safe action only on a tick whose
+            # answer came later than the hold (a loaded machine), never anything else.
+            sent = [np.asarray(msg.data) for msg in robot.next_actions(10)]
+            policys = [a for a in sent if np.allclose(a, expected, atol=1e-5)]
+            assert policys and all(np.allclose(a, expected, atol=1e-5) or not a.any()
+                                   for a in sent)
             # One action per answer, so every tick asks; each action's observation is
             # measured (its age in steps and in time).
             assert source.loop.ages.seconds.snapshot()[0][-1][1] > 0
