@@ -97,16 +97,19 @@ def check_tasks(tasks: list[str]) -> None:
                           f"pick-place-v3")
 
 
-def load_policy(task: str, lead: int = 0) -> PolicyModel:
-    """The declared policy of a pybullet robot, or the chunk policy trained for a metaworld
-    task to act `lead` steps ahead (trained now when it is not cached)."""
+def declaration_of(task: str, lead: int = 0) -> Path:
+    """The declaration of a pybullet robot's policy, or of the chunk policy trained for a
+    metaworld task to act `lead` steps ahead (trained now when it is not cached)."""
     if task in ROBOTS:
-        declaration = POLICIES / f"{task}.yaml"
-    else:
-        from oricf.bench.train_chunk_policy import trained_policy
+        return POLICIES / f"{task}.yaml"
+    from oricf.bench.train_chunk_policy import trained_policy
 
-        declaration = trained_policy(task, lead=lead)
-    policy = PolicyModel(load_declaration(declaration), ModelStore())
+    return trained_policy(task, lead=lead)
+
+
+def load_policy(task: str, lead: int = 0) -> PolicyModel:
+    """The task's declared policy (declaration_of), loaded."""
+    policy = PolicyModel(load_declaration(declaration_of(task, lead)), ModelStore())
     policy.load()
     return policy
 
@@ -179,6 +182,15 @@ def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) ->
         sim.close()
 
 
+def measure_realtime(task: str, delays_ms: list[float], args: argparse.Namespace) -> list[Row]:
+    """The task in real time, through the relay (needs ROS 2's Python packages)."""
+    need("rclpy", "ros", "oricf bench control --realtime")
+    from oricf.bench.control_realtime import realtime_rows
+
+    return realtime_rows(task, declaration_of(task), delays_ms, args.episodes, args.seed,
+                         task not in ROBOTS)
+
+
 def parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="oricf bench control", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -201,6 +213,11 @@ def parser() -> argparse.ArgumentParser:
                         "policy)")
     parser.add_argument("--max-steps", type=int, default=None,
                         help="cap on an episode's steps (default: the simulator's)")
+    parser.add_argument("--realtime", action="store_true",
+                        help="also run each task in real time over ROS 2: the policy service "
+                        "behind the delay relay, the gateway's control loop in its process, "
+                        "the simulator as a robot (bench/control_realtime.py); rows "
+                        "realtime-onboard and realtime-edge")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     return parser
 
@@ -230,6 +247,8 @@ def main(argv: list[str] | None = None) -> int:
         delays = args.delays or list(PYBULLET_DELAYS_MS if task in ROBOTS
                                      else METAWORLD_DELAYS_MS)
         task_rows = measure_task(task, delays, args)
+        if args.realtime:
+            task_rows += measure_realtime(task, delays, args)
         print_task(task, task_rows)
         rows += task_rows
     print_goals(rows)

@@ -42,15 +42,16 @@ def oricf(*args: str) -> list[str]:
 
 
 def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) -> dict[str, Any]:
-    """The loop's settings as `oricf bench control` runs them delay-aware: a chunk policy
+    """The loop's settings as `oricf bench control` runs them delay-aware, ticked by the
+    robot's state (each state a step, its action out as soon as it is known): a chunk policy
     followed on time (late: skip), asked again as an answer comes in; a policy of one action
-    played on arrival and asked while one is queued."""
+    asked with each state."""
     one = chunk == 1
-    return {"rate_hz": rate_hz, "action_dim": action_dim, "max_age_ms": 200,
+    return {"rate_hz": rate_hz, "tick": "state", "action_dim": action_dim, "max_age_ms": 200,
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
-            "late": "shift" if one else "skip", "merge": "latest",
-            "request_at": 1 if one else chunk - 1, "hold_steps": 2 if one else 4,
+            "late": "skip", "merge": "latest",
+            "request_at": 0 if one else chunk - 1, "hold_steps": 2 if one else 4,
             "deadline_steps": max(8, 2 * chunk),
             "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
                        "deadman_ms": 250}}

@@ -51,6 +51,11 @@ log = logging.getLogger(__name__)
 
 class ControlSettings(Schema):
     rate_hz: float = Field(gt=0, le=1000, description="ticks a second (the policy's rate)")
+    tick: Literal["clock", "state"] = Field(
+        "clock", description="clock: the loop ticks on its own clock at rate_hz; state: each "
+        "message of the first state part is a step (the robot's own clock), and its action "
+        "goes out as soon as it is known: at once when queued, else when the answer to that "
+        "state comes (or with the next state)")
     state: list[StatePart] = Field(min_length=1, max_length=32)
     max_age_ms: float = Field(100.0, gt=0, le=10_000)
     action_dim: int = Field(ge=1, le=4096)
@@ -129,30 +134,40 @@ class ControlSource:
         self._submit = submit
         self._throttle = ThrottledLog(log)
         self._acted = -1
+        self._step = -1                     # tick: state: the newest state's step
+        self._pending: int | None = None    # tick: state: a step whose action awaits its answer
+        self._lock = threading.Lock()       # tick: state: states and answers, one at a time
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"control-{route}")
 
     def _taker(self, index: int) -> Any:
+        ticks = index == 0 and self.settings.tick == "state"
+
         def take(msg: Any) -> None:
             try:
                 self.observation.take(index, msg)
             except MissingState as exc:
                 self._throttle.warning(f"state:{index}", "route %s: state refused: %s",
                                        self.route, exc)
+            if ticks and not self._stop.is_set():
+                self._on_state()
         return take
 
     def start(self) -> None:
-        log.info("route %s: control loop at %g Hz -> %s (%s)", self.route,
-                 self.settings.rate_hz, self.settings.target.topic, self.settings.target.type)
-        self._thread.start()
+        log.info("route %s: control loop at %g Hz (ticked by its %s) -> %s (%s)", self.route,
+                 self.settings.rate_hz, self.settings.tick, self.settings.target.topic,
+                 self.settings.target.type)
+        if self.settings.tick == "clock":
+            self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Stops ticking; the target's last message is the safe action."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout)
-        self.loop.stop()
-        self.target.close()
+        with self._lock:  # no state or answer acts after this
+            self.loop.stop()
+            self.target.close()
 
     def _run(self) -> None:
         period = 1.0 / self.settings.rate_hz
@@ -171,19 +186,43 @@ class ControlSource:
             self._stop.wait(max(0.0, wait))
 
     def _tick(self, step: int) -> None:
-        now = time.monotonic_ns()
+        self._ask(step)
+        self._act(step)
+
+    def _ask(self, step: int) -> bool:
+        """Sends the observation to the policy if the loop asks for it now; whether it did."""
         try:
-            state, received_ns = self.observation.assemble(now)
+            state, received_ns = self.observation.assemble(time.monotonic_ns())
         except MissingState as exc:
             self.loop.counts.missing_state += 1
             self._throttle.warning("missing", "route %s: no observation: %s", self.route, exc)
-        else:
-            request = self.loop.ask(step, state, received_ns)
-            if request is not None:
-                self._submit(Asked(self, request))
+            return False
+        request = self.loop.ask(step, state, received_ns)
+        if request is not None:
+            self._submit(Asked(self, request))
+        return request is not None
+
+    def _act(self, step: int) -> None:
         tick = self.loop.act(step, time.monotonic_ns())
         self._acted = step
         self.target.send(tick.action)
+
+    def _on_state(self) -> None:
+        """tick: state: a new step. The step before it, if still waiting for its answer,
+        is acted on now (held or safe); this one at once when an action is queued for it,
+        else when its answer comes."""
+        with self._lock:
+            if self._stop.is_set():
+                return
+            if self._pending is not None:
+                self._act(self._pending)
+                self._pending = None
+            self._step += 1
+            asked = self._ask(self._step)
+            if asked and self.loop.queue.remaining(self._step) == 0:
+                self._pending = self._step
+            else:
+                self._act(self._step)
 
     def answered(self, request: Request, record: Record) -> None:
         origin = Origin(int(record["observation_step"]), request.capture_time_ns)
@@ -193,6 +232,10 @@ class ControlSource:
         except BadChunk as exc:
             self._throttle.warning("bad_chunk", "route %s: chunk refused: %s", self.route, exc)
             return
+        with self._lock:
+            if self._pending == origin.step and not self._stop.is_set():
+                self._act(origin.step)  # the action of the state this answers, at once
+                self._pending = None
         if queued == 0 and self.settings.late == "skip":
             self._throttle.warning(
                 "stale", "route %s: a chunk for step %d came at step %d, after all its "

@@ -174,6 +174,35 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
         gateway.destroy_node()
 
 
+def test_ticked_by_the_robots_state_each_state_gets_its_own_action_back(
+        policy: RunningService, ros_context: Context) -> None:
+    """tick: state: the robot's messages are the steps, and the action for each goes out as
+    soon as the answer to it comes: a robot that waits for it acts on no old observation."""
+    arrays = reference_arrays("HopperBulletEnv_v0")[0]
+    env = hopper(seed=2)
+    state = np.asarray(env.reset(), np.float64)
+    robot = Robot(ros_context)
+    config = control_config(policy.address, tick="state", late="skip", request_at=0)
+    gateway = running(config, ros_context, robot)
+    try:
+        with spinning(ros_context, gateway, robot.node):
+            source = source_of(gateway)
+            wait_for(lambda: robot.state.get_subscription_count() > 0)
+            for _ in range(15):
+                robot.state.publish(Float64MultiArray(data=state.tolist()))
+                action = np.asarray(robot.next_actions(1)[0].data)
+                expected = np.clip(forward(arrays, state.astype(np.float32)), -1, 1)
+                np.testing.assert_allclose(action, expected, atol=1e-5)
+                state, *_ = env.step(action)
+                state = np.asarray(state, np.float64)
+            assert source.loop.counts.safe_ticks == 0
+            assert list(source.loop.ages.steps) == [0] * 15  # each from its own state
+    finally:
+        gateway.shutdown()
+        robot.node.destroy_node()
+        gateway.destroy_node()
+
+
 def test_the_safe_action_goes_out_while_the_policy_is_gone(
         ros_context: Context, hopper_state: np.ndarray) -> None:
     service = running_service("policy")
