@@ -21,16 +21,13 @@ from oricf.bench.train_chunk_policy import (
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
 from oricf.store import ModelStore
-
-# Small and quick, yet far from the edge: trained with seeds 0, 1 and 2 these settings
-# solved 20 of 20 unseen episodes each.
-TASK = "drawer-close-v3"
-SMALL = {"demos": 10, "epochs": 40}
+from tests.support.chunk_policy import SMALL, TASK, session_root
 
 
 @pytest.fixture(scope="module")
-def root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("models")
+def root() -> Path:
+    """The session's model root: the policy is trained once for every test that asks."""
+    return session_root()
 
 
 @pytest.fixture(scope="module")

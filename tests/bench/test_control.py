@@ -22,6 +22,7 @@ from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
 from oricf.store import ModelStore
+from tests.support.chunk_policy import SMALL, TASK, session_root
 
 STEPS = 300  # Hopper hops forward well within this
 EDGE_MODES = ["edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "placed"]
@@ -127,15 +128,15 @@ def test_the_command_says_it_in_one_line_and_exits_2() -> None:
 
 
 @pytest.fixture(scope="module")
-def drawer_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("models")
+def drawer_root() -> Path:
+    return session_root()
 
 
 def drawer_policy(root: Path, lead: int) -> PolicyModel:
     """A small chunk policy for metaworld's drawer-close-v3 (the settings
     tests/bench/test_chunk_policy.py trains: quick, and far from the edge), acting `lead`
     steps ahead."""
-    declaration = trained_policy("drawer-close-v3", root=root, demos=10, epochs=40, lead=lead)
+    declaration = trained_policy(TASK, root=root, lead=lead, **SMALL)
     policy = PolicyModel(load_declaration(declaration), ModelStore(root))
     policy.load()
     return policy

