@@ -188,7 +188,7 @@ def measure_realtime(task: str, delays_ms: list[float], args: argparse.Namespace
     from oricf.bench.control_realtime import realtime_rows
 
     return realtime_rows(task, declaration_of(task), delays_ms, args.episodes, args.seed,
-                         task not in ROBOTS)
+                         task not in ROBOTS, args.max_steps)
 
 
 def parser() -> argparse.ArgumentParser:

@@ -5,9 +5,9 @@ service (`oricf serve policy`) behind the delay relay (half the round trip each 
 with a `control:` input), and each episode the simulator as a ROS 2 robot
 (`python -m oricf.bench.sim_node`) in real time at its rate. The figures are the episodes'
 (success or return, steps) and the gateway's own: its /metrics (action age in steps, empty
-ticks, chunks switched) and the robot side's CPU time per tick: the gateway's process
-(observation, call, merging, publishing, with ROS), and the policy service's too when it runs
-onboard (0 ms). Unlike simulated time, these move with the
+ticks, chunks switched) and the robot side's CPU time per step while an episode steps: the
+gateway's process (observation, call, merging, publishing, with ROS), and the policy
+service's too when it runs onboard (0 ms). Unlike simulated time, these move with the
 machine's load: quote medians of repeated runs.
 """
 
@@ -51,7 +51,9 @@ def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) 
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
             "late": "skip", "merge": "latest",
-            "request_at": 0 if one else chunk - 1, "hold_steps": 2 if one else 4,
+            # The last action held while an answer is on its way, as in simulated time,
+            # for half a second at most (then the safe action, zeros).
+            "request_at": 0 if one else chunk - 1, "hold_steps": max(2, int(rate_hz / 2)),
             "deadline_steps": max(8, 2 * chunk),
             "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
                        "deadman_ms": 250}}
@@ -88,20 +90,20 @@ def age_percentile(samples: dict[str, float], q: float) -> float | None:
         if total else None
 
 
-def wait_ticking(port: int, gateway: subprocess.Popen[bytes], timeout: float = 120) -> float:
-    """Once the gateway's loop ticks: its ticks so far."""
+def wait_ready(port: int, gateway: subprocess.Popen[bytes], timeout: float = 120) -> float:
+    """Once the gateway serves its metrics (its loop made): its ticks so far."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if gateway.poll() is not None:
             raise RuntimeError(f"the gateway exited with {gateway.returncode}")
         try:
-            ticks = scrape(port).get("oricf_gateway_control_ticks_total", 0.0)
+            samples = scrape(port)
         except OSError:
-            ticks = 0.0
-        if ticks > 0:
-            return ticks
+            samples = {}
+        if "oricf_gateway_control_ticks_total" in samples:
+            return samples["oricf_gateway_control_ticks_total"]
         time.sleep(0.2)
-    raise RuntimeError("the gateway's control loop did not start ticking")
+    raise RuntimeError("the gateway did not start")
 
 
 def private_domain() -> dict[str, str]:
@@ -117,8 +119,10 @@ def private_domain() -> dict[str, str]:
 class RealtimeTask:
     """One task's policy service, run once for all its round trips."""
 
-    def __init__(self, task: str, declaration: Path, folder: Path) -> None:
+    def __init__(self, task: str, declaration: Path, folder: Path,
+                 max_steps: int | None = None) -> None:
         self.task = task
+        self.max_steps = max_steps
         policy = load_declaration(declaration).task
         assert isinstance(policy, PolicyTask), declaration
         self.settings = (policy.rate_hz, policy.state.size, policy.action.dim, policy.chunk)
@@ -147,29 +151,41 @@ class RealtimeTask:
         env = private_domain()
         gateway = subprocess.Popen(oricf("gateway", "--config", str(pipeline)), env=env,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        # The robot's CPU: the gateway's, and the policy service's where it is onboard.
+        robot = [gateway.pid] if delay_ms else [gateway.pid, self.service.pid]
         try:
-            ticks_before = wait_ticking(metrics, gateway)  # its start-up is not the loop's
-            # The robot's CPU: the gateway's, and the policy service's where it is onboard.
-            robot = [gateway.pid] if delay_ms else [gateway.pid, self.service.pid]
-            cpu_before = sum(cpu_seconds(pid) for pid in robot)
-            results = [self._episode(seed, env) for seed in seeds]
+            wait_ready(metrics, gateway)
+            episodes = [self._episode(seed, env, robot) for seed in seeds]
             samples = scrape(metrics)
-            cpu = sum(cpu_seconds(pid) for pid in robot) - cpu_before
-            ticks = samples.get("oricf_gateway_control_ticks_total", 0.0) - ticks_before
         finally:
             stop(gateway)
             if relay is not None:
                 relay.close()
-        return self._summary(delay_ms, results, samples, cpu, ticks, metaworld)
+        cpu = sum(cpu for _, cpu in episodes)
+        ticks = sum(result["steps"] for result, _ in episodes)
+        return self._summary(delay_ms, [r for r, _ in episodes], samples, cpu, ticks, metaworld)
 
-    def _episode(self, seed: int, env: dict[str, str]) -> dict[str, Any]:
-        done = subprocess.run([sys.executable, "-m", "oricf.bench.sim_node", "--sim", self.task,
-                               "--seed", str(seed), "--wait-s", "60"], env=env,
-                              capture_output=True, text=True, timeout=600)
-        if done.returncode != 0:
-            raise RuntimeError(f"sim_node {self.task} seed {seed}: {done.stderr[-2000:]}")
-        result: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
-        return result
+    def _episode(self, seed: int, env: dict[str, str], robot: list[int]
+                 ) -> tuple[dict[str, Any], float]:
+        """One episode's result, and the robot's CPU seconds while it stepped."""
+        argv = [sys.executable, "-m", "oricf.bench.sim_node", "--sim", self.task, "--seed",
+                str(seed), "--wait-s", "60",
+                *(["--max-steps", str(self.max_steps)] if self.max_steps else [])]
+        with subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) as sim:
+            assert sim.stdout is not None
+            before = 0.0
+            lines = []
+            for line in sim.stdout:
+                if line.startswith('{"started"'):
+                    before = sum(cpu_seconds(pid) for pid in robot)
+                lines.append(line)
+            cpu = sum(cpu_seconds(pid) for pid in robot) - before
+            errors = sim.stderr.read() if sim.stderr else ""
+        if sim.returncode != 0 or not lines:
+            raise RuntimeError(f"sim_node {self.task} seed {seed}: {errors[-2000:]}")
+        result: dict[str, Any] = json.loads(lines[-1])
+        return result, cpu
 
     def _summary(self, delay_ms: float, results: list[dict[str, Any]],
                  samples: dict[str, float], cpu_s: float, ticks: float,
@@ -196,10 +212,10 @@ class RealtimeTask:
 
 
 def realtime_rows(task: str, declaration: Path, delays_ms: list[float], episodes: int,
-                  seed: int, metaworld: bool) -> list[Row]:
+                  seed: int, metaworld: bool, max_steps: int | None = None) -> list[Row]:
     """The task's rows in real time: the onboard reference (0 ms) and each round trip."""
     with tempfile.TemporaryDirectory(prefix="oricf-bench-control-") as folder:
-        runner = RealtimeTask(task, declaration, Path(folder))
+        runner = RealtimeTask(task, declaration, Path(folder), max_steps)
         try:
             seeds = [seed + i for i in range(episodes)]
             return [runner.row(ms, seeds, metaworld) for ms in sorted({0.0, *delays_ms})]

@@ -4,7 +4,8 @@ on `--state-topic`) and acts on the newest action received (`std_msgs/Float64Mul
 `--action-topic`), as a robot's driver does: an action that has not come by a step's time is
 the one before it held (or zeros before any). At the episode's end it prints one JSON line:
 the steps, the return, whether and when the task succeeded, and how many steps had no new
-action. Used by the control loop's end-to-end test and `oricf bench control --realtime`.
+action (and a line `{"started": NAME}` when the episode starts stepping). Used by the
+control loop's end-to-end test and `oricf bench control --realtime`.
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ class SimRobot:
             self._publish(observation)
             time.sleep(period)
         steps, total, success_at, stale = 0, 0.0, None, 0
+        print(json.dumps({"started": self.sim.name}), flush=True)  # for CPU read around it
         started = time.monotonic()
         while steps < max_steps and not stop.is_set():
             with self._lock:

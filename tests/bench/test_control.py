@@ -184,3 +184,17 @@ def test_the_mode_acting_ahead_runs_where_a_policy_can_be_trained_for_it() -> No
     assert control.task_modes("hopper", list(MODES)) == [m for m in MODES if m != "edge-ahead"]
     runs = control.plan(["onboard", "edge-ahead"], {0.0: 0, 100.0: 8}, {})
     assert runs == [("onboard", 0), ("edge-ahead", 0), ("edge-ahead", 8)]
+
+
+@pytest.mark.bench
+def test_realtime_rows_come_from_the_gateway_and_the_robot_over_ros(tmp_path: Path) -> None:
+    """--realtime: the policy service behind the relay, the gateway's loop in its process, the
+    simulator as a ROS 2 robot; its rows beside the simulated ones."""
+    rows = bench(tmp_path, "--delays-ms", "33", "--modes", "onboard", "--realtime")
+    realtime = {row["mode"]: row for row in rows if str(row["mode"]).startswith("realtime")}
+    assert set(realtime) == {"realtime-onboard", "realtime-edge"}
+    onboard, edge = realtime["realtime-onboard"], realtime["realtime-edge"]
+    assert (onboard["delay_ms"], edge["delay_ms"], edge["delay_steps"]) == (0.0, 33.0, 2)
+    for row in (onboard, edge):
+        assert row["episodes"] == 1 and float(row["mean_steps"]) > 0  # type: ignore[arg-type]
+        assert float(row["cpu_us_per_tick"]) > 0  # type: ignore[arg-type]
