@@ -1,14 +1,18 @@
-"""Fixtures for gateway tests: a private DDS domain, an rclpy context, real services."""
+"""Fixtures for gateway tests: a private DDS domain, an rclpy context, real services, a
+real robot's state."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 from rclpy.context import Context
 
 from tests.gateway.ros.gateway_node import private_domain
+from tests.support.pybullet_sim import hopper
+from tests.support.services import RunningService, running_service
 
 
 @pytest.fixture(scope="session")
@@ -33,3 +37,20 @@ def ros_context(ros_env: dict[str, str]) -> Iterator[Context]:
     rclpy.init(context=context)
     yield context
     rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(scope="module")
+def policy() -> Iterator[RunningService]:
+    """`oricf serve policy` with its shipped settings: pybullet's Hopper policy."""
+    with running_service("policy") as service:
+        yield service
+
+
+@pytest.fixture(scope="module")
+def hopper_state() -> np.ndarray:
+    """A state of the simulated Hopper, one step after its reset (seed 0)."""
+    env = hopper(seed=0)
+    env.reset()
+    state, *_ = env.step(np.zeros(3))
+    return np.asarray(state, np.float64)
+

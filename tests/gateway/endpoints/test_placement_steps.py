@@ -8,7 +8,6 @@ calls is refused naming the key."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -21,22 +20,9 @@ from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.operations.view import placement_status
 from oricf.gateway.products import ProductStore
-from tests.support.pybullet_sim import hopper
-from tests.support.services import RunningService, running_service
+from tests.support.services import RunningService
 
 RATE_HZ = 60.606
-
-
-@pytest.fixture(scope="module")
-def policy() -> Iterator[RunningService]:
-    with running_service("policy") as service:
-        yield service
-
-
-@pytest.fixture(scope="module")
-def state() -> np.ndarray:
-    env = hopper(seed=0)
-    return np.asarray(env.reset(), np.float64)
 
 
 def config(edge: str, onboard: str, **placement: Any) -> PipelineConfig:
@@ -62,10 +48,11 @@ def act(pipeline_config: PipelineConfig, state: np.ndarray) -> tuple[Endpoint, A
 
 
 def test_an_edge_over_a_one_step_budget_loses_the_policy_to_onboard(
-        policy: RunningService, state: np.ndarray, caplog: pytest.LogCaptureFixture) -> None:
+        policy: RunningService, hopper_state: np.ndarray,
+        caplog: pytest.LogCaptureFixture) -> None:
     host, _, port = policy.address.rpartition(":")
     relay = DelayRelay((host, int(port)), delay_s=0.015)  # each way: a 30 ms round trip
-    endpoint, call = act(config(relay.address, policy.address), state)
+    endpoint, call = act(config(relay.address, policy.address), hopper_state)
     placement = endpoint.placement
     assert placement is not None and placement.budget_ms == pytest.approx(16.5, abs=0.01)
     try:
@@ -85,11 +72,12 @@ def test_an_edge_over_a_one_step_budget_loses_the_policy_to_onboard(
 
 
 def test_hedged_calls_take_the_onboard_answer_at_the_budget(
-        policy: RunningService, state: np.ndarray, caplog: pytest.LogCaptureFixture) -> None:
+        policy: RunningService, hopper_state: np.ndarray,
+        caplog: pytest.LogCaptureFixture) -> None:
     host, _, port = policy.address.rpartition(":")
     relay = DelayRelay((host, int(port)), delay_s=0.05)  # 100 ms: far over 2 steps
     endpoint, call = act(config(relay.address, policy.address, latency_budget_steps=2,
-                                hedge=True, window=1000), state)
+                                hedge=True, window=1000), hopper_state)
     placement = endpoint.placement
     assert placement is not None
     try:

@@ -15,14 +15,8 @@ from oricf.gateway.components import METHODS
 from oricf.gateway.endpoints import Endpoint, EndpointConfig
 from oricf.gateway.methods.act import ActCall, Actions
 from oricf.gateway.products import ProductStore
-from tests.support.pybullet_sim import forward, hopper, reference_arrays
-from tests.support.services import RunningService, running_service
-
-
-@pytest.fixture(scope="module")
-def policy() -> Iterator[RunningService]:
-    with running_service("policy") as service:
-        yield service
+from tests.support.pybullet_sim import forward, reference_arrays
+from tests.support.services import RunningService
 
 
 @pytest.fixture
@@ -36,15 +30,8 @@ def act(policy: RunningService) -> Iterator[object]:
         endpoint.close()
 
 
-def hopper_state() -> np.ndarray:
-    env = hopper(seed=0)
-    env.reset()
-    state, *_ = env.step(np.zeros(3))
-    return np.asarray(state, np.float64)
-
-
-def test_a_hopper_state_gets_the_policys_action(act: object) -> None:
-    state = hopper_state()
+def test_a_hopper_state_gets_the_policys_action(act: object, hopper_state: np.ndarray) -> None:
+    state = hopper_state
     result = act({"state": state, "step": 41, "capture_time_ns": 5})  # type: ignore[operator]
     assert isinstance(result, Actions)
     assert (result.start_step, result.observation_step) == (41, 41)
@@ -54,8 +41,9 @@ def test_a_hopper_state_gets_the_policys_action(act: object) -> None:
     assert result.actions[0] == pytest.approx(expected, abs=1e-5)
 
 
-def test_committed_actions_go_with_the_request_and_bad_ones_are_refused(act: object) -> None:
-    state = hopper_state()
+def test_committed_actions_go_with_the_request_and_bad_ones_are_refused(
+        act: object, hopper_state: np.ndarray) -> None:
+    state = hopper_state
     good = act({"state": state, "step": 3,  # type: ignore[operator]
                 "committed": (4, np.zeros((2, 3)))})
     assert good.start_step == 3
@@ -77,8 +65,9 @@ def test_a_record_without_a_state_vector_is_refused(act: object, record: dict[st
         act(record)  # type: ignore[operator]
 
 
-def test_a_state_the_policy_cannot_take_is_invalid_argument(act: object) -> None:
-    state = hopper_state()
+def test_a_state_the_policy_cannot_take_is_invalid_argument(
+        act: object, hopper_state: np.ndarray) -> None:
+    state = hopper_state
     state[2] = np.nan
     with pytest.raises(grpc.RpcError) as refused:
         act({"state": state, "step": 1})  # type: ignore[operator]

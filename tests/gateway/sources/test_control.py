@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import queue
 from collections.abc import Iterator
+from contextlib import ExitStack, closing, contextmanager
 from typing import Any
 
 import numpy as np
@@ -29,20 +30,6 @@ from tests.support.pybullet_sim import forward, hopper, reference_arrays
 from tests.support.services import RunningService, running_service
 
 RATE_HZ = 60.606
-
-
-@pytest.fixture(scope="module")
-def policy() -> Iterator[RunningService]:
-    with running_service("policy") as service:
-        yield service
-
-
-@pytest.fixture(scope="module")
-def hopper_state() -> np.ndarray:
-    env = hopper(seed=0)
-    env.reset()
-    state, *_ = env.step(np.zeros(3))
-    return np.asarray(state, np.float64)
 
 
 def control_config(address: str, target: dict[str, Any] | None = None,
@@ -93,11 +80,35 @@ def source_of(gateway: GatewayNode) -> ControlSource:
     return source
 
 
-def running(config: PipelineConfig, context: Context, robot: Robot) -> Any:
+class Running:
+    """A gateway with a control input and the robot's node, spun on real DDS."""
+
+    def __init__(self, gateway: GatewayNode) -> None:
+        self.gateway = gateway
+        self.source = source_of(gateway)
+        self._stopped = False
+
+    def stop(self) -> None:
+        if not self._stopped:
+            self._stopped = True
+            self.gateway.shutdown()
+
+
+@contextmanager
+def running(config: PipelineConfig, context: Context, robot: Robot) -> Iterator[Running]:
     gateway = GatewayNode(config, context=context)
     gateway.configure()
     gateway.activate()
-    return gateway
+    run = Running(gateway)
+    try:
+        with spinning(context, gateway, robot.node):
+            try:
+                yield run
+            finally:
+                run.stop()
+    finally:
+        robot.node.destroy_node()
+        gateway.destroy_node()
 
 
 def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
@@ -108,70 +119,65 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
     # One action per answer: whatever the link, it comes after its step, so it is played on
     # arrival, asked for while one is still queued, and held for a tick or two of jitter.
     config = control_config(policy.address, late="shift", request_at=1, hold_steps=3)
-    gateway = running(config, ros_context, robot)
-    stopped = False
-    try:
-        with spinning(ros_context, gateway, robot.node):
-            source = source_of(gateway)
-            # Before any state arrives: the safe action, and nothing asked.
-            first = robot.next_actions(3)
-            assert all(list(msg.data) == [0.0, 0.0, 0.0] for msg in first)
-            assert source.loop.counts.requests == 0
+    with running(config, ros_context, robot) as run:
+        source = run.source
+        # Before any state arrives: the safe action, and nothing asked.
+        first = robot.next_actions(3)
+        assert all(list(msg.data) == [0.0, 0.0, 0.0] for msg in first)
+        assert source.loop.counts.requests == 0
 
-            robot.publishing = hopper_state.tolist()
-            wait_for(lambda: source.loop.counts.answers >= 20)
-            robot.drain()
-            # The policy's action for that state; the safe action only on a tick whose
-            # answer came later than the hold (a loaded machine), never anything else.
-            sent = [np.asarray(msg.data) for msg in robot.next_actions(10)]
-            policys = [a for a in sent if np.allclose(a, expected, atol=1e-5)]
-            assert policys and all(np.allclose(a, expected, atol=1e-5) or not a.any()
-                                   for a in sent)
-            # One action per answer, so every tick asks; each action's observation is
-            # measured (its age in steps and in time).
-            assert source.loop.ages.seconds.snapshot()[0][-1][1] > 0
-            assert source.loop.ages.steps and min(source.loop.ages.steps) >= 0
-            # What /metrics and the status say are those counts.
-            server = gateway.pipeline.metrics_server
-            assert server is not None
-            metrics = scrape(server.url)
-            assert metrics.value("oricf_gateway_control_chunks_total", route="hopper") >= 20
-            assert metrics.value("oricf_gateway_control_action_age_seconds_count",
-                                 route="hopper") > 0
-            assert metrics.value("oricf_gateway_control_safe_ticks_total", route="hopper") >= 3
-            status = PipelineView(gateway.pipeline).status()["control"]["hopper"]
-            assert status["answers"] >= 20 and status["action_age_steps_p50"] is not None
+        robot.publishing = hopper_state.tolist()
+        wait_for(lambda: source.loop.counts.answers >= 20)
+        robot.drain()
+        # The policy's action for that state; the safe action only on a tick whose
+        # answer came later than the hold (a loaded machine), never anything else.
+        sent = [np.asarray(msg.data) for msg in robot.next_actions(10)]
+        policys = [a for a in sent if np.allclose(a, expected, atol=1e-5)]
+        assert policys and all(np.allclose(a, expected, atol=1e-5) or not a.any()
+                               for a in sent)
+        # One action per answer, so every tick asks; each action's observation is
+        # measured (its age in steps and in time).
+        assert source.loop.ages.seconds.snapshot()[0][-1][1] > 0
+        assert source.loop.ages.steps and min(source.loop.ages.steps) >= 0
+        # What /metrics and the status say are those counts.
+        server = run.gateway.pipeline.metrics_server
+        assert server is not None
+        metrics = scrape(server.url)
+        assert metrics.value("oricf_gateway_control_chunks_total", route="hopper") >= 20
+        assert metrics.value("oricf_gateway_control_action_age_seconds_count",
+                             route="hopper") > 0
+        assert metrics.value("oricf_gateway_control_safe_ticks_total", route="hopper") >= 3
+        status = PipelineView(run.gateway.pipeline).status()["control"]["hopper"]
+        assert status["answers"] >= 20 and status["action_age_steps_p50"] is not None
 
-            # The robot stops publishing: its state goes stale, the safe action follows.
-            missing = source.loop.counts.missing_state
-            robot.publishing = None
-            wait_for(lambda: source.loop.counts.missing_state > missing + 5)
-            robot.drain()
-            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        # The robot stops publishing: its state goes stale, the safe action follows.
+        missing = source.loop.counts.missing_state
+        robot.publishing = None
+        wait_for(lambda: source.loop.counts.missing_state > missing + 5)
+        robot.drain()
+        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
 
-            # A state with a value that is not finite: refused, the safe action.
-            robot.publishing = [float("nan"), *hopper_state.tolist()[1:]]
-            missing = source.loop.counts.missing_state
-            wait_for(lambda: source.loop.counts.missing_state > missing + 5)
-            robot.drain()
-            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        # A state with a value that is not finite: refused, the safe action.
+        robot.publishing = [float("nan"), *hopper_state.tolist()[1:]]
+        missing = source.loop.counts.missing_state
+        wait_for(lambda: source.loop.counts.missing_state > missing + 5)
+        robot.drain()
+        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
 
-            robot.publishing = hopper_state.tolist()
-            answers = source.loop.counts.answers
-            wait_for(lambda: source.loop.counts.answers > answers + 5)
-            gateway.shutdown()
-            stopped = True
-            # The last message the robot gets from a stopping gateway is the safe action
-            # (the loop's thread has stopped: nothing comes after it).
-            got: list[Any] = []
-            wait_for(lambda: bool(got.extend(robot.drain()) or got)
-                     and list(got[-1].data) == [0.0, 0.0, 0.0])
-            assert source.loop.queue.remaining(0) == 0
-    finally:
-        if not stopped:
-            gateway.shutdown()
-        robot.node.destroy_node()
-        gateway.destroy_node()
+        robot.publishing = hopper_state.tolist()
+        answers = source.loop.counts.answers
+        wait_for(lambda: source.loop.counts.answers > answers + 5)
+        run.stop()
+        # The last message the robot gets from a stopping gateway is the safe action
+        # (the loop's thread has stopped: nothing comes after it).
+        got: list[Any] = []
+
+        def last_is_safe() -> bool:
+            got.extend(robot.drain())
+            return bool(got) and list(got[-1].data) == [0.0, 0.0, 0.0]
+
+        wait_for(last_is_safe)
+        assert source.loop.queue.remaining(0) == 0
 
 
 def test_ticked_by_the_robots_state_each_state_gets_its_own_action_back(
@@ -183,49 +189,37 @@ def test_ticked_by_the_robots_state_each_state_gets_its_own_action_back(
     state = np.asarray(env.reset(), np.float64)
     robot = Robot(ros_context)
     config = control_config(policy.address, tick="state", late="skip", request_at=0)
-    gateway = running(config, ros_context, robot)
-    try:
-        with spinning(ros_context, gateway, robot.node):
-            source = source_of(gateway)
-            wait_for(lambda: robot.state.get_subscription_count() > 0)
-            for _ in range(15):
-                robot.state.publish(Float64MultiArray(data=state.tolist()))
-                action = np.asarray(robot.next_actions(1)[0].data)
-                expected = np.clip(forward(arrays, state.astype(np.float32)), -1, 1)
-                np.testing.assert_allclose(action, expected, atol=1e-5)
-                state, *_ = env.step(action)
-                state = np.asarray(state, np.float64)
-            assert source.loop.counts.safe_ticks == 0
-            assert list(source.loop.ages.steps) == [0] * 15  # each from its own state
-    finally:
-        gateway.shutdown()
-        robot.node.destroy_node()
-        gateway.destroy_node()
+    with running(config, ros_context, robot) as run:
+        source = run.source
+        wait_for(lambda: robot.state.get_subscription_count() > 0)
+        for _ in range(15):
+            robot.state.publish(Float64MultiArray(data=state.tolist()))
+            action = np.asarray(robot.next_actions(1)[0].data)
+            expected = np.clip(forward(arrays, state.astype(np.float32)), -1, 1)
+            np.testing.assert_allclose(action, expected, atol=1e-5)
+            state, *_ = env.step(action)
+            state = np.asarray(state, np.float64)
+        assert source.loop.counts.safe_ticks == 0
+        assert list(source.loop.ages.steps) == [0] * 15  # each from its own state
 
 
 def test_the_safe_action_goes_out_while_the_policy_is_gone(
         ros_context: Context, hopper_state: np.ndarray) -> None:
-    service = running_service("policy")
-    policy = service.__enter__()
+    stack = ExitStack()
+    policy = stack.enter_context(running_service("policy"))
     robot = Robot(ros_context)
     config = control_config(policy.address, safe_action=[0.1, 0.2, 0.3], late="shift",
                             request_at=1)
-    gateway = running(config, ros_context, robot)
-    try:
-        with spinning(ros_context, gateway, robot.node):
-            source = source_of(gateway)
-            robot.publishing = hopper_state.tolist()
-            wait_for(lambda: source.loop.counts.answers >= 5)
-            service.__exit__(None, None, None)
-            wait_for(lambda: source.loop.counts.failed >= 2)
-            robot.drain()
-            for msg in robot.next_actions(5):
-                assert list(msg.data) == pytest.approx([0.1, 0.2, 0.3])
-            assert source.loop.counts.safe_ticks > 0
-    finally:
-        gateway.shutdown()
-        robot.node.destroy_node()
-        gateway.destroy_node()
+    with stack, running(config, ros_context, robot) as run:
+        source = run.source
+        robot.publishing = hopper_state.tolist()
+        wait_for(lambda: source.loop.counts.answers >= 5)
+        stack.close()  # the policy service stops
+        wait_for(lambda: source.loop.counts.failed >= 2)
+        robot.drain()
+        for msg in robot.next_actions(5):
+            assert list(msg.data) == pytest.approx([0.1, 0.2, 0.3])
+        assert source.loop.counts.safe_ticks > 0
 
 
 def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
@@ -235,28 +229,21 @@ def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
     robot = Robot(ros_context)
     config = control_config(relay.address, late="shift", request_at=1, hold_steps=2,
                             deadline_steps=5)
-    gateway = running(config, ros_context, robot)
-    try:
-        with spinning(ros_context, gateway, robot.node):
-            source = source_of(gateway)
-            robot.publishing = hopper_state.tolist()
-            wait_for(lambda: source.loop.counts.answers >= 5)
-            relay.delay_s = 1.5  # mid-chunk: what is in flight now comes 1.5 s late
-            safe = source.loop.counts.safe_ticks
-            wait_for(lambda: source.loop.counts.safe_ticks > safe + 20)
-            robot.drain()
-            assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
-            assert source.loop.counts.expired > 0  # asked again past the deadline
-            relay.delay_s = 0.0
-            answers = source.loop.counts.answers
-            wait_for(lambda: source.loop.counts.answers > answers + 10)
-            robot.drain()
-            assert any(list(m.data) != [0.0, 0.0, 0.0] for m in robot.next_actions(10))
-    finally:
-        gateway.shutdown()
-        robot.node.destroy_node()
-        gateway.destroy_node()
-        relay.close()
+    with closing(relay), running(config, ros_context, robot) as run:
+        source = run.source
+        robot.publishing = hopper_state.tolist()
+        wait_for(lambda: source.loop.counts.answers >= 5)
+        relay.delay_s = 1.5  # mid-chunk: what is in flight now comes 1.5 s late
+        safe = source.loop.counts.safe_ticks
+        wait_for(lambda: source.loop.counts.safe_ticks > safe + 20)
+        robot.drain()
+        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        assert source.loop.counts.expired > 0  # asked again past the deadline
+        relay.delay_s = 0.0
+        answers = source.loop.counts.answers
+        wait_for(lambda: source.loop.counts.answers > answers + 10)
+        robot.drain()
+        assert any(list(m.data) != [0.0, 0.0, 0.0] for m in robot.next_actions(10))
 
 
 def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
@@ -265,24 +252,17 @@ def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
               "joints": ["thigh", "leg", "foot"], "time_from_start_ms": 1500,
               "bounds": [[-0.01, 0.01]] * 3}
     robot = Robot(ros_context, JointTrajectory, "/hopper/trajectory")
-    gateway = running(control_config(policy.address, target, late="shift", request_at=1),
-                      ros_context,
-                      robot)
-    try:
-        with spinning(ros_context, gateway, robot.node):
-            source = source_of(gateway)
-            robot.publishing = hopper_state.tolist()
-            wait_for(lambda: source.loop.counts.answers >= 5 and source.target.clamped > 0)
-            robot.drain()
-            msg = robot.next_actions(1)[0]
-            assert list(msg.joint_names) == ["thigh", "leg", "foot"]
-            (point,) = msg.points
-            assert all(abs(v) <= 0.01 for v in point.positions)
-            assert (point.time_from_start.sec, point.time_from_start.nanosec) == (1, 500_000_000)
-    finally:
-        gateway.shutdown()
-        robot.node.destroy_node()
-        gateway.destroy_node()
+    config = control_config(policy.address, target, late="shift", request_at=1)
+    with running(config, ros_context, robot) as run:
+        source = run.source
+        robot.publishing = hopper_state.tolist()
+        wait_for(lambda: source.loop.counts.answers >= 5 and source.target.clamped > 0)
+        robot.drain()
+        msg = robot.next_actions(1)[0]
+        assert list(msg.joint_names) == ["thigh", "leg", "foot"]
+        (point,) = msg.points
+        assert all(abs(v) <= 0.01 for v in point.positions)
+        assert (point.time_from_start.sec, point.time_from_start.nanosec) == (1, 500_000_000)
 
 
 @pytest.mark.parametrize(("change", "message"), [
