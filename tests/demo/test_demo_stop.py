@@ -53,7 +53,11 @@ STAGES = {
 }
 
 
-@pytest.mark.parametrize("stage", list(STAGES))
+# Asking the questions (between the gateway's start and the first spoken answer) is the long
+# run's: the default run stops the demo in the three stages around it.
+@pytest.mark.parametrize("stage", [
+    pytest.param(stage, marks=[pytest.mark.long] if stage == "asking" else [])
+    for stage in STAGES])
 def test_a_signal_stops_the_demo_and_everything_it_started(tmp_path: Path, stage: str) -> None:
     began, signum = STAGES[stage]
     command = OricfCommand("demo", "--deployment", str(demo_deployment(tmp_path)),

@@ -29,8 +29,9 @@ from oricf.gateway.live_view.view import LiveView
 from oricf.gateway.values import Frame
 from oricf.imaging import Box, Detection
 from tests.support.data import video_frames
+from tests.support.fuzzing import examples
 
-EXAMPLES = 150
+EXAMPLES = examples(150)
 MAX_CLIENTS = 4
 MAX_MESSAGE_BYTES = 4096
 SUBPROTOCOL = ["foxglove.sdk.v1"]

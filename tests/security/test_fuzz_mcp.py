@@ -40,11 +40,12 @@ from tests.gateway.agents.raw import RawStdio, approval_pipeline
 from tests.gateway.agents.scene import PEOPLE, RosListener, pipeline_yaml, ros_listener
 from tests.gateway.agents.session import TOOLS, http_session, server_env
 from tests.gateway.ros.gateway_node import private_domain
+from tests.support.fuzzing import examples
 from tests.support.processes import free_port
 from tests.support.services import running_service
 from tests.support.sockets import peer_closed
 
-EXAMPLES = 120
+EXAMPLES = examples(120)
 TOKEN = "fuzz-token-71"
 MAX_GROWTH_MB = 400
 MAX_STDIO_LINE_BYTES = 16 * 1024 * 1024

@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from oricf.audio import encode_wav
 from oricf.http_connections import MIN_IDLE_S
 from oricf.v1 import language_pb2, language_pb2_grpc
+from tests.support.fuzzing import examples
 from tests.support.openai_http import HttpService, client, health, http_service, overlay, rss_mb
 from tests.support.sockets import inet_sockets, peer_closed
 
@@ -110,7 +111,7 @@ FIELDS = {"model": VALUES, "messages": st.one_of(st.lists(MESSAGE, max_size=3), 
           "n": VALUES, "stream_options": VALUES}
 
 
-@settings(max_examples=150, deadline=None, derandomize=True,
+@settings(max_examples=examples(150), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(body=st.fixed_dictionaries({}, optional=FIELDS))
 def test_fuzzed_chat_bodies_get_clear_answers(llm: HttpService, body: dict[str, Any]) -> None:
@@ -121,7 +122,7 @@ def test_fuzzed_chat_bodies_get_clear_answers(llm: HttpService, body: dict[str, 
         assert_openai_error(response)
 
 
-@settings(max_examples=60, deadline=None, derandomize=True,
+@settings(max_examples=examples(60), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(body=st.binary(max_size=300))
 def test_bytes_that_are_not_json_are_400(llm: HttpService, body: bytes) -> None:
@@ -143,7 +144,7 @@ AUDIO_HEADERS = [b"RIFF\x24\x00\x00\x00WAVEfmt ", b"RIFF\xff\xff\xff\xffWAVE", b
                  BIG_FLAC, WIDE_WAV, b""]
 
 
-@settings(max_examples=120, deadline=None, derandomize=True,
+@settings(max_examples=examples(120), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.builds(lambda head, rest: head + rest, st.sampled_from(AUDIO_HEADERS),
                       st.binary(max_size=3000)),
@@ -474,7 +475,7 @@ SCHEMAS = st.one_of(
         "type": "string", "maxLength": length}}, st.integers(0, 2000), st.integers(0, 2000)))
 
 
-@settings(max_examples=80, deadline=None, derandomize=True,
+@settings(max_examples=examples(80), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(schema=SCHEMAS, stream=st.booleans())
 def test_fuzzed_json_schemas_never_take_the_language_service_down(

@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tests.support.fuzzing import examples
 from tests.support.openai_http import HttpService, health, http_service, overlay, rss_mb
 
 CLIENT_ERRORS = {400, 404, 413, 429}
@@ -64,7 +65,7 @@ def still_speaking(service: HttpService) -> None:
     assert response.status_code == 200 and len(response.content) > 1000
 
 
-@settings(max_examples=200, deadline=None, derandomize=True,
+@settings(max_examples=examples(200), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(st.fixed_dictionaries({}, optional=FIELDS))
 def test_fuzzed_bodies_get_audio_or_clear_errors(tts: HttpService, body: dict[str, Any]) -> None:
@@ -78,7 +79,7 @@ def test_fuzzed_bodies_get_audio_or_clear_errors(tts: HttpService, body: dict[st
     assert tts.process.poll() is None
 
 
-@settings(max_examples=60, deadline=None, derandomize=True,
+@settings(max_examples=examples(60), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.binary(max_size=300))
 def test_bytes_that_are_not_json_are_400(tts: HttpService, body: bytes) -> None:

@@ -6,6 +6,7 @@ the policy goes away, and last when the gateway stops."""
 from __future__ import annotations
 
 import queue
+import time
 from collections.abc import Iterator
 from contextlib import ExitStack, closing, contextmanager
 from typing import Any
@@ -72,6 +73,16 @@ class Robot:
 
     def next_actions(self, count: int, timeout: float = 10.0) -> list[Any]:
         return [self.actions.get(timeout=timeout) for _ in range(count)]
+
+    def wait_steady(self, data: list[float], count: int = 5, timeout: float = 10.0) -> None:
+        """Until `count` actions in a row are `data` (what was on its way before is let
+        through: the loop's earlier ticks may still be in transit)."""
+        deadline = time.monotonic() + timeout
+        run = 0
+        while run < count:
+            assert time.monotonic() < deadline, f"no {count} actions {data} in a row"
+            msg = self.actions.get(timeout=timeout)
+            run = run + 1 if list(msg.data) == pytest.approx(data) else 0
 
 
 def source_of(gateway: GatewayNode) -> ControlSource:
@@ -154,15 +165,13 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
         missing = source.loop.counts.missing_state
         robot.publishing = None
         wait_for(lambda: source.loop.counts.missing_state > missing + 5)
-        robot.drain()
-        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        robot.wait_steady([0.0, 0.0, 0.0])
 
         # A state with a value that is not finite: refused, the safe action.
         robot.publishing = [float("nan"), *hopper_state.tolist()[1:]]
         missing = source.loop.counts.missing_state
         wait_for(lambda: source.loop.counts.missing_state > missing + 5)
-        robot.drain()
-        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        robot.wait_steady([0.0, 0.0, 0.0])
 
         robot.publishing = hopper_state.tolist()
         answers = source.loop.counts.answers
@@ -216,9 +225,7 @@ def test_the_safe_action_goes_out_while_the_policy_is_gone(
         wait_for(lambda: source.loop.counts.answers >= 5)
         stack.close()  # the policy service stops
         wait_for(lambda: source.loop.counts.failed >= 2)
-        robot.drain()
-        for msg in robot.next_actions(5):
-            assert list(msg.data) == pytest.approx([0.1, 0.2, 0.3])
+        robot.wait_steady([0.1, 0.2, 0.3])
         assert source.loop.counts.safe_ticks > 0
 
 
@@ -236,8 +243,7 @@ def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
         relay.delay_s = 1.5  # mid-chunk: what is in flight now comes 1.5 s late
         safe = source.loop.counts.safe_ticks
         wait_for(lambda: source.loop.counts.safe_ticks > safe + 20)
-        robot.drain()
-        assert all(list(m.data) == [0.0, 0.0, 0.0] for m in robot.next_actions(5))
+        robot.wait_steady([0.0, 0.0, 0.0])
         assert source.loop.counts.expired > 0  # asked again past the deadline
         relay.delay_s = 0.0
         answers = source.loop.counts.answers
