@@ -29,16 +29,12 @@ import yaml
 from oricf.bench.common import stop
 from oricf.bench.control_report import Row
 from oricf.bench.control_run import delay_steps
+from oricf.bench.cpusets import process_cpu_seconds
+from oricf.bench.link import oricf
 from oricf.bench.relay import DelayRelay
 from oricf.launch.health import free_port, wait_serving
 from oricf.models.declaration import load_declaration
 from oricf.models.policy_task import PolicyTask
-
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
-
-
-def oricf(*args: str) -> list[str]:
-    return [sys.executable, "-m", "oricf", "--log-level", "WARNING", *args]
 
 
 def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) -> dict[str, Any]:
@@ -57,11 +53,6 @@ def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) 
             "deadline_steps": max(8, 2 * chunk),
             "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
                        "deadman_ms": 250}}
-
-
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime + stime
 
 
 def scrape(port: int) -> dict[str, float]:
@@ -178,9 +169,9 @@ class RealtimeTask:
             lines = []
             for line in sim.stdout:
                 if line.startswith('{"started"'):
-                    before = sum(cpu_seconds(pid) for pid in robot)
+                    before = sum(process_cpu_seconds(pid) for pid in robot)
                 lines.append(line)
-            cpu = sum(cpu_seconds(pid) for pid in robot) - before
+            cpu = sum(process_cpu_seconds(pid) for pid in robot) - before
             errors = sim.stderr.read() if sim.stderr else ""
         if sim.returncode != 0 or not lines:
             raise RuntimeError(f"sim_node {self.task} seed {seed}: {errors[-2000:]}")

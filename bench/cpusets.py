@@ -89,15 +89,20 @@ class TasksetSet(CpuSet):
         return process
 
     def cpu_seconds(self) -> float:
-        tick = os.sysconf("SC_CLK_TCK")
         for pid in self._seen:
             try:
-                fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+                self._seen[pid] = process_cpu_seconds(pid, children=True)
             except OSError:
                 continue  # ended: its last reading stands
-            # after the name: state is field 3, utime..cstime are fields 14-17
-            self._seen[pid] = sum(int(v) for v in fields[11:15]) / tick
         return sum(self._seen.values())
+
+
+def process_cpu_seconds(pid: int, children: bool = False) -> float:
+    """CPU time of a process from /proc/PID/stat (utime + stime; with `children`, also
+    cutime + cstime of its waited-for children); OSError once it has ended."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+    # after the name: state is field 3, utime..cstime are fields 14-17
+    return sum(int(v) for v in fields[11:15 if children else 13]) / os.sysconf("SC_CLK_TCK")
 
 
 def busy_jiffies() -> dict[int, tuple[int, int]]:

@@ -30,6 +30,7 @@ import numpy as np
 
 from oricf.gateway.actions.queue import ActionQueue, Origin
 from oricf.metrics import LatencyHistogram
+from oricf.stats import percentile
 
 AGES_KEPT = 10_000
 
@@ -74,8 +75,7 @@ class Ages:
 
     def percentile(self, q: float) -> float | None:
         """The q-th percentile of the ages in steps kept (None before any)."""
-        kept = sorted(self.steps)
-        return float(kept[min(len(kept) - 1, int(q / 100 * len(kept)))]) if kept else None
+        return percentile(self.steps, q) if self.steps else None
 
 
 class ControlLoop:
@@ -94,7 +94,7 @@ class ControlLoop:
         self.counts = LoopCounts()
         self.ages = Ages()
         self._lock = threading.Lock()
-        self._in_flight: dict[int, int] = {}     # observation step -> when it was asked
+        self._in_flight: set[int] = set()        # the observation steps asked, unanswered
         self._answered = -1                       # the newest observation step answered
         self._last: np.ndarray | None = None
         self._dry = 0                             # ticks since the queue gave an action
@@ -104,14 +104,13 @@ class ControlLoop:
         captured at `step`, if the queue is short enough and no request is pending (or
         fewer than `max_in_flight`)."""
         with self._lock:
-            for asked_step in list(self._in_flight):
-                if step - asked_step > self.deadline:
-                    del self._in_flight[asked_step]
-                    self.counts.expired += 1
+            expired = {asked for asked in self._in_flight if step - asked > self.deadline}
+            self._in_flight -= expired
+            self.counts.expired += len(expired)
             if (len(self._in_flight) >= self.max_in_flight
                     or self.queue.remaining(step) > self.request_at):
                 return None
-            self._in_flight[step] = step
+            self._in_flight.add(step)
             self.counts.requests += 1
         committed = self.queue.committed(step) if self.send_committed else None
         return Request(step, state, now_ns, committed)
@@ -146,7 +145,7 @@ class ControlLoop:
         returns how many of its actions were queued (0 if refused).
         Raises queue.BadChunk for a malformed chunk."""
         with self._lock:
-            self._in_flight.pop(origin.step, None)
+            self._in_flight.discard(origin.step)
             if origin.step <= self._answered:
                 self.counts.refused_chunks += 1
                 return 0
@@ -159,7 +158,7 @@ class ControlLoop:
     def failed(self, observation_step: int) -> None:
         """The request for this observation failed: the next tick may ask again."""
         with self._lock:
-            self._in_flight.pop(observation_step, None)
+            self._in_flight.discard(observation_step)
             self.counts.failed += 1
 
     def stop(self) -> None:

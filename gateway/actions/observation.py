@@ -111,9 +111,9 @@ class Observation:
         for part, got in zip(self.parts, latest, strict=True):
             if got is None:
                 raise MissingState(f"{part.topic}: nothing received")
-            age_ms = (now_ns - got.received_ns) / 1e6
-            if age_ms * 1e6 > self.max_age_ns:
-                raise MissingState(f"{part.topic}: the newest message is {age_ms:.0f} ms old "
+            age_ns = now_ns - got.received_ns
+            if age_ns > self.max_age_ns:
+                raise MissingState(f"{part.topic}: the newest message is {age_ns / 1e6:.0f} ms old "
                                    f"(max_age_ms {self.max_age_ns / 1e6:g})")
         state = np.concatenate([got.values for got in latest if got is not None])
         if self.size >= 0 and state.size != self.size:

@@ -108,6 +108,7 @@ class ActionTarget:
         bounds = np.asarray(config.bounds or [], np.float64).reshape(-1, 2)
         self._low, self._high = bounds[:, 0], bounds[:, 1]
         self._deadman = Deadman(self._expire) if config.deadman_ms is not None else None
+        self._deadman_s = (config.deadman_ms or 0) / 1000
 
     def send(self, action: np.ndarray) -> np.ndarray | None:
         """What was sent (the action checked, or the safe action), or None when the rate
@@ -120,8 +121,8 @@ class ActionTarget:
                 return None
             self._publish(message(self.config, checked))
             self._last_sent = now
-            if self._deadman is not None and self.config.deadman_ms is not None:
-                self._deadman.renew(self.config.topic, self.config.deadman_ms / 1000)
+            if self._deadman is not None:
+                self._deadman.renew(self.config.topic, self._deadman_s)
         return checked
 
     def _checked(self, action: np.ndarray) -> np.ndarray:

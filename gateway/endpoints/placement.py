@@ -81,9 +81,13 @@ class PlacementConfig(Schema):
                                                             "(its percentage, 0-1) under which")
 
     @model_validator(mode="after")
-    def _robot_inputs_need_onboard(self) -> PlacementConfig:
+    def _one_budget(self) -> PlacementConfig:
         if (self.latency_budget_ms is None) == (self.latency_budget_steps is None):
             raise ValueError("give exactly one of latency_budget_ms or latency_budget_steps")
+        return self
+
+    @model_validator(mode="after")
+    def _robot_inputs_need_onboard(self) -> PlacementConfig:
         for key in ("onboard_cpu_ceiling", "battery_topic"):
             if getattr(self, key) is not None and self.onboard is None:
                 raise ValueError(f"{key}: needs `onboard` (address or fallback: which of the "
