@@ -197,7 +197,9 @@ def test_ticked_by_the_robots_state_each_state_gets_its_own_action_back(
     env = hopper(seed=2)
     state = np.asarray(env.reset(), np.float64)
     robot = Robot(ros_context)
-    config = control_config(policy.address, tick="state", late="skip", request_at=0)
+    # No deadman: the test's own pace between states is not the robot's.
+    target = {"topic": "/hopper/action", "bounds": [[-1, 1]] * 3}
+    config = control_config(policy.address, target, tick="state", late="skip", request_at=0)
     with running(config, ros_context, robot) as run:
         source = run.source
         wait_for(lambda: robot.state.get_subscription_count() > 0)
