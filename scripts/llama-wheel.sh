@@ -8,14 +8,43 @@
 # the process where the kernel does not grant it AMX state (many virtual machines). The
 # cache folder is keyed by the build options, so another CPU type builds its own wheel, and
 # a wheel built with other options is never taken (an image given one crashed on load).
+#
+# ORICF_ARCH and ORICF_CPUINFO stand for `uname -m` and /proc/cpuinfo (another machine's
+# options, e.g. to cross-compile for it, and tests/test_llama_wheel.py).
 LLAMA_VERSION="0.3.36"
-_cpu_flags=" $(grep -m1 '^flags' /proc/cpuinfo | cut -d: -f2) "
+_arch="${ORICF_ARCH:-$(uname -m)}"
+_cpuinfo="${ORICF_CPUINFO:-/proc/cpuinfo}"
+# The first line of cpuinfo named $1, its words between spaces; none where it is absent
+# (a container's or an emulator's cpuinfo may lack it: then the generic build).
+_cpu_line() { echo " $({ grep -m1 "^$1[[:space:]]*:" "$_cpuinfo" || true; } | cut -d: -f2) "; }
 CMAKE_ARGS="-DGGML_NATIVE=OFF"
-for _pair in avx:AVX avx2:AVX2 fma:FMA f16c:F16C bmi2:BMI2 avx_vnni:AVX_VNNI avx512f:AVX512 \
-             avx512vbmi:AVX512_VBMI avx512_vnni:AVX512_VNNI avx512_bf16:AVX512_BF16; do
-    [[ "$_cpu_flags" == *" ${_pair%%:*} "* ]] && CMAKE_ARGS+=" -DGGML_${_pair#*:}=ON"
-done
+case "$_arch" in
+    x86_64|amd64)
+        _cpu_flags=$(_cpu_line flags)
+        for _pair in avx:AVX avx2:AVX2 fma:FMA f16c:F16C bmi2:BMI2 avx_vnni:AVX_VNNI \
+                     avx512f:AVX512 avx512vbmi:AVX512_VBMI avx512_vnni:AVX512_VNNI \
+                     avx512_bf16:AVX512_BF16; do
+            [[ "$_cpu_flags" == *" ${_pair%%:*} "* ]] && CMAKE_ARGS+=" -DGGML_${_pair#*:}=ON"
+        done
+        ;;
+    aarch64|arm64)
+        # GGML's own Arm option: GGML_CPU_ARM_ARCH becomes -march= (ggml-cpu/CMakeLists.txt).
+        # The kernel's feature names (the `Features` line) map to GCC's extensions; any of
+        # them needs Armv8.2-A as the base. None of them: plain Armv8-A (GGML's default).
+        _cpu_flags=$(_cpu_line Features)
+        _tags=""
+        [[ "$_cpu_flags" == *" asimddp "* ]] && _tags+="+dotprod"
+        [[ "$_cpu_flags" == *" fphp "* && "$_cpu_flags" == *" asimdhp "* ]] && _tags+="+fp16"
+        [[ "$_cpu_flags" == *" sve "* ]] && _tags+="+sve"
+        [[ "$_cpu_flags" == *" i8mm "* ]] && _tags+="+i8mm"
+        [[ "$_cpu_flags" == *" sve2 "* ]] && _tags+="+sve2"
+        [[ -n "$_tags" ]] && CMAKE_ARGS+=" -DGGML_CPU_ARM_ARCH=armv8.2-a$_tags"
+        ;;
+    *)  # Another architecture: GGML's generic build for it, without options of this script.
+        ;;
+esac
 export CMAKE_ARGS
 # shellcheck disable=SC2034  # read by the scripts that source this file
 LLAMA_WHEELS="$CACHE/wheels/$(echo "$LLAMA_VERSION $CMAKE_ARGS" | sha256sum | cut -c1-12)"
-unset _cpu_flags _pair
+unset _arch _cpuinfo _cpu_flags _pair _tags
+unset -f _cpu_line

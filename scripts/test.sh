@@ -3,6 +3,12 @@
 # then runs the whole test suite against the real models.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# ORICF_ROS_DISTRO=kilted: the same checks and tests on ROS 2 Kilted's wheels, in an
+# environment of their own (.venv-kilted unless ORICF_VENV names one), as the two
+# distributions' wheels cannot share one.
+if [[ -n "${ORICF_ROS_DISTRO:-}" && "$ORICF_ROS_DISTRO" != jazzy && -z "${ORICF_VENV:-}" ]]; then
+    export ORICF_VENV=".venv-$ORICF_ROS_DISTRO"
+fi
 scripts/setup.sh --dev
 VENV="${ORICF_VENV:-.venv}"
 echo; echo "==> ruff"
