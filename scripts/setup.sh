@@ -128,7 +128,8 @@ if ((DEV)) && [[ "$ROS_SOURCE" == wheels ]]; then
         kilted) ROS_BUILD=(ros-kilted-rosidl-default-generators==1.7.1
                 ros-kilted-rosidl-core-generators==0.3.1 ros-kilted-ament-cmake==2.7.3
                 ros-kilted-ament-package==0.17.2 ros-kilted-ament-cmake-include-directories==2.7.3
-                ros-kilted-ament-cmake-ros==0.14.5 ros-kilted-ament-cmake-gmock==2.7.3
+                ros-kilted-ament-cmake-ros==0.14.5 ros-kilted-ament-cmake-ros-core==0.14.5
+                ros-kilted-ament-cmake-gmock==2.7.3
                 ros-kilted-ament-cmake-gtest==2.7.3 ros-kilted-ament-cmake-pytest==2.7.3) ;;
     esac
     "${PIP[@]}" install "${ROS_BUILD[@]}"

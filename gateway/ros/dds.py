@@ -18,6 +18,14 @@ oricf.config.config_dir) does two things, both explained in the file:
   would add a UDP transport of its own on every interface, so with this profile the range is
   left to the profile (SYSTEM_DEFAULT). docs/security.md says how to open DDS to a network.
 
+Fast DDS 3 (ROS 2 Kilted and later) reads the same profiles in its own spelling
+(configs/pipelines/dds/fastdds3/; fast_dds_3() tells which Fast DDS is installed). Its
+variable is FASTDDS_DEFAULT_PROFILES_FILE, but Kilted's rmw_fastrtps still reads
+FASTRTPS_DEFAULT_PROFILES_FILE (with a warning that it is deprecated), and with both set
+both files are loaded, which Fast DDS refuses as duplicate profiles: ORICF sets the one
+variable every distribution reads, FASTRTPS_DEFAULT_PROFILES_FILE, and leaves a profile
+named by either to the user.
+
 fastdds-tcp.xml beside it adds a TCP transport, for camera drivers on Fast DDS's LARGE_DATA
 transports; it is chosen by hand (`python -m oricf.gateway.ros.dds --tcp` prints its path)
 and treated as shipped. It is not the default: Fast DDS 2.14's TCP transport now and then
@@ -29,6 +37,7 @@ No ROS import here: call use_dds_profile() before rclpy.init().
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import logging
 import os
 import sys
@@ -47,10 +56,28 @@ RANGES_LEFT_TO_THE_PROFILE = ("", "OFF", "SUBNET", "SYSTEM_DEFAULT")
 
 
 PROFILE, TCP_PROFILE = "fastdds.xml", "fastdds-tcp.xml"
+# The distributions on Fast DDS 2, whose profiles differ from Fast DDS 3's in spelling.
+FAST_DDS_2_DISTROS = ("humble", "iron", "jazzy")
+PROFILE_VARIABLE, FAST_DDS_3_VARIABLE = ("FASTRTPS_DEFAULT_PROFILES_FILE",
+                                         "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def fast_dds_3() -> bool:
+    """Whether the ROS 2 in use runs Fast DDS 3: a sourced install says by its ROS_DISTRO,
+    the PyPI wheels by their name (Fast DDS 3 is `ros-fastdds`, Fast DDS 2 `ros-fastrtps`)."""
+    distro = os.environ.get("ROS_DISTRO")
+    if distro:
+        return distro not in FAST_DDS_2_DISTROS
+    try:
+        importlib.metadata.version("ros-fastdds")
+    except importlib.metadata.PackageNotFoundError:
+        return False
+    return True
 
 
 def shipped_profile_path(tcp: bool = False) -> Path:
-    return config_dir() / "pipelines" / "dds" / (TCP_PROFILE if tcp else PROFILE)
+    folder = config_dir() / "pipelines" / "dds"
+    return (folder / "fastdds3" if fast_dds_3() else folder) / (TCP_PROFILE if tcp else PROFILE)
 
 
 def dds_profile(tcp: bool = False) -> Path:
@@ -59,7 +86,7 @@ def dds_profile(tcp: bool = False) -> Path:
     path = shipped_profile_path(tcp)
     if not path.is_file():
         raise ConfigError(f"{path}: the Fast DDS profile is missing (reinstall ORICF, or set "
-                          f"FASTRTPS_DEFAULT_PROFILES_FILE to a profile of your own)")
+                          f"{PROFILE_VARIABLE} to a profile of your own)")
     return path
 
 
@@ -68,10 +95,10 @@ def use_dds_profile() -> None:
     while the shipped profile is the one in use, the discovery range is left to it."""
     if os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
         return
-    chosen = os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE")
+    chosen = os.environ.get(PROFILE_VARIABLE) or os.environ.get(FAST_DDS_3_VARIABLE)
     if not chosen:
         profile = dds_profile()
-        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
+        os.environ[PROFILE_VARIABLE] = str(profile)
         log.info("Fast DDS profile: %s (DDS on 127.0.0.1 only)", profile)
     elif Path(chosen).resolve() not in {shipped_profile_path(tcp).resolve()
                                          for tcp in (False, True)}:

@@ -3,6 +3,7 @@ writer setting does what configs/pipelines/dds/fastdds.xml says it does."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import os
 import queue
@@ -19,7 +20,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32
 
 from oricf.errors import ConfigError
-from oricf.gateway.ros.dds import dds_profile, use_dds_profile
+from oricf.gateway.ros.dds import dds_profile, fast_dds_3, use_dds_profile
 from tests.gateway.ros.gateway_node import spinning
 
 PUBLISHED = 40
@@ -29,6 +30,7 @@ NAMESPACE = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
 def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE", raising=False)
+    monkeypatch.delenv("FASTDDS_DEFAULT_PROFILES_FILE", raising=False)
     monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
     use_dds_profile()
     assert os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(dds_profile())
@@ -38,6 +40,11 @@ def test_the_gateway_uses_the_shipped_profile_unless_told_otherwise(
     assert os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] == "/etc/robot/fastdds.xml"
 
     monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE")
+    monkeypatch.setenv("FASTDDS_DEFAULT_PROFILES_FILE", "/etc/robot/fastdds.xml")
+    use_dds_profile()  # Fast DDS 3's own variable names the user's profile as well
+    assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+    monkeypatch.delenv("FASTDDS_DEFAULT_PROFILES_FILE")
+
     monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
     use_dds_profile()
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
@@ -82,10 +89,33 @@ def test_a_missing_profile_stops_the_gateway_instead_of_being_skipped(
     monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE", raising=False)
     monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
     monkeypatch.setenv("ORICF_CONFIG_DIR", str(tmp_path))
-    with pytest.raises(ConfigError, match=f"{tmp_path}/pipelines/dds/fastdds.xml: the Fast "
-                                          f"DDS profile is missing"):
+    fast_dds = "fastdds3/" if fast_dds_3() else ""  # Fast DDS 3's form (Kilted)
+    with pytest.raises(ConfigError, match=f"{tmp_path}/pipelines/dds/{fast_dds}fastdds.xml: "
+                                          f"the Fast DDS profile is missing"):
         use_dds_profile()
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+
+
+def test_the_fast_dds_generation_follows_the_ros_in_use(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sourced ROS 2 by its name; the wheels by theirs (Kilted's carry ros-fastdds)."""
+    monkeypatch.delenv("ROS_DISTRO", raising=False)
+    wheels = {d.metadata["Name"].lower() for d in importlib.metadata.distributions()}
+    assert fast_dds_3() == ("ros-fastdds" in wheels) != ("ros-fastrtps" in wheels)
+    assert dds_profile().parent.name == ("fastdds3" if fast_dds_3() else "dds")
+    for distro, three in (("humble", False), ("jazzy", False), ("kilted", True),
+                          ("rolling", True)):
+        monkeypatch.setenv("ROS_DISTRO", distro)
+        assert fast_dds_3() is three
+
+
+@pytest.mark.parametrize("name", ["fastdds.xml", "fastdds-tcp.xml"])
+def test_the_fast_dds_3_profiles_are_the_fast_dds_2_ones(name: str) -> None:
+    """configs/pipelines/dds/fastdds3/ holds the same settings in Fast DDS 3's spelling."""
+    folder = dds_profile().parents[1] if dds_profile().parent.name == "fastdds3" \
+        else dds_profile().parent
+    two = ET.tostring(ET.parse(folder / name).getroot())
+    three = ET.tostring(ET.parse(folder / "fastdds3" / name).getroot())
+    assert three.replace(b"nack_supression_duration", b"nackSupressionDuration") == two
 
 
 @pytest.fixture()
