@@ -66,11 +66,17 @@ def pyproject() -> dict:
     return tomllib.loads((ROOT / "pyproject.toml").read_text())
 
 
+@cache
 def readme_extras() -> list[str]:
-    """The extras that `scripts/setup.sh` (without --dev) installs."""
+    """The extras that `scripts/setup.sh` (without --dev) installs: its EXTRAS, and the ROS
+    extra that scripts/ros-source.sh chooses on this machine (ros, ros-kilted, or none)."""
     match = re.search(r'^EXTRAS="([^"]+)"', (ROOT / "scripts/setup.sh").read_text(), re.M)
     assert match, "scripts/setup.sh sets EXTRAS"
-    return match.group(1).split(",")
+    decided = subprocess.run([str(ROOT / "scripts/ros-source.sh")], capture_output=True,
+                             text=True, timeout=60, check=False)
+    assert decided.returncode == 0, decided.stderr
+    source, _, extra = decided.stdout.split("\n")[0].split()
+    return [*match.group(1).split(","), *([extra] if source == "wheels" else [])]
 
 
 def requirements(extras: Iterable[str]) -> list[str]:
