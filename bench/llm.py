@@ -9,6 +9,7 @@ prefix kept (the default) and thrown away before every call.
     oricf bench llm                                   # both catalog models
     oricf bench llm --model gemma3-270m --show        # one model, print every answer
     oricf bench llm --threads 1 --threads 2           # thread counts side by side
+    oricf bench llm --gpu-layers 0 --gpu-layers -1    # the CPU against all layers on the GPU
     oricf bench llm --prompt my-prompt.yaml
     oricf bench llm --protocol grpc,openai            # gRPC against the OpenAI API (latency)
 """
@@ -150,16 +151,20 @@ def service(overrides: dict[str, Any], config_path: Path) -> Iterator[grpc.Chann
 class Setup:
     model: str
     threads: int | None    # None: the YAML's
+    gpu_layers: int | None = None  # None: the YAML's
 
     @property
     def label(self) -> str:
-        return self.model + ("" if self.threads is None else f" x{self.threads}")
+        layers = {None: "", 0: " cpu", -1: " gpu"}.get(self.gpu_layers, f" gpu{self.gpu_layers}")
+        return self.model + ("" if self.threads is None else f" x{self.threads}") + layers
 
 
 def overrides_for(setup: Setup, prompt: Path | None, reuse: bool) -> dict[str, Any]:
     settings: dict[str, Any] = {"name": setup.model, "reuse_prefix": reuse}
     if setup.threads is not None:
         settings["threads"] = setup.threads
+    if setup.gpu_layers is not None:
+        settings["gpu_layers"] = setup.gpu_layers
     data: dict[str, Any] = {"server": {"listen": "127.0.0.1:0"}, "model": settings}
     if prompt is not None:
         data["prompts"] = {setup.model: str(prompt.resolve())}
@@ -170,6 +175,7 @@ def run_setup(setup: Setup, args: argparse.Namespace) -> dict[str, Any]:
     asked = questions(args.questions)
     with service(overrides_for(setup, args.prompt, reuse=True), args.config) as channel:
         stub = language_pb2_grpc.LanguageModelStub(channel)
+        ran_on = stub.GetModelInfo(common_pb2.GetModelInfoRequest(), timeout=10).providers[0]
         answers = [ask(stub, q, c) for q, c in asked]
         unknown = ask_unknown(stub, SIDE_SAMPLE)
     with service(overrides_for(setup, args.prompt, reuse=False), args.config) as channel:
@@ -181,6 +187,7 @@ def run_setup(setup: Setup, args: argparse.Namespace) -> dict[str, Any]:
             print(f"  {'ok ' if a.right else 'BAD'} {count:>2} {a.question:46} -> {a.text}")
     return {
         "label": setup.label,
+        "ran_on": ran_on,
         "right": sum(a.right for a in answers),
         "asked": len(answers),
         "unknown_right": sum(a.right for a in unknown),
@@ -192,11 +199,12 @@ def run_setup(setup: Setup, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def print_table(rows: Sequence[dict[str, Any]]) -> None:
-    print(f"\n{'model':28} {'right':>9} {'share':>6} {'unknown':>7} {'1st tok':>8} "
+    print(f"\n{'model':28} {'ran on':7} {'right':>9} {'share':>6} {'unknown':>7} {'1st tok':>8} "
           f"{'answer':>8} {'p90':>7} {'1st tok, no prefix reuse':>25}")
     for r in rows:
         ratio = r["cold_first"] / r["first"] if r["first"] else float("nan")
-        print(f"{r['label']:28} {r['right']:>4}/{r['asked']:<4} {r['right'] / r['asked']:6.0%} "
+        print(f"{r['label']:28} {r['ran_on']:7} {r['right']:>4}/{r['asked']:<4} "
+              f"{r['right'] / r['asked']:6.0%} "
               f"{r['unknown_right']:>4}/{SIDE_SAMPLE:<2} "
               f"{r['first'] * 1e3:6.0f}ms {r['total'] * 1e3:6.0f}ms {r['p90'] * 1e3:5.0f}ms "
               f"{r['cold_first'] * 1e3:14.0f}ms ({ratio:.1f}x)")
@@ -215,6 +223,9 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--prompt", type=Path, help="prompt template for every model measured")
     parser.add_argument("--threads", type=int, action="append",
                         help="llama.cpp threads (repeatable, to compare; default: the YAML's)")
+    parser.add_argument("--gpu-layers", type=int, action="append",
+                        help="layers on the GPU, -1 all (repeatable, to compare; default: "
+                             "the YAML's)")
     parser.add_argument("--questions", type=int, default=64, help="how many questions")
     parser.add_argument("--show", action="store_true", help="print every answer")
     parser.add_argument("--protocol", type=parse_protocols, metavar="grpc,openai",
@@ -235,8 +246,9 @@ def main(argv: Sequence[str]) -> int:
     rows = []
     for model in args.model or MODELS:
         for threads in args.threads or [None]:
-            setup = Setup(model, threads)
-            print(f"{setup.label}: asking {args.questions} count questions...", flush=True)
-            rows.append(run_setup(setup, args))
+            for layers in args.gpu_layers or [None]:
+                setup = Setup(model, threads, layers)
+                print(f"{setup.label}: asking {args.questions} count questions...", flush=True)
+                rows.append(run_setup(setup, args))
     print_table(rows)
     return 0

@@ -9,7 +9,7 @@
     oricf certs DIR [--host NAME ...]
     oricf demo [...]
     oricf bench detector|asr|llm|tts|voice|gateway|models|link|rtsp|offload|edge|tracking|soak
-                |control [...]
+                |control|providers [...]
 
 SERVICE is one of oricf.services.SERVICES (`oricf serve --help` lists them). Verbs with
 options of their own hand the rest of the command line to their module's main().
@@ -43,7 +43,7 @@ DELEGATED = {
 # Modules that run a pipeline in this process: grpc's client polls in the calling thread.
 RUN_PIPELINES = {"oricf.gateway.shells.main", "oricf.gateway.shells.mcp"}
 BENCHMARKS = ("detector", "asr", "llm", "tts", "voice", "gateway", "models", "link", "rtsp",
-              "offload", "edge", "tracking", "soak", "control")
+              "offload", "edge", "tracking", "soak", "control", "providers")
 
 
 def security_overrides(args: argparse.Namespace) -> dict[str, object]:

@@ -16,6 +16,7 @@ import numpy as np
 
 from oricf.errors import ConfigError
 from oricf.models.declaration import Backend, OnnxRuntimeBackend, OpenVinoBackend
+from oricf.models.providers import open_in_order
 from oricf.models.tensors import TensorSpec, by_backend_name
 
 
@@ -23,7 +24,8 @@ class Session(Protocol):
     inputs: list[TensorSpec]
     outputs: list[TensorSpec]
     runtime: str                 # "onnxruntime 1.23.2"
-    devices: list[str]           # execution providers or devices in use
+    devices: list[str]           # execution providers or devices in use, the first runs
+    skipped: list[str]           # declared ones passed over, each with why
     freed: list[tuple[int, ...]]  # per input, the axes the file fixed and this session frees
 
     def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]: ...
@@ -41,11 +43,6 @@ class OnnxRuntimeSession:
         except ImportError:
             raise ConfigError("backend.engine onnxruntime: the onnxruntime package is not "
                               "installed") from None
-        available = ort.get_available_providers()
-        missing = [p for p in settings.providers if p not in available]
-        if missing:
-            raise ConfigError(f"backend.providers: {', '.join(missing)} not available in this "
-                              f"onnxruntime build (available: {', '.join(available)})")
         options = ort.SessionOptions()
         options.intra_op_num_threads = settings.threads
         options.inter_op_num_threads = 1
@@ -53,16 +50,15 @@ class OnnxRuntimeSession:
         options.add_session_config_entry("session.intra_op.allow_spinning",
                                          "1" if settings.spin else "0")
         options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-        self._session = ort.InferenceSession(str(path), options,
-                                             providers=list(settings.providers))
+        self._session, self.skipped = open_in_order(ort, str(path), options, settings)
         # Axes declared free (-1) that the file fixes: freed in the graph.
         self.freed = [tuple(a for a in axes if a < len(i.shape) and _dims(i.shape)[a] > 0)
                       for i, axes in zip(self._session.get_inputs(), free, strict=False)]
         if any(self.freed):
             from oricf.models.free_dims import free_dimensions
 
-            self._session = ort.InferenceSession(free_dimensions(path, self.freed), options,
-                                                 providers=list(settings.providers))
+            self._session, self.skipped = open_in_order(
+                ort, free_dimensions(path, self.freed), options, settings)
         self.inputs = [TensorSpec(i.name, by_backend_name("onnx", i.type).name, _dims(i.shape))
                        for i in self._session.get_inputs()]
         self.outputs = [TensorSpec(o.name, by_backend_name("onnx", o.type).name, _dims(o.shape))
@@ -100,6 +96,7 @@ class OpenVinoSession:
         self.outputs = [self._spec(port) for port in self._compiled.outputs]
         self.runtime = f"openvino {ov.__version__}"
         self.devices = [settings.device]
+        self.skipped: list[str] = []
         # An infer request serves one call at a time: one per calling thread, and at most
         # `streams` inferences running (the others wait here, not inside OpenVINO).
         self._requests = threading.local()

@@ -56,10 +56,27 @@ class Weights(Schema):
 
 class OnnxRuntimeBackend(Schema):
     engine: Literal["onnxruntime"]
-    providers: list[str] = Field(default_factory=lambda: ["CPUExecutionProvider"],
-                                 description="in order of preference")
+    providers: list[str] = Field(
+        default_factory=lambda: ["CPUExecutionProvider"], min_length=1,
+        description="in order of preference: those this onnxruntime build lacks, or that "
+                    "cannot start here, are passed over, and one log line names the one "
+                    "that runs (e.g. [TensorrtExecutionProvider, CUDAExecutionProvider, "
+                    "CPUExecutionProvider])")
+    provider_options: dict[str, dict[str, str | int | float | bool]] = Field(
+        default_factory=dict,
+        description="per provider, its onnxruntime options (e.g. TensorrtExecutionProvider: "
+                    "{trt_fp16_enable: true, trt_engine_cache_enable: true, "
+                    "trt_engine_cache_path: /var/cache/oricf/trt})")
     threads: int = Field(1, ge=1, le=64, description="intra-op threads")
     spin: bool = Field(False, description="idle threads busy-wait: lower latency, far more CPU")
+
+
+    @model_validator(mode="after")
+    def _options_for_listed(self) -> OnnxRuntimeBackend:
+        unlisted = sorted(set(self.provider_options) - set(self.providers))
+        if unlisted:
+            raise ValueError(f"provider_options: {', '.join(unlisted)} is not in providers")
+        return self
 
 
 class OpenVinoBackend(Schema):

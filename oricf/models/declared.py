@@ -35,6 +35,8 @@ DetectArgs = tuple[Prepared, float, "np.ndarray | None"]
 # A batch's outputs must match its items' alone to this tolerance (of the outputs' range):
 # a freed batch dimension must not change the answers.
 BATCH_TOLERANCE = 1e-4
+# On an accelerator: a share of how far two different items' outputs are apart.
+ACCELERATED_BATCH_TOLERANCE = 0.1
 
 
 def _override(specs: list[TensorSpec], overrides: list[TensorOverride], where: str
@@ -126,6 +128,7 @@ class DeclaredModel:
             except ValueError as exc:
                 raise ConfigError(f"model {self.name}: task: {exc}") from None
         self._session = session
+        log_placement(self.name, session)
         self._warm_up()
         if any(0 in axes for axes in session.freed):
             check_batching(self)
@@ -250,6 +253,12 @@ class DeclaredModel:
 
 
 
+def log_placement(name: str, session: Session) -> None:
+    """One line naming where the model runs, and the declared providers passed over."""
+    passed = f" (passed over: {'; '.join(session.skipped)})" if session.skipped else ""
+    log.info("model %s runs on %s with %s%s", name, session.devices[0], session.runtime, passed)
+
+
 def check_batching(model: DeclaredModel) -> None:
     """Refuses a model whose freed batch dimension changes its answers: two different inputs
     run as one batch must give what each gives alone."""
@@ -271,14 +280,20 @@ def check_batching(model: DeclaredModel) -> None:
     except Exception as exc:
         raise ConfigError(f"model {model.name}: inputs declare a free batch dimension, but "
                           f"the graph does not run a batch of 2: {exc}") from None
-    for i, feeds in enumerate(items):
-        alone = model.infer(feeds)
-        for name, value in alone.items():
-            scale = max(float(np.abs(value).max()), 1.0)
-            if not np.allclose(batched[i][name], value, rtol=0, atol=BATCH_TOLERANCE * scale):
-                raise ConfigError(f"model {model.name}: inputs declare a free batch "
-                                  f"dimension, but the graph does not batch (output '{name}' "
-                                  f"of a batch differs from that of its items run alone); "
-                                  f"declare the batch dimension as 1")
+    on_cpu = model.info().providers[:1] in (["CPUExecutionProvider"], ["CPU"])
+    alone = [model.infer(feeds) for feeds in items]
+    for name in alone[0]:
+        apart = max(float(np.abs(alone[0][name] - alone[1][name]).max()), 1e-12)
+        scale = max(float(np.abs(alone[0][name]).max()), 1.0)
+        # On the CPU a batch gives its items' answers to rounding. On an accelerator a batch
+        # takes other kernels (cuDNN's choice, TF32 sums), so it is held to a small share of
+        # how far two different items' answers are apart: mixed items would be that far.
+        allowed = BATCH_TOLERANCE * scale if on_cpu else ACCELERATED_BATCH_TOLERANCE * apart
+        worst = max(float(np.abs(batched[i][name] - alone[i][name]).max()) for i in range(2))
+        if worst > allowed:
+            raise ConfigError(f"model {model.name}: inputs declare a free batch dimension, but "
+                              f"the graph does not batch (output '{name}' of a batch differs "
+                              f"from that of its items run alone by {worst:.3g}, two items "
+                              f"differ by {apart:.3g}); declare the batch dimension as 1")
     log.info("model %s: batch dimension freed; a batch gives what its items give alone",
              model.name)

@@ -21,6 +21,10 @@ class LlmModelSettings(Schema):
         description="OpenMP threads sleep (PASSIVE) or spin (ACTIVE) between parallel regions")
     reuse_prefix: bool = Field(
         True, description="keep the KV cache of the common prompt prefix between calls")
+    gpu_layers: int = Field(
+        0, ge=-1, description="layers offloaded to the GPU (-1: all); where llama.cpp was "
+                              "built without a GPU back end, the model runs on the CPU and "
+                              "one log line says so")
 
 
 class GenerationSettings(Schema):

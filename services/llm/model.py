@@ -51,10 +51,32 @@ class LlamaSettings:
     sampling: Sampling          # temperature here is the default; requests may override it
     max_waiting: int
     wait_timeout_s: float
+    gpu_layers: int = 0         # -1: all; 0: none (CPU)
 
 
 def _ms(start: float, end: float) -> float:
     return (end - start) * 1e3
+
+
+def llama_devices(llama_cpp: Any, gpu_layers: int) -> list[str]:
+    """Where the layers run: the GPU back ends llama.cpp was built with (from its system
+    info, e.g. "CUDA"), then the CPU; the CPU alone when none is asked for or none is built
+    in, which one log line says."""
+    if gpu_layers == 0:
+        return ["CPU"]
+    if not llama_cpp.llama_supports_gpu_offload():
+        log.warning("model.gpu_layers %d: this llama.cpp was built without a GPU back end; "
+                    "the model runs on the CPU (docs/platforms.md: llama.cpp with CUDA)",
+                    gpu_layers)
+        return ["CPU"]
+    info = llama_cpp.llama_print_system_info().decode(errors="replace")
+    gpus = [part.split(":")[0].strip() for part in info.split("|")
+            if part.strip().split(":")[0].strip() in GPU_BACKENDS]
+    return [*dict.fromkeys(gpus or ["GPU"]), "CPU"]
+
+
+# llama.cpp's GPU back ends, as its system info names them.
+GPU_BACKENDS = {"CUDA", "Metal", "Vulkan", "SYCL", "HIP", "ROCm", "MUSA", "CANN", "OpenCL"}
 
 
 class LlamaModel:
@@ -67,6 +89,7 @@ class LlamaModel:
         self._is_end: Callable[[int], bool] = lambda token: False
         self._vocab: Any = None
         self._runtime = "llama.cpp"
+        self._devices = ["CPU"]
 
     def load(self) -> None:
         s = self.settings
@@ -75,17 +98,20 @@ class LlamaModel:
         os.environ.setdefault("OMP_WAIT_POLICY", s.omp_wait_policy)
         import llama_cpp
 
+        self._devices = llama_devices(llama_cpp, s.gpu_layers)
         llm = llama_cpp.Llama(
             model_path=str(s.path), n_ctx=s.n_ctx, n_batch=s.n_batch, n_ubatch=s.n_batch,
-            n_threads=s.threads, n_threads_batch=s.threads, verbose=False)
+            n_threads=s.threads, n_threads_batch=s.threads,
+            n_gpu_layers=s.gpu_layers if self._devices[0] != "CPU" else 0, verbose=False)
         vocab = llama_cpp.llama_model_get_vocab(llm.model)
         self._is_end = lambda token: bool(llama_cpp.llama_vocab_is_eog(vocab, token))
         self._vocab = vocab
         self._runtime = f"llama.cpp (llama-cpp-python {llama_cpp.__version__})"
         self._llm = llm
         self._warm_up()
-        log.info("%s loaded: context %d tokens, %d thread(s), prompt prefix %d tokens",
-                 s.catalog_name, s.n_ctx, s.threads, len(self._tokenize(self.renderer.prefix)))
+        log.info("%s loaded on %s: context %d tokens, %d thread(s), prompt prefix %d tokens",
+                 s.catalog_name, self._devices[0], s.n_ctx, s.threads,
+                 len(self._tokenize(self.renderer.prefix)))
 
     def _warm_up(self) -> None:
         """One short generation: evaluates the fixed prompt prefix so it is cached."""
@@ -109,9 +135,10 @@ class LlamaModel:
     def info(self) -> ModelInfo:
         s = self.settings
         return ModelInfo(
-            model=s.catalog_name, runtime=self._runtime, providers=["CPU"], license=s.license,
-            sha256=s.sha256,
+            model=s.catalog_name, runtime=self._runtime, providers=list(self._devices),
+            license=s.license, sha256=s.sha256,
             parameters={"n_ctx": str(s.n_ctx), "threads": str(s.threads),
+                        "gpu_layers": str(s.gpu_layers),
                         "prompt": s.prompt_file, "temperature": str(s.sampling.temperature),
                         "reuse_prefix": str(s.reuse_prefix).lower(),
                         "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "")})

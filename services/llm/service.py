@@ -26,6 +26,7 @@ def create_model(config: LlmConfig, store: ModelStore) -> LlamaModel:
         template=load_prompt(config.prompt_path), prompt_file=config.prompt_path.name,
         n_ctx=config.model.n_ctx, n_batch=config.model.n_batch, threads=config.model.threads,
         omp_wait_policy=config.model.omp_wait_policy, reuse_prefix=config.model.reuse_prefix,
+        gpu_layers=config.model.gpu_layers,
         sampling=Sampling(temperature=g.temperature, top_k=g.top_k, top_p=g.top_p,
                           min_p=g.min_p, repeat_penalty=g.repeat_penalty),
         max_waiting=config.queue.max_waiting, wait_timeout_s=config.queue.wait_timeout_s))

@@ -112,6 +112,15 @@ def _parser(deserializer: Parse | None) -> Parse:
     return parse
 
 
+def _none_is_nothing(serializer: Callable[[Any], bytes] | None
+                     ) -> Callable[[Any], bytes] | None:
+    """A call whose caller has gone ends with no answer (None, see _abort): grpcio would log
+    a traceback trying to serialize it, once per late call of an overloaded service."""
+    if serializer is None:
+        return None
+    return lambda message: b"" if message is None else serializer(message)
+
+
 def _requests(stream: bool, parse: Parse, request: Any) -> Any:
     return (parse(item) for item in request) if stream else parse(request)
 
@@ -187,7 +196,9 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
         method = handler_call_details.method
         limit = None if exempt(method) else self.limit
         parse = _parser(handler.request_deserializer)
-        handler = handler._replace(request_deserializer=None)  # parsed in the wrappers
+        handler = handler._replace(request_deserializer=None,  # parsed in the wrappers
+                                   response_serializer=_none_is_nothing(
+                                       handler.response_serializer))
         if handler.unary_unary:
             return handler._replace(unary_unary=_wrap_unary_response(
                 handler.unary_unary, method, parse, False, limit))

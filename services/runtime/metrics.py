@@ -218,6 +218,12 @@ class ServiceCollector(Collector):
             yield _gauge("oricf_model_load_seconds",
                          "How long loading and warming up the model took.",
                          *model, self._slot.load_seconds)
+            info = self._slot.peek().info()
+            yield _gauge("oricf_model_info", "Where the loaded model runs: its runtime and the "
+                         "execution provider or device that runs it (the first in use).",
+                         ("service", "model", "runtime", "provider"),
+                         (self._service, self._model, info.runtime,
+                          info.providers[0] if info.providers else ""), 1.0)
         yield _gauge("oricf_service_calls_in_progress",
                      "Calls running now that count against the limit (health and reflection "
                      "do not).", *service, self._limit.active)

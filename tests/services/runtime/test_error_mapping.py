@@ -4,6 +4,8 @@ A real gRPC server with a generic handler stands in for a model here: the point 
 runtime's mapping, which every service shares, including errors no real model raises on cue.
 """
 
+import logging
+import time
 from collections.abc import Iterator
 from concurrent import futures
 
@@ -12,6 +14,7 @@ import pytest
 
 from oricf.errors import InvalidInput, NotReady, Overloaded
 from oricf.services.runtime.errors import INTERNAL_MESSAGE, ErrorMappingInterceptor
+from oricf.v1 import common_pb2
 
 ERRORS = {
     "invalid": (InvalidInput("bad image"), grpc.StatusCode.INVALID_ARGUMENT, "bad image"),
@@ -64,3 +67,39 @@ def test_stream_errors_map_to_status_codes(channel: grpc.Channel, case: str) -> 
     with pytest.raises(grpc.RpcError) as err:
         next(stream)
     assert err.value.code() == ERRORS[case][1]
+
+
+def _answer_after_the_caller_left(request: bytes, context: grpc.ServicerContext
+                                  ) -> common_pb2.GetModelInfoResponse:
+    if request == b"now":
+        return common_pb2.GetModelInfoResponse(service="ok")
+    deadline = time.monotonic() + 10
+    while context.is_active() and time.monotonic() < deadline:  # until the caller is gone
+        time.sleep(0.01)
+    raise Overloaded("too late")
+
+
+def test_a_call_whose_caller_left_ends_without_a_traceback(
+        caplog: pytest.LogCaptureFixture) -> None:
+    # One worker: the second call runs once the first one's handler, and the sending of
+    # its (absent) answer, are over.
+    server = grpc.server(futures.ThreadPoolExecutor(1), interceptors=[ErrorMappingInterceptor()])
+    server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler("test.Late", {
+        "Unary": grpc.unary_unary_rpc_method_handler(
+            _answer_after_the_caller_left,
+            response_serializer=common_pb2.GetModelInfoResponse.SerializeToString)}),))
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    try:
+        with grpc.insecure_channel(f"127.0.0.1:{port}") as channel, \
+                caplog.at_level(logging.DEBUG, logger="grpc"):
+            call = channel.unary_unary("/test.Late/Unary")
+            with pytest.raises(grpc.RpcError) as late:
+                call(b"late", timeout=0.2)
+            assert late.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
+            answer = common_pb2.GetModelInfoResponse.FromString(call(b"now", timeout=10))
+            assert answer.service == "ok"
+    finally:
+        server.stop(0)
+    logged = [r.getMessage() for r in caplog.records if r.name.startswith("grpc")]
+    assert not [m for m in logged if "Exception" in m], logged

@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import grpc
+import onnxruntime
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from prometheus_client.samples import Sample
@@ -109,6 +110,10 @@ def test_model_load_and_the_call_limit(scraped: Scrape) -> None:
     assert scraped.families["oricf_model_load_seconds"] == "gauge"
     assert 0 < scraped.value("oricf_model_load_seconds", **model) < 120
     assert scraped.value("oricf_model_ready", **model) == 1
+    # Where it runs: the execution provider running it, as its log line names it.
+    assert scraped.families["oricf_model_info"] == "gauge"
+    assert scraped.value("oricf_model_info", **model, provider="CPUExecutionProvider",
+                         runtime=f"onnxruntime {onnxruntime.__version__}") == 1
     assert scraped.value("oricf_service_calls_limit", service="detector") == 8
     assert scraped.value("oricf_service_calls_in_progress", service="detector") == 0
     assert scraped.value("process_resident_memory_bytes") > 0

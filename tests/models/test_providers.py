@@ -1,0 +1,63 @@
+"""Execution providers in the declared order: those this onnxruntime lacks are passed over,
+one log line names the one that runs, and where it runs is in GetModelInfo."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from oricf.bench.common import load_frames
+from oricf.config import REPO_ROOT
+from oricf.errors import ConfigError
+from oricf.models.declaration import load_declaration
+from oricf.models.declared import DeclaredModel
+from oricf.store import ModelStore
+from tests.models.test_declaration import declared
+
+MODELS = REPO_ROOT / "configs" / "models"
+PERSON = np.array([0])
+
+
+def people(model: DeclaredModel, frame: np.ndarray) -> int:
+    return len(model.detect(model.prepare(frame), 0.35, PERSON).boxes)
+
+
+def test_the_gpu_declaration_runs_on_the_cpu_where_there_is_no_gpu(
+        caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.INFO, logger="oricf.models.declared"):
+        gpu = DeclaredModel(load_declaration(MODELS / "yolox-nano-gpu.yaml"), ModelStore())
+        gpu.load()
+    cpu = DeclaredModel(load_declaration(MODELS / "yolox-nano.yaml"), ModelStore())
+    cpu.load()
+    assert gpu.info().providers[0] == "CPUExecutionProvider"
+    placed = [r.getMessage() for r in caplog.records if "gpu runs on" in r.getMessage()]
+    assert placed == [
+        "model yolox-nano-gpu runs on CPUExecutionProvider with onnxruntime "
+        f"{gpu.info().runtime.split()[-1]} (passed over: TensorrtExecutionProvider: not in "
+        "this onnxruntime build; CUDAExecutionProvider: not in this onnxruntime build)"]
+    frames = load_frames(4)
+    assert [people(gpu, f) for f in frames] == [people(cpu, f) for f in frames]
+    assert people(cpu, frames[0]) >= 3  # the pedestrian video's first frame has people
+
+
+def test_a_model_no_declared_provider_can_run_is_refused(tmp_path: Path) -> None:
+    path = declared(tmp_path, {"backend": {"engine": "onnxruntime", "providers": [
+        "TensorrtExecutionProvider", "CUDAExecutionProvider"]}})
+    with pytest.raises(ConfigError, match="none of TensorrtExecutionProvider, "
+                                          "CUDAExecutionProvider is in this onnxruntime build"):
+        DeclaredModel(load_declaration(path), ModelStore()).load()
+
+
+def test_options_are_for_declared_providers_only(tmp_path: Path) -> None:
+    path = declared(tmp_path, {"backend": {
+        "engine": "onnxruntime", "providers": ["CPUExecutionProvider"],
+        "provider_options": {"CUDAExecutionProvider": {"device_id": 0}}}})
+    with pytest.raises(ConfigError, match="provider_options: CUDAExecutionProvider is not in "
+                                          "providers"):
+        load_declaration(path)
+    with pytest.raises(ConfigError, match="providers: List should have at least 1 item"):
+        load_declaration(declared(tmp_path, {"backend": {"engine": "onnxruntime",
+                                                         "providers": []}}))
