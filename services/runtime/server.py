@@ -30,6 +30,8 @@ from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.parts import ServiceParts
 from oricf.services.runtime.probe import probe_server
 from oricf.signals import stop_on_signals
+from oricf.tracing import active as tracing_active
+from oricf.tracing import setup_tracing
 
 if TYPE_CHECKING:  # Starlette and uvicorn load only for a service that serves HTTP
     from oricf.services.runtime.http.server import HttpServer
@@ -62,6 +64,10 @@ class ServiceHost:
             # First: the outermost interceptor sees every call's final status, refusals too.
             self.metrics, calls = service_registry(spec.name, self.slot, call_limit)
             interceptors.append(calls)
+        if tracing_active():  # a span per call, refused ones too (docs/tracing.md)
+            from oricf.services.runtime.tracing import TracingInterceptor
+
+            interceptors.append(TracingInterceptor())
         if settings.auth is not None:
             interceptors.append(TokenAuthInterceptor(settings.auth.tokens()))
         interceptors.append(ErrorMappingInterceptor(call_limit))
@@ -132,7 +138,9 @@ class ServiceHost:
     def load_model(self) -> None:
         seconds = self.slot.load()
         self._set_health(health_pb2.HealthCheckResponse.SERVING)
-        log.info("%s model loaded in %.1f s; SERVING", self.spec.name, seconds)
+        providers = self.slot.peek().info().providers
+        log.info("%s model loaded in %.1f s%s; SERVING", self.spec.name, seconds,
+                 f", runs on {providers[0]}" if providers else "")
 
     def stop(self, grace: float | None = None) -> bool:
         """NOT_SERVING first (load balancers stop sending), then drain, then close the model.
@@ -174,6 +182,7 @@ def _connection_age(age_s: float | None, grace_s: float) -> list[tuple[str, int]
 
 def serve(spec: ServiceParts, config: ServiceConfig, model: Model, listen: str | None) -> int:
     """Runs a service until SIGTERM/SIGINT; returns the process exit code."""
+    setup_tracing(f"oricf-{spec.name}", config.server.tracing)
     with stop_on_signals() as stop:
         host = ServiceHost(spec, config, model, listen)
         host.start()

@@ -15,7 +15,9 @@ from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
 from oricf.models.declared import DeclaredModel
 from oricf.store import ModelStore
+from oricf.v1 import common_pb2, detector_pb2_grpc
 from tests.models.test_declaration import declared
+from tests.support.services import running_service
 
 MODELS = REPO_ROOT / "configs" / "models"
 PERSON = np.array([0])
@@ -61,3 +63,13 @@ def test_options_are_for_declared_providers_only(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="providers: List should have at least 1 item"):
         load_declaration(declared(tmp_path, {"backend": {"engine": "onnxruntime",
                                                          "providers": []}}))
+
+
+def test_the_service_says_where_its_model_runs(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.INFO, logger="oricf.services.runtime.server"), \
+            running_service("detector", {"model": str(MODELS / "yolox-nano-gpu.yaml")}) as service:
+        info = detector_pb2_grpc.DetectorStub(service.channel).GetModelInfo(
+            common_pb2.GetModelInfoRequest(), timeout=10)
+    assert info.model == "yolox-nano-gpu" and info.providers[0] == "CPUExecutionProvider"
+    assert any(r.getMessage().endswith("runs on CPUExecutionProvider; SERVING")
+               for r in caplog.records)
