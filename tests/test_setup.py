@@ -49,10 +49,11 @@ def run(script: str, env: dict[str, str], *args: str) -> subprocess.CompletedPro
 
 
 def decide(**env: str) -> list[str]:
-    """ros-source.sh's decision line, split: source, Python, extra; asserts it succeeded."""
+    """ros-source.sh's decision line, split: source, Python, extra (and the Python's
+    version, left out); asserts it succeeded."""
     result = run("ros-source.sh", {"ORICF_ARCH": "x86_64", **env})
     assert result.returncode == 0, result.stderr
-    return result.stdout.splitlines()[0].split()
+    return result.stdout.splitlines()[0].split()[:3]
 
 
 def refused(**env: str) -> str:
@@ -77,7 +78,7 @@ def test_no_wheels_for_the_machine_installs_without_ros(tmp_path: Path, arch: st
     python = fake_python(tmp_path, "python3", f"{version} 0")
     result = run("ros-source.sh", {"ORICF_ARCH": arch, "PYTHON": str(python)})
     decision, note = result.stdout.splitlines()
-    assert result.returncode == 0 and decision.split() == ["none", str(python), "-"]
+    assert result.returncode == 0 and decision.split() == ["none", str(python), "-", version]
     assert "without ROS" in note and "oricf gateway --config people_video" in note
 
 
@@ -86,7 +87,8 @@ def test_a_sourced_ros_uses_its_own_rclpy(tmp_path: Path) -> None:
     result = run("ros-source.sh", {"ROS_DISTRO": "humble",
                                    "PATH": f"{python.parent}:/usr/bin:/bin"})
     decision, note = result.stdout.splitlines()
-    assert decision.split() == ["system", str(python), "-"]
+    assert decision.split() == ["system", str(python), "-",
+                                f"{sys.version_info.major}.{sys.version_info.minor}"]
     assert "--system-site-packages" in note and "no ROS wheels" in note
 
 
@@ -134,6 +136,15 @@ def test_setup_stops_before_installing_anything(tmp_path: Path) -> None:
     result = run("setup.sh", {"ORICF_ROS_DISTRO": "rolling", "ORICF_VENV": str(venv)})
     assert result.returncode == 1 and "ORICF_ROS_DISTRO=rolling" in result.stderr
     assert "system packages" not in result.stdout and not venv.exists()
+
+
+def test_setup_refuses_the_test_tools_on_python_3_10(tmp_path: Path) -> None:
+    """The README's set-up runs on Python 3.10 (Ubuntu 22.04, JetPack 6); --dev does not."""
+    python = fake_python(tmp_path, "python3", "3.10 0")
+    result = run("setup.sh", {"PYTHON": str(python), "ORICF_VENV": str(tmp_path / "venv")},
+                 "--dev")
+    assert result.returncode == 1 and "need Python 3.11 or newer, not 3.10" in result.stderr
+    assert "system packages" not in result.stdout and not (tmp_path / "venv").exists()
 
 
 def make_venv(path: Path) -> Path:

@@ -75,7 +75,7 @@ def readme_extras() -> list[str]:
     decided = subprocess.run([str(ROOT / "scripts/ros-source.sh")], capture_output=True,
                              text=True, timeout=60, check=False)
     assert decided.returncode == 0, decided.stderr
-    source, _, extra = decided.stdout.split("\n")[0].split()
+    source, _, extra = decided.stdout.split("\n")[0].split()[:3]
     return [*match.group(1).split(","), *([extra] if source == "wheels" else [])]
 
 
