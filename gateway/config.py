@@ -37,6 +37,7 @@ from oricf.gateway.components import METHODS, SINKS, SOURCES, STEPS, CallBase, M
 from oricf.gateway.endpoints import EndpointConfig
 from oricf.gateway.listeners import ControlConfig, LiveViewConfig
 from oricf.metrics import MetricsConfig
+from oricf.tracing import TracingConfig
 
 
 class ComponentKeys(Schema):
@@ -201,6 +202,9 @@ class PipelineConfig(Schema):
     foxglove: LiveViewConfig | None = Field(
         None, description="serve the live view over the Foxglove WebSocket protocol (off if "
                           "absent; docs/live-view.md)")
+    tracing: TracingConfig | None = Field(
+        None, description="OpenTelemetry traces over OTLP (docs/tracing.md; also on when "
+                          "OTEL_EXPORTER_OTLP_ENDPOINT is set)")
 
     _origin: str = PrivateAttr("pipeline")  # the files it was read from, for errors
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import grpc
+from opentelemetry.trace import Status, StatusCode, get_current_span
 
 from oricf.errors import InvalidInput
 from oricf.gateway.components import METHODS, Partial, Skip, chain, result_fields
@@ -32,6 +33,7 @@ from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
+from oricf.tracing import tracer
 
 log = logging.getLogger(__name__)
 
@@ -89,21 +91,29 @@ class Route:
         """Call and post-process one record; returns it with every field filled in."""
         record.setdefault("route", self.name)
         asked_at = time.monotonic()
-        result = self._invoke(record)
-        if isinstance(result, Iterator):
-            result = self._stream(record, result, asked_at)
+        # Spans of the route's trace (docs/tracing.md): the call carries the trace context
+        # to the service; a streamed answer's first piece is an event on the call's span.
+        with tracer().start_as_current_span(f"call {self.config.call.method}"):
+            result = self._invoke(record)
+            if isinstance(result, Iterator):
+                result = self._stream(record, result, asked_at)
         record.update(result_fields(result))
-        self._post(record)
+        with tracer().start_as_current_span("post"):
+            self._post(record)
         return record
 
     def _stream(self, record: Record, items: Iterator[Any], asked_at: float) -> Any:
         """Sends each Partial on as it comes; the result that ends the stream."""
         result = None
+        first = True
         try:
             for item in items:
                 if not isinstance(item, Partial):
                     result = item
                     continue
+                if first:
+                    get_current_span().add_event("first piece", {"fields": list(item.fields)})
+                    first = False
                 with self._speaking.lock:  # a barge-in now drops this piece, or is after it
                     if not self._speaking.current(asked_at):
                         raise Skip("interrupted by a new utterance (barge-in)")
@@ -134,22 +144,33 @@ class Route:
             watch(self.name, record)
 
     def process(self, load: Loader) -> None:
-        """Worker entry point: one message, every failure logged and counted, never raised."""
+        """Worker entry point: one message, every failure logged and counted, never raised.
+        While tracing is on, the message's trace: receive, the call, post steps, publish."""
+        with tracer().start_as_current_span(f"route {self.name}",
+                                            attributes={"oricf.route": self.name}):
+            self._process(load)
+
+    def _process(self, load: Loader) -> None:
         started = time.perf_counter()
         record: Record = {}
         try:
-            record = load()
-            self.send(self.run(record))
+            with tracer().start_as_current_span("receive"):
+                record = load()
+            record = self.run(record)
+            with tracer().start_as_current_span("publish"):
+                self.send(record)
             self.latest = (time.monotonic(), record)
             answered = getattr(record.get("reply_to"), "answered", None)
             if answered is not None:
                 answered(record)
         except Skip as exc:
+            get_current_span().set_attribute("oricf.skipped", str(exc))
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)
             self._tell(record, f"nothing to answer: {exc}")
             return
         except InvalidInput as exc:
+            get_current_span().set_status(Status(StatusCode.ERROR, "bad input"))
             self.stats.bad_input += 1
             self.stats.count_error("bad_input")
             self._throttle.warning(f"{self.name}:bad_input:{exc}",
@@ -157,11 +178,13 @@ class Route:
             self._tell(record, f"bad input: {exc}")
             return
         except grpc.RpcError as exc:
+            get_current_span().set_status(Status(StatusCode.ERROR, exc.code().name))
             self._call_failed(exc)
             details = f": {exc.details()}" if exc.code() in TOLD_IN_FULL else ""
             self._tell(record, f"{self.config.call.method} failed: {exc.code().name}{details}")
             return
         except Exception:
+            get_current_span().set_status(Status(StatusCode.ERROR, "internal"))
             self.stats.count_error("internal")
             log.exception("route %s: unexpected error (message dropped)", self.name)
             self._tell(record, "internal error")

@@ -115,7 +115,7 @@ if [[ "$ROS_SOURCE" == system ]]; then
         CONSTRAINTS=(-c "$VENV/ros-constraints.txt")
     fi
 fi
-((DEV)) && EXTRAS="$EXTRAS,openvino,interop,dev"
+((DEV)) && EXTRAS="$EXTRAS,openvino,interop,tracing,dev"
 "${PIP[@]}" install "${CONSTRAINTS[@]}" --find-links "$WHEELS" -e ".[$EXTRAS]"
 # colcon builds ros/oricf_gateway, the ROS 2 package, with this Python, as on a robot
 # (tests/ros; docs/ros.md). colcon-core needs setuptools < 80.

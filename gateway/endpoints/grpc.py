@@ -11,6 +11,7 @@ import grpc
 from oricf.gateway.endpoints.config import TargetConfig
 from oricf.gateway.endpoints.replicas import channel_options
 from oricf.tls import open_channel
+from oricf.tracing import inject
 
 # Short reconnect backoff: a restarted service is found within about a second, not the
 # default of up to two minutes. gRPC uses the minimum as the time a connection attempt has
@@ -62,7 +63,9 @@ class GrpcTarget:
         self._ready = service.ready
 
     def invoke(self, rpc: str, request: Any, timeout: float) -> Any:
-        return getattr(self.stub, rpc)(request, metadata=self.metadata, timeout=timeout)
+        # With the caller's trace context (`traceparent`) while tracing is on: the service's
+        # span of this call joins the route's trace.
+        return getattr(self.stub, rpc)(request, metadata=inject(self.metadata), timeout=timeout)
 
     def serving(self, timeout: float = 1.0) -> bool:
         try:

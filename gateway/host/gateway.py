@@ -32,6 +32,7 @@ from oricf.gateway.inputs import pipeline_sources
 from oricf.gateway.operations.view import PipelineView
 from oricf.gateway.outlets import Outlets, RosOutputs
 from oricf.gateway.pipeline import Pipeline
+from oricf.tracing import setup_tracing
 
 if TYPE_CHECKING:
     from oricf.gateway.live_view.view import LiveView  # foxglove-sdk, only when used
@@ -95,6 +96,7 @@ class Gateway:
                   topics: TopicIo | None = None) -> None:
         """Builds every part; `ros` takes topic outputs, `on_end` hears of ended sources,
         `topics` are the ROS node's for sources that use their own (a control loop)."""
+        setup_tracing("oricf-gateway", self.config.tracing)  # once per process
         self._outlets = Outlets(self.config, ros)
         try:
             self._pipeline = Pipeline(self.config, self._outlets)

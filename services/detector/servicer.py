@@ -5,6 +5,7 @@ post-processing steps, so each result has one owner whichever method produced it
 
 from __future__ import annotations
 
+import contextvars
 import logging
 import math
 import queue
@@ -31,6 +32,8 @@ from oricf.services.runtime.errors import check_deadline, status_for
 from oricf.services.runtime.info import model_info_response
 from oricf.services.runtime.limits import MemoryBudget
 from oricf.services.runtime.shared_memory import SharedMemoryRegistry
+from oricf.services.runtime.tracing import spans_ending_now
+from oricf.tracing import tracer
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
@@ -81,7 +84,9 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
         # pushes back on the client (gRPC flow control) instead of queueing without bound.
         ready: queue.Queue[StreamItem] = queue.Queue(maxsize=PREFETCH)
         done = threading.Event()
-        reader = threading.Thread(target=self._read_stream, args=(request_iterator, ready, done),
+        # In the call's context: the frames' decode spans are children of the call's span.
+        reader = threading.Thread(target=contextvars.copy_context().run,
+                                  args=(self._read_stream, request_iterator, ready, done),
                                   name="detect-stream-reader", daemon=True)
         reader.start()
         try:
@@ -156,9 +161,11 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
                     self.config.images.max_pixels)
             width, height = image_size(*args)
             with self.budget.hold(decoded_bytes(width, height), f"a {width}x{height} image"):
-                pixels = decode_image(*args)
+                with tracer().start_as_current_span("decode"):
+                    pixels = decode_image(*args)
                 decode_ms = (time.perf_counter() - started) * 1e3
-                prepared = model.prepare(pixels)
+                with tracer().start_as_current_span("preprocess"):
+                    prepared = model.prepare(pixels)
         return Frame(request.frame_id, width, height, prepared, class_ids, min_score, started,
                      decode_ms)
 
@@ -174,6 +181,8 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
                 cancel: bool = True) -> detector_pb2.DetectResponse:
         """The network (alone or in a batch), decoding its output, and the response."""
         raw = self._detections(frame, context, cancel)
+        spans_ending_now([("inference", raw.timings_ms["inference_ms"]),
+                          ("postprocess", raw.timings_ms["postprocess_ms"])])
         response = detector_pb2.DetectResponse(
             detections=[_detection_pb(d) for d in self.labels.detections(raw)],
             frame_id=frame.frame_id,

@@ -8,6 +8,7 @@ from oricf.config import Schema
 from oricf.hosts import Address
 from oricf.metrics import MetricsConfig
 from oricf.tls import ServerTls, TokenSource
+from oricf.tracing import TracingConfig
 
 # A raw 1920x1080 RGB frame is 6.2 MB; leave room for the rest of the message.
 DEFAULT_MAX_MESSAGE_MB = 16
@@ -81,6 +82,9 @@ class ServerSettings(Schema):
 
     http: HttpSettings | None = Field(
         None, description="also serve the OpenAI-compatible HTTP API (off if absent)")
+    tracing: TracingConfig | None = Field(
+        None, description="OpenTelemetry traces over OTLP (docs/tracing.md; also on when "
+                          "OTEL_EXPORTER_OTLP_ENDPOINT is set)")
 
     @property
     def max_message_bytes(self) -> int:
