@@ -19,10 +19,16 @@ NO_ROS="the gateway runs without ROS: pipelines without ROS topics, e.g. \`oricf
 refuse() { printf 'setup: %s\n' "$*" >&2; exit 1; }
 among() { local item=$1; shift; [[ " $* " == *" $item "* ]]; }
 
-# `MAJOR.MINOR 0|1`: the Python's version and whether it imports rclpy.
+# `MAJOR.MINOR 0|1`: the Python's version and whether it imports rclpy (its C extension
+# included: a sourced ROS 2 of another Python's version is found but does not load).
 probe() {
-    "$1" -c 'import importlib.util as u, sys
-print("%d.%d" % sys.version_info[:2], int(u.find_spec("rclpy") is not None))' 2>/dev/null \
+    "$1" -c 'import sys
+try:
+    import rclpy  # noqa: F401
+    found = 1
+except Exception:
+    found = 0
+print("%d.%d" % sys.version_info[:2], found)' 2>/dev/null \
         || refuse "$1 does not run: set PYTHON to a Python 3.10 or newer"
 }
 

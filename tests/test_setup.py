@@ -30,10 +30,12 @@ def fake_python(folder: Path, name: str, answer: str) -> Path:
     return path
 
 
-def python_with_rclpy(folder: Path) -> Path:
-    """This Python, seeing an `rclpy` package as a sourced ROS 2's PYTHONPATH shows one."""
+def python_with_rclpy(folder: Path, loads: bool = True) -> Path:
+    """This Python, seeing an `rclpy` package as a sourced ROS 2's PYTHONPATH shows one;
+    with loads=False, one whose C extension does not load, as another Python's would not."""
     (folder / "ros" / "rclpy").mkdir(parents=True)
-    (folder / "ros" / "rclpy" / "__init__.py").write_text("")
+    (folder / "ros" / "rclpy" / "__init__.py").write_text(
+        "" if loads else "raise ImportError('No module named rclpy._rclpy_pybind11')\n")
     path = folder / "bin" / "python3"
     path.parent.mkdir(parents=True)
     path.write_text(f'#!/bin/sh\nPYTHONPATH="{folder / "ros"}" exec "{sys.executable}" "$@"\n')
@@ -123,6 +125,11 @@ def test_an_unknown_distribution_is_refused() -> None:
 def test_a_sourced_ros_without_rclpy_is_refused(tmp_path: Path) -> None:
     message = refused(ROS_DISTRO="jazzy", PYTHON=str(fake_python(tmp_path, "python3", "3.12 0")))
     assert "cannot import rclpy" in message and "source /opt/ros/jazzy/setup.bash" in message
+
+
+def test_a_sourced_ros_built_for_another_python_is_refused(tmp_path: Path) -> None:
+    message = refused(ROS_DISTRO="humble", PYTHON=str(python_with_rclpy(tmp_path, loads=False)))
+    assert "cannot import rclpy" in message
 
 
 def test_a_sourced_ros_other_than_the_one_asked_for_is_refused() -> None:
