@@ -1,0 +1,130 @@
+"""Traces in a real OpenTelemetry backend: Arize Phoenix, receiving OTLP over gRPC and HTTP.
+
+`oricf gateway` plays a three-frame video to `oricf serve detector`, each process in its
+own right: the detector exports over OTLP/gRPC, the gateway over OTLP/HTTP, as the standard
+variables tell them. Each frame is then found in Phoenix as one trace holding both
+processes' spans. Phoenix is heavy (hundreds of MB), so it lives in a virtual environment
+of its own that scripts/phoenix.sh makes: `scripts/phoenix.sh && scripts/test.sh -m
+tracing` (docs/testing.md).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cv2
+import pytest
+
+from tests.support.data import video_frames
+from tests.support.processes import free_port, oricf_process, wait_serving
+from tests.support.waiting import wait_for
+
+pytestmark = pytest.mark.tracing
+
+CACHE = Path(os.environ.get("ORICF_CACHE", Path.home() / ".cache/oricf"))
+PHOENIX = Path(os.environ.get("ORICF_PHOENIX", CACHE / "phoenix-venv/bin/phoenix"))
+GATEWAY_SPANS = {"route people", "receive", "call Detect", "post", "publish"}
+DETECTOR_SPANS = {"oricf.v1.Detector/Detect", "decode", "preprocess", "inference",
+                  "postprocess"}
+FRAMES = 3
+
+
+@pytest.fixture(scope="module")
+def phoenix(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, str]]:
+    """A Phoenix server on free ports: (its HTTP address, its OTLP/gRPC address)."""
+    if not PHOENIX.exists():
+        pytest.fail(f"{PHOENIX} is missing: run scripts/phoenix.sh (or set ORICF_PHOENIX)")
+    http, grpc_port = free_port(), free_port()
+    env = {**os.environ, "PHOENIX_HOST": "127.0.0.1", "PHOENIX_PORT": str(http),
+           "PHOENIX_GRPC_PORT": str(grpc_port),
+           "PHOENIX_WORKING_DIR": str(tmp_path_factory.mktemp("phoenix"))}
+    log = (tmp_path_factory.getbasetemp() / "phoenix.log").open("w")
+    server = subprocess.Popen([str(PHOENIX), "serve"], env=env, stdout=log,
+                              stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        base = f"http://127.0.0.1:{http}"
+        wait_for(lambda: server.poll() is not None or _answers(f"{base}/healthz"), 300,
+                 "Phoenix answering /healthz")
+        assert server.poll() is None, f"Phoenix exited: {log.name}"
+        yield base, f"http://127.0.0.1:{grpc_port}"
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+        log.close()
+
+
+def _answers(url: str) -> bool:
+    try:
+        with urllib.request.urlopen(url, timeout=2) as reply:
+            return bool(reply.status == 200)
+    except OSError:
+        return False
+
+
+def spans_in(base: str) -> list[dict[str, Any]]:
+    url = f"{base}/v1/projects/default/spans?limit=1000"
+    try:
+        with urllib.request.urlopen(url, timeout=10) as reply:
+            return list(json.load(reply)["data"])
+    except OSError:
+        return []  # no project yet: nothing has arrived
+
+
+def short_video(path: Path) -> Path:
+    frames = video_frames(list(range(FRAMES)))
+    height, width = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (width, height))
+    for frame in frames:
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def pipeline_file(folder: Path, detector: str) -> Path:
+    pipeline = {
+        "endpoints": {"detector": {"address": detector, "deadline_ms": 5000}},
+        "routes": {"people": {
+            # fps: the route takes every frame (the newest-frame rule drops none)
+            "input": {"url": str(short_video(folder / "three.avi")), "fps": 2},
+            "call": {"service": "detector", "method": "Detect", "labels": ["person"]},
+            "post": [{"count": {"label": "person", "into": "count"}}],
+            "outputs": [{"jsonl": str(folder / "counts.jsonl"), "from": "count"}]}}}
+    path = folder / "pipeline.yaml"
+    path.write_text(json.dumps(pipeline))
+    return path
+
+
+def traces(spans: list[dict[str, Any]]) -> dict[str, set[str]]:
+    """trace id -> the names of its spans."""
+    found: dict[str, set[str]] = {}
+    for span in spans:
+        found.setdefault(span["context"]["trace_id"], set()).add(span["name"])
+    return found
+
+
+def test_each_frame_is_one_trace_across_the_gateway_and_the_detector(
+        phoenix: tuple[str, str], tmp_path: Path) -> None:
+    base, otlp_grpc = phoenix
+    port = free_port()
+    over_grpc = {"OTEL_EXPORTER_OTLP_ENDPOINT": otlp_grpc, "OTEL_EXPORTER_OTLP_PROTOCOL": "grpc",
+                 "OTEL_BSP_SCHEDULE_DELAY": "200"}
+    over_http = {"OTEL_EXPORTER_OTLP_ENDPOINT": base, "OTEL_EXPORTER_OTLP_PROTOCOL":
+                 "http/protobuf", "OTEL_BSP_SCHEDULE_DELAY": "200"}
+    with oricf_process("serve", "detector", "--listen", f"127.0.0.1:{port}",
+                       env=over_grpc) as detector:
+        wait_serving(f"127.0.0.1:{port}", process=detector)
+        with oricf_process("gateway", "--config",
+                           str(pipeline_file(tmp_path, f"127.0.0.1:{port}")),
+                           env=over_http) as gateway:
+            assert gateway.wait(timeout=120) == 0  # the video's end ends the gateway
+        counts = (tmp_path / "counts.jsonl").read_text().splitlines()
+        assert len(counts) == FRAMES
+        whole = GATEWAY_SPANS | DETECTOR_SPANS
+        wait_for(lambda: sum(names >= whole for names in traces(spans_in(base)).values())
+                 == FRAMES, 60, f"{FRAMES} traces with every span in Phoenix")
