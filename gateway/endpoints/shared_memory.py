@@ -150,7 +150,7 @@ class SharedMemoryTransport:
         try:
             ring = self._register(target, needed)
         except grpc.RpcError as exc:
-            if exc.code() in PASSING:  # not now: the call itself will tell
+            if exc.code() in PASSING and not restricted(exc):  # not now: the call will tell
                 log.debug("%s: registering with %s: %s", self.owner, target.address,
                           exc.code().name)
                 return None
@@ -211,6 +211,19 @@ class SharedMemoryTransport:
 
 
 def lost_regions(exc: grpc.RpcError) -> bool:
-    """The server no longer knows a region the call named (it restarted)."""
-    return (exc.code() == grpc.StatusCode.INVALID_ARGUMENT
-            and "shared-memory region" in (exc.details() or ""))
+    """The server no longer knows a region the call named (it restarted): ORICF's servers
+    answer INVALID_ARGUMENT naming an unregistered shared-memory region, Triton NOT_FOUND
+    ("Unable to find shared memory region")."""
+    details = exc.details() or ""
+    return ((exc.code() == grpc.StatusCode.INVALID_ARGUMENT
+             and "shared-memory region" in details)
+            or (exc.code() == grpc.StatusCode.NOT_FOUND
+                and "shared memory region" in details))
+
+
+def restricted(exc: grpc.RpcError) -> bool:
+    """Triton's answer when its shared-memory protocol needs an access token that the call
+    did not carry (`--grpc-restricted-protocol`, on by default under pytriton): UNAVAILABLE,
+    which would otherwise pass for a server not ready yet and be tried on every call."""
+    return (exc.code() == grpc.StatusCode.UNAVAILABLE
+            and (exc.details() or "").startswith("This protocol is restricted"))

@@ -52,8 +52,9 @@ class InferCall(CallBase):
     top_k: int | None = Field(None, ge=1, le=1000, description="classification")
     decoded: bool = Field(
         False, description="detection: the server pre-processes the image and returns decoded "
-                           "detections, a few hundred bytes (ORICF's `oricf serve models`; "
-                           "Triton and KServe return only tensors)")
+                           "detections, a few hundred bytes (ORICF's `oricf serve models`, or "
+                           "a model on another server that takes UINT8 [H, W, 3] BGR pixels "
+                           "and returns [n, 6] rows: docs/models.md)")
 
     @cached_property
     def declaration(self) -> ModelDeclaration:
@@ -124,17 +125,23 @@ def _pixels_input(frame: Frame, head: DetectionHead | ClassificationHead) -> Pre
                     geometry(width, height, head.image, head.size), 0.0)
 
 
-def _decoded_detections(rows: np.ndarray, labels: list[str]) -> Detections:
-    """The server's decoded rows (x_min, y_min, x_max, y_max, score, class id)."""
+def _decoded_detections(rows: np.ndarray, labels: list[str], min_score: float,
+                        class_ids: np.ndarray | None) -> Detections:
+    """The server's decoded rows (x_min, y_min, x_max, y_max, score, class id), held to the
+    route's min_score and classes here too: a server other than ORICF's (Triton's Python
+    back end, for one) does not see the requested output's parameters and decodes at its
+    own threshold, for every class."""
     if rows.ndim != 2 or rows.shape[1] != 6:
         raise InvalidInput(f"decoded detections of shape {list(rows.shape)}; expected [n, 6]")
+    wanted = None if class_ids is None else set(class_ids.tolist())
     found = []
     for x1, y1, x2, y2, score, class_id in rows.tolist():
         index = int(class_id)
         if not 0 <= index < len(labels):
             raise InvalidInput(f"decoded detection of class {index}; the model has "
                                f"{len(labels)} labels")
-        found.append(Detection(labels[index], index, float(score), Box(x1, y1, x2, y2)))
+        if score >= min_score and (wanted is None or index in wanted):
+            found.append(Detection(labels[index], index, float(score), Box(x1, y1, x2, y2)))
     return Detections(found)
 
 
@@ -168,7 +175,8 @@ def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
             return Classes(list(zip(classes.labels, classes.scores, strict=True)),
                            classes.labels[0], classes.scores[0])
         if call.decoded:
-            return _decoded_detections(outputs[output], head.labels)
+            return _decoded_detections(outputs[output], head.labels,
+                                       call.min_score or head.task.min_score, class_ids)
         found = head.decode(outputs, prepared, call.min_score or head.task.min_score,
                             class_ids)
         return Detections([Detection(head.labels[c], int(c), float(s), Box(*map(float, b)))
@@ -182,10 +190,13 @@ def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
         prepared = prepare(input_frame(record, "Infer"))
         feeds = prepared.feeds
         encoding = {head.input_name: {"encoding": "bgr8"}} if call.decoded else {}
+        asked: dict[str, SharedMemoryRef] = {}  # the output's place: Triton does not say
 
         def build(refs: list[SharedMemoryRef] | None) -> oip.ModelInferRequest:
             outputs = wanted
+            asked.clear()
             if refs and len(refs) > 1:  # the output into the slot too
+                asked[output] = refs[1]
                 outputs = {output: {REGION: refs[1].region, OFFSET: refs[1].offset,
                                     BYTE_SIZE: refs[1].byte_size}}
             return infer_request(call.server_model, feeds, outputs,
@@ -203,8 +214,9 @@ def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
             data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
             return shared.call(target, "ModelInfer", timeout, [data, *([room] if room else [])],
                                build, lambda response, region: finish(
-                                   {**response_outputs(response),
-                                    **(placed_outputs(response, region) if region else {})},
+                                   {**response_outputs(response, asked),
+                                    **(placed_outputs(response, region, asked)
+                                       if region else {})},
                                    prepared))
 
         if shared is None:

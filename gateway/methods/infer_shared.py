@@ -4,13 +4,14 @@ into the slot."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import grpc
 import numpy as np
 
 from oricf.gateway.endpoints.shared_memory import PASSING
-from oricf.models.shared_memory import OwnedRegion
+from oricf.models.shared_memory import OwnedRegion, SharedMemoryRef
 from oricf.models.tensors import DATATYPES
 from oricf.models.wire import shared_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip
@@ -44,12 +45,13 @@ def output_bytes(target: Any, model: str, output: str) -> int | None:
     return None
 
 
-def placed_outputs(response: oip.ModelInferResponse, region: OwnedRegion
+def placed_outputs(response: oip.ModelInferResponse, region: OwnedRegion,
+                   asked: Mapping[str, SharedMemoryRef] | None = None
                    ) -> dict[str, np.ndarray]:
     """The outputs the server wrote into the region, copied out of it (the slot is reused
-    by the next call)."""
+    by the next call); asked: where the request placed them (Triton's answer does not say)."""
     found = {}
-    for name, (datatype, shape, ref) in shared_outputs(response).items():
+    for name, (datatype, shape, ref) in shared_outputs(response, asked).items():
         kind = np.dtype(DATATYPES[datatype].numpy) if datatype in DATATYPES else None
         count = int(np.prod(shape))
         if kind is None or kind == np.dtype(object) or count * kind.itemsize > ref.byte_size \

@@ -232,12 +232,18 @@ def _add_tensors(tensors: Any, contents: Any, arrays: dict[str, np.ndarray],
             _set_ref(tensor.parameters, ref)
 
 
-def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:
+def response_outputs(response: oip.ModelInferResponse,
+                     asked: Mapping[str, SharedMemoryRef] | None = None
+                     ) -> dict[str, np.ndarray]:
     """A response's output tensors, raw or typed, in order; those in shared memory are left
-    out (shared_outputs says where they are)."""
-    raw = response.raw_output_contents
-    wire = [t for t in response.outputs
-            if tensor_ref(t.parameters, f"output '{clip(t.name)}'") is None]
+    out (shared_outputs says where they are). asked: the outputs the request placed in
+    shared memory, which Triton answers without their parameters and with an empty raw
+    entry each (ORICF's server names the region and leaves the entry out)."""
+    raw = list(response.raw_output_contents)
+    placed = [_placed(t, asked) for t in response.outputs]
+    wire = [t for t, p in zip(response.outputs, placed, strict=True) if not p]
+    if raw and len(raw) == len(placed) != len(wire):  # Triton's layout: an entry per output
+        raw = [r for r, p in zip(raw, placed, strict=True) if not p]
     if raw and len(raw) != len(wire):
         raise InvalidInput(f"raw_output_contents has {len(raw)} entries for "
                            f"{len(wire)} outputs not in shared memory")
@@ -246,12 +252,20 @@ def response_outputs(response: oip.ModelInferResponse) -> dict[str, np.ndarray]:
             for i, t in enumerate(wire)}
 
 
-def shared_outputs(response: oip.ModelInferResponse
+def _placed(tensor: oip.ModelInferResponse.InferOutputTensor,
+            asked: Mapping[str, SharedMemoryRef] | None) -> SharedMemoryRef | None:
+    ref = tensor_ref(tensor.parameters, f"output '{clip(tensor.name)}'")
+    return ref if ref is not None else (asked or {}).get(tensor.name)
+
+
+def shared_outputs(response: oip.ModelInferResponse,
+                   asked: Mapping[str, SharedMemoryRef] | None = None
                    ) -> dict[str, tuple[str, list[int], SharedMemoryRef]]:
-    """The outputs placed in shared memory: name -> (datatype, shape, where)."""
+    """The outputs placed in shared memory: name -> (datatype, shape, where); where the
+    response does not say (Triton), where the request asked (asked)."""
     found = {}
     for tensor in response.outputs:
-        ref = tensor_ref(tensor.parameters, f"output '{clip(tensor.name)}'")
+        ref = _placed(tensor, asked)
         if ref is not None:
             found[tensor.name] = (tensor.datatype, list(tensor.shape), ref)
     return found
