@@ -72,6 +72,7 @@ from oricf.bench.gateway_report import (
     latency_table,
     wakeup_note,
 )
+from oricf.bench.gateway_tracing import TracingRun, traces_to, tracing_table
 from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
 from oricf.bench.gateway_view import view_overlay, view_table, watching
 from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups_by_thread
@@ -371,6 +372,31 @@ def measure(args: argparse.Namespace, folder: Path, compressed: bool) -> InputRe
     return result
 
 
+def measure_tracing(args: argparse.Namespace, folder: Path, compressed: bool,
+                    traced: bool) -> TracingRun:
+    """--tracing: the onboard gateway and the detector, exporting traces or not."""
+    import grpc
+
+    run = TracingRun(traced)
+    camera = Camera(compressed)
+    try:
+        prepared = [camera.prepare(frame) for frame in load_frames(args.frames)]
+        messages = [msg for msg, _ in prepared]
+        with traces_to(args.tracing if traced else None), served("detector") as (
+                address, detector), grpc.insecure_channel(address) as channel, \
+                gateway(address, "onboard", folder, compressed) as raw:
+            camera.warm_up(messages[0], raw)
+            result = InputResult("")
+            latency(camera, detector_pb2_grpc.DetectorStub(channel), prepared, result)
+            run.through_ms, run.direct_ms, run.lost = (result.through_ms, result.direct_ms,
+                                                       result.lost)
+            run.gateway_cpu_s, run.detector_cpu_s = cpu_per_frame(
+                camera, messages, args.fps, [raw.pid, detector.pid])
+    finally:
+        camera.close()
+    return run
+
+
 def print_configuration(args: argparse.Namespace, power: PowerModel) -> None:
     detector = shipped_detector_model()
     path = pipeline_path()
@@ -396,6 +422,12 @@ def run(args: argparse.Namespace, folder: Path) -> None:
                        "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile())})
     power = PowerModel(args.watts_per_core, args.nj_per_bit)
     inputs = ["raw", "compressed"] if args.input == "both" else [args.input]
+    if args.tracing:
+        for kind in inputs:
+            runs = [measure_tracing(args, folder, kind == "compressed", traced)
+                    for traced in (False, True)]
+            tracing_table(kind, runs, args.frames, args.fps, args.tracing)
+        return
     results = [measure(args, folder, kind == "compressed") for kind in inputs]
     period_s = 1.0 / args.fps
     wakeup_s = wakeup_cost(args.fps)
@@ -426,6 +458,10 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--nj-per-bit", type=float, default=7.5,
                         help="radio energy per bit sent or received when offloaded (default "
                              "7.5 nJ/bit, Wi-Fi is about 5-10)")
+    parser.add_argument("--tracing", metavar="OTLP_ENDPOINT",
+                        help="measure only what traces cost: the onboard gateway and detector "
+                             "without traces, then exporting them to this OTLP endpoint "
+                             "(e.g. Phoenix's http://127.0.0.1:6006; docs/tracing.md)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         run(args, Path(folder))

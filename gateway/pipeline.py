@@ -16,7 +16,7 @@ from oricf.gateway.config import PipelineConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
-from oricf.gateway.route import Emit, Loader, Route
+from oricf.gateway.route import Emit, Loader, Route, with_trace_context
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
@@ -75,11 +75,11 @@ class Pipeline:
         return feed
 
     def submit(self, route: str, load: Loader) -> None:
-        self.workers[route].submit(load)
+        self.workers[route].submit(with_trace_context(load))
 
     def handle_here(self, route: str, load: Loader, missed: int = 0) -> None:
         """Runs one item in the caller's thread (a route started `inline`)."""
-        self.workers[route].handle_here(load, missed)
+        self.workers[route].handle_here(with_trace_context(load), missed)
 
     def start(self, inline: Collection[str] = ()) -> None:
         """Starts the worker threads, except those of `inline` routes: the caller feeds

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import grpc
+from opentelemetry import context as otel_context
 from opentelemetry.trace import Status, StatusCode, get_current_span
 
 from oricf.errors import InvalidInput
@@ -33,6 +34,7 @@ from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.values import Record
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
+from oricf.tracing import active as tracing_active
 from oricf.tracing import tracer
 
 log = logging.getLogger(__name__)
@@ -43,6 +45,28 @@ Loader = Callable[[], Record]
 # Call errors whose details are meant for the caller (a client mistake), so they may be told.
 TOLD_IN_FULL = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.OUT_OF_RANGE,
                 grpc.StatusCode.FAILED_PRECONDITION}
+
+
+class TracedLoader:
+    """A loader with the trace context it was submitted in: a route fed by another's
+    product (a transcript, an answer) joins that route's trace."""
+
+    def __init__(self, load: Loader, context: otel_context.Context) -> None:
+        self.load = load
+        self.trace_context = context
+
+    def __call__(self) -> Record:
+        return self.load()
+
+    def __getattr__(self, name: str) -> Any:  # on_drop and the like, the loader's own
+        return getattr(self.load, name)
+
+
+def with_trace_context(load: Loader) -> Loader:
+    """The loader, carrying the current span's context when there is one to carry."""
+    if not tracing_active() or not get_current_span().get_span_context().is_valid:
+        return load
+    return TracedLoader(load, otel_context.get_current())
 
 
 class Asker(Protocol):
@@ -147,6 +171,7 @@ class Route:
         """Worker entry point: one message, every failure logged and counted, never raised.
         While tracing is on, the message's trace: receive, the call, post steps, publish."""
         with tracer().start_as_current_span(f"route {self.name}",
+                                            context=getattr(load, "trace_context", None),
                                             attributes={"oricf.route": self.name}):
             self._process(load)
 
