@@ -35,7 +35,7 @@ from oricf.gateway.values import Record
 from oricf.logs import quoted
 from oricf.metrics import LatencyHistogram
 from oricf.tracing import active as tracing_active
-from oricf.tracing import tracer
+from oricf.tracing import span
 
 log = logging.getLogger(__name__)
 
@@ -117,12 +117,12 @@ class Route:
         asked_at = time.monotonic()
         # Spans of the route's trace (docs/tracing.md): the call carries the trace context
         # to the service; a streamed answer's first piece is an event on the call's span.
-        with tracer().start_as_current_span(f"call {self.config.call.method}"):
+        with span(f"call {self.config.call.method}"):
             result = self._invoke(record)
             if isinstance(result, Iterator):
                 result = self._stream(record, result, asked_at)
         record.update(result_fields(result))
-        with tracer().start_as_current_span("post"):
+        with span("post"):
             self._post(record)
         return record
 
@@ -170,7 +170,7 @@ class Route:
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised.
         While tracing is on, the message's trace: receive, the call, post steps, publish."""
-        with tracer().start_as_current_span(f"route {self.name}",
+        with span(f"route {self.name}",
                                             context=getattr(load, "trace_context", None),
                                             attributes={"oricf.route": self.name}):
             self._process(load)
@@ -179,10 +179,10 @@ class Route:
         started = time.perf_counter()
         record: Record = {}
         try:
-            with tracer().start_as_current_span("receive"):
+            with span("receive"):
                 record = load()
             record = self.run(record)
-            with tracer().start_as_current_span("publish"):
+            with span("publish"):
                 self.send(record)
             self.latest = (time.monotonic(), record)
             answered = getattr(record.get("reply_to"), "answered", None)

@@ -34,7 +34,7 @@ from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
 from oricf.gateway.sources.wav import WavFile, is_wav_path
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip, audio_clip
-from oricf.tracing import tracer
+from oricf.tracing import span
 
 if TYPE_CHECKING:
     from oricf.audio.endpointing import Utterance
@@ -196,7 +196,7 @@ class AudioSource:
             log.debug("route %s: utterance %d, %.2f s", self.route, self.utterances,
                       clip.duration_s)
             # The root of a question's trace (docs/tracing.md): its route is the child.
-            with tracer().start_as_current_span("utterance cut", attributes={
+            with span("utterance cut", attributes={
                     "oricf.route": self.route, "oricf.audio_s": clip.duration_s}):
                 self._submit(lambda c=clip: {"audio": c})
 

@@ -33,7 +33,7 @@ from oricf.services.runtime.info import model_info_response
 from oricf.services.runtime.limits import MemoryBudget
 from oricf.services.runtime.shared_memory import SharedMemoryRegistry
 from oricf.services.runtime.tracing import spans_ending_now
-from oricf.tracing import tracer
+from oricf.tracing import span
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
 log = logging.getLogger(__name__)
@@ -161,10 +161,10 @@ class DetectorServicer(detector_pb2_grpc.DetectorServicer):
                     self.config.images.max_pixels)
             width, height = image_size(*args)
             with self.budget.hold(decoded_bytes(width, height), f"a {width}x{height} image"):
-                with tracer().start_as_current_span("decode"):
+                with span("decode"):
                     pixels = decode_image(*args)
                 decode_ms = (time.perf_counter() - started) * 1e3
-                with tracer().start_as_current_span("preprocess"):
+                with span("preprocess"):
                     prepared = model.prepare(pixels)
         return Frame(request.frame_id, width, height, prepared, class_ids, min_score, started,
                      decode_ms)
