@@ -3,7 +3,9 @@
 `oricf gateway` plays a three-frame video to `oricf serve detector`, each process in its
 own right: the detector exports over OTLP/gRPC, the gateway over OTLP/HTTP, as the standard
 variables tell them. Each frame is then found in Phoenix as one trace holding both
-processes' spans. Phoenix is heavy (hundreds of MB), so it lives in a virtual environment
+processes' spans. A spoken question (a WAV file) goes through the speech, language and
+speech-synthesis services, each a process exporting over gRPC, and is found as one trace
+with every stage. Phoenix is heavy (hundreds of MB), so it lives in a virtual environment
 of its own that scripts/phoenix.sh makes: `scripts/phoenix.sh && scripts/test.sh -m
 tracing` (docs/testing.md).
 """
@@ -15,14 +17,25 @@ import os
 import subprocess
 import urllib.request
 from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 import pytest
+from opentelemetry.exporter.otlp.proto.http.trace_exporter import OTLPSpanExporter
+from opentelemetry.sdk.resources import SERVICE_NAME, Resource
+from opentelemetry.sdk.trace import TracerProvider
+from opentelemetry.sdk.trace.export import BatchSpanProcessor
 
+from oricf.audio import encode_wav, synthesize
+from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.host.gateway import Gateway
+from oricf.tracing import traced_with
 from tests.support.data import video_frames
 from tests.support.processes import free_port, oricf_process, wait_serving
+from tests.support.speech import QUESTION
 from tests.support.waiting import wait_for
 
 pytestmark = pytest.mark.tracing
@@ -79,7 +92,7 @@ def spans_in(base: str) -> list[dict[str, Any]]:
 def short_video(path: Path) -> Path:
     frames = video_frames(list(range(FRAMES)))
     height, width = frames[0].shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (width, height))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 10, (width, height))
     for frame in frames:
         writer.write(frame)
     writer.release()
@@ -128,3 +141,79 @@ def test_each_frame_is_one_trace_across_the_gateway_and_the_detector(
         whole = GATEWAY_SPANS | DETECTOR_SPANS
         wait_for(lambda: sum(names >= whole for names in traces(spans_in(base)).values())
                  == FRAMES, 60, f"{FRAMES} traces with every span in Phoenix")
+
+
+QUESTION_SPANS = {"utterance cut", "route speech", "call Transcribe",
+                  "oricf.v1.SpeechRecognizer/Transcribe", "route answer", "call Generate",
+                  "oricf.v1.LanguageModel/GenerateStream", "route voice", "call Synthesize",
+                  "oricf.v1.SpeechSynthesizer/SynthesizeStream"}
+
+
+def question_pipeline(folder: Path, addresses: dict[str, str]) -> PipelineConfig:
+    """mic_questions.yaml's question path with a WAV file for the microphone and another for
+    the speaker."""
+    silence = np.zeros(4000, dtype=np.int16)
+    (folder / "question.wav").write_bytes(
+        encode_wav(np.concatenate([silence, synthesize(QUESTION), silence]), 16000))
+    return parse_pipeline({
+        "endpoints": {name: {"address": address, "deadline_ms": 60000}
+                      for name, address in addresses.items()},
+        "routes": {
+            "speech": {"input": {"audio": str(folder / "question.wav")},
+                       "call": {"service": "asr", "method": "Transcribe", "language": "en"},
+                       "outputs": [{"product": "transcript", "from": "transcript"}]},
+            "answer": {"input": {"product": "transcript"},
+                       "call": {"service": "llm", "method": "Generate", "prompt": "{value}",
+                                "max_tokens": 32, "sentences": True},
+                       "outputs": [{"product": "answer_sentence", "from": "sentence"}]},
+            "voice": {"input": {"product": "answer_sentence"},
+                      "call": {"service": "tts", "method": "Synthesize"},
+                      "outputs": [{"wav": str(folder / "said.wav"), "from": "speech"}]}}},
+        "question pipeline")
+
+
+@contextmanager
+def gateway_traced_over_http(base: str) -> Iterator[TracerProvider]:
+    """This process as the gateway, its spans to Phoenix over OTLP/HTTP."""
+    provider = TracerProvider(resource=Resource.create({SERVICE_NAME: "oricf-gateway"}))
+    provider.add_span_processor(BatchSpanProcessor(OTLPSpanExporter(f"{base}/v1/traces")))
+    with traced_with(provider):
+        yield provider
+    provider.shutdown()  # flushes
+
+
+def test_a_spoken_question_is_one_trace_from_the_utterance_to_the_speech(
+        phoenix: tuple[str, str], tmp_path: Path) -> None:
+    """asr, llm and tts in processes of their own (OTLP/gRPC), the gateway here (OTLP/HTTP):
+    one trace holds every stage of the question, the first sentence and the first audio as
+    events on their calls."""
+    base, otlp_grpc = phoenix
+    over_grpc = {"OTEL_EXPORTER_OTLP_ENDPOINT": otlp_grpc, "OTEL_EXPORTER_OTLP_PROTOCOL": "grpc",
+                 "OTEL_BSP_SCHEDULE_DELAY": "200"}
+    addresses = {name: f"127.0.0.1:{free_port()}" for name in ("asr", "llm", "tts")}
+    with ExitStack() as services:
+        for name, address in addresses.items():
+            process = services.enter_context(
+                oricf_process("serve", name, "--listen", address, env=over_grpc))
+            wait_serving(address, process=process)
+        with gateway_traced_over_http(base):
+            gateway = Gateway(question_pipeline(tmp_path, addresses))
+            gateway.configure()
+            try:
+                gateway.activate()
+                wait_for(lambda: gateway.pipeline.routes["voice"].stats.ok >= 1
+                         and gateway.pipeline.idle(0.1), 240, "the answer spoken")
+            finally:
+                gateway.close()
+
+        def whole() -> list[dict[str, Any]]:
+            spans = spans_in(base)
+            return [s for s in spans if s["context"]["trace_id"] in {
+                trace for trace, names in traces(spans).items() if names >= QUESTION_SPANS}]
+
+        wait_for(lambda: whole(), 60, "the question's trace with every stage in Phoenix")
+    spans = whole()
+    assert len({s["context"]["trace_id"] for s in spans}) == 1
+    for call in ("call Generate", "call Synthesize"):
+        events = [e["name"] for s in spans if s["name"] == call for e in s.get("events", [])]
+        assert "first piece" in events, (call, events)
