@@ -8,8 +8,10 @@ On 640x480 frames of the pedestrian video, everything interleaved frame by frame
    pre-process, with the tensor in and the output back through system shared memory, and
    with raw UINT8 pixels or JPEG in and decoded detections back (bench/models_edge.py); and
    through the typed Detect of `oricf serve detector`, its frame on the wire or in shared
-   memory. Goals: shared memory adds at most 1 ms median over in process; JPEG with
-   decoded detections at most 2 ms. Beside them, a call that carries no tensor and runs no
+   memory; with `--triton`, the same ways through NVIDIA Triton Inference Server beside them
+   (bench/models_triton.py; `scripts/triton-server.sh --install` installs it once). Goals:
+   shared memory adds at most 1 ms median over in process; JPEG with decoded detections at
+   most 2 ms. Beside them, a call that carries no tensor and runs no
    model (ModelMetadata): the floor that any call through a service pays.
 2. The same model on onnxruntime and on OpenVINO (f32), each at 1 and 2 threads: median
    latency of the network alone, and how far the outputs differ from onnxruntime's. A back
@@ -20,6 +22,7 @@ On 640x480 frames of the pedestrian video, everything interleaved frame by frame
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -32,6 +35,7 @@ import yaml
 from oricf.bench.common import JPEG_QUALITY, load_frames, median_ms, print_table, served
 from oricf.bench.entry import missing
 from oricf.bench.models_edge import edge_ways
+from oricf.bench.models_triton import triton_ways, unusable
 from oricf.config import config_dir
 from oricf.gateway.endpoints import CHANNEL_OPTIONS  # as the gateway's calls are made
 from oricf.imaging import decode_image, encode_image
@@ -70,7 +74,7 @@ def encoded(frame: np.ndarray) -> np.ndarray:
 
 
 def protocol_overhead(declaration: ModelDeclaration, path: Path, frames: list[np.ndarray],
-                      folder: Path) -> dict[str, list[float]]:
+                      folder: Path, triton: bool = False) -> dict[str, list[float]]:
     model = DeclaredModel(declaration, ModelStore())
     model.load()
     head = model.head
@@ -114,7 +118,9 @@ def protocol_overhead(declaration: ModelDeclaration, path: Path, frames: list[np
                         strict=True))
         registry = oip_grpc.GRPCInferenceServiceStub(
             grpc.insecure_channel(detector_address, options=CHANNEL_OPTIONS))
-        with edge_ways(declaration, head, oip, registry, typed) as more:
+        with edge_ways(declaration, head, oip, registry, typed) as more, \
+                triton_ways(head, triton) as at_triton:
+            more.update(at_triton)
             ways.update(more)
             latency.update({name: [] for name in more})
             for frame in frames[:10]:
@@ -180,11 +186,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", type=Path,
                         default=config_dir() / "models" / "yolox-nano.yaml",
                         help="a declared detection model")
+    parser.add_argument("--triton", action="store_true",
+                        help="the same ways through NVIDIA Triton Inference Server too "
+                             "(scripts/triton-server.sh --install, once)")
     args = parser.parse_args(argv)
     declaration = load_declaration(args.model)
+    why_not = unusable(declaration) if args.triton else None
+    if why_not is not None:
+        print(f"oricf bench models --triton: {why_not}", file=sys.stderr)
+        return 2
     frames = load_frames(args.frames)
     with tempfile.TemporaryDirectory(prefix="oricf-bench-") as folder:
-        latency = protocol_overhead(declaration, args.model.resolve(), frames, Path(folder))
+        latency = protocol_overhead(declaration, args.model.resolve(), frames, Path(folder),
+                                    args.triton)
     call_alone, codec_alone = latency.pop(CALL_ALONE), latency.pop(CODEC_ALONE)
     base = median_ms(latency["in-process"])
     print_table(f"{declaration.name}: one detection per 640x480 frame "
@@ -199,6 +213,12 @@ def main(argv: list[str] | None = None) -> int:
     edge = median_ms(latency["ModelInfer jpeg, decoded"]) - base
     print(f"ModelInfer with JPEG in and decoded detections back adds {edge:.2f} ms "
           f"(goal <= 2 ms)")
+    if "Triton shm" in latency:
+        print(f"beside it, Triton: the tensor on the wire "
+              f"{median_ms(latency['Triton raw tensor']) - base:+.2f} ms, in shared memory "
+              f"{median_ms(latency['Triton shm']) - base:+.2f} ms, UINT8 pixels in and "
+              f"decoded detections back "
+              f"{median_ms(latency['Triton uint8, decoded']) - base:+.2f} ms")
     print(f"of which: a call that carries no tensor and runs no model takes "
           f"{median_ms(call_alone):.2f} ms (the floor of every path through a service); "
           f"encoding the frame as JPEG (q{JPEG_QUALITY}) and decoding it, "

@@ -7,14 +7,16 @@ with decoded detections back, each counting what the onboard pipeline counts. Ma
 from __future__ import annotations
 
 import logging
+import subprocess
+import sys
 from collections.abc import Iterator
 from typing import Any
 
 import grpc
 import pytest
 
-from oricf.bench.triton import NotInstalled, triton_server
-from oricf.config import deep_merge
+from oricf.bench.triton import INSTALL, NotInstalled, installed, triton_server
+from oricf.config import config_dir, deep_merge
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame
@@ -159,3 +161,23 @@ def test_a_restricted_shared_memory_protocol_is_refused_once(
     refusals = [r.getMessage() for r in caplog.records if "not possible" in r.getMessage()]
     assert len(refusals) == 1 and "This protocol is restricted" in refusals[0], refusals
     assert not [r for r in caplog.records if "registering with" in r.getMessage()]
+
+
+def test_bench_models_measures_triton_beside_oricfs_server() -> None:
+    if not installed():
+        pytest.fail(f"Triton is not installed: run {INSTALL}")
+    done = subprocess.run([sys.executable, "-m", "oricf", "bench", "models", "--frames", "3",
+                           "--triton"], capture_output=True, text=True, timeout=900, check=False)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    rows = {line.split("  ")[0] for line in done.stdout.splitlines()}
+    assert {"ModelInfer raw tensor", "ModelInfer shm", "Triton raw tensor", "Triton shm",
+            "Triton uint8, decoded"} <= rows, done.stdout
+    assert "beside it, Triton: the tensor on the wire" in done.stdout
+
+
+def test_bench_models_refuses_triton_for_a_model_it_does_not_serve() -> None:
+    done = subprocess.run([sys.executable, "-m", "oricf", "bench", "models", "--triton",
+                           "--model", str(config_dir() / "models" / "yolov8-fall.yaml")],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "serves yolox-nano only" in done.stderr, done.stderr
