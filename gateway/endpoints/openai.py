@@ -23,11 +23,15 @@ import email.utils
 import ssl
 import time
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import grpc
 
 from oricf.gateway.endpoints.config import TargetConfig
+from oricf.tracing import inject
+
+if TYPE_CHECKING:
+    import httpx
 
 STATUS_CODES = {
     400: grpc.StatusCode.INVALID_ARGUMENT, 401: grpc.StatusCode.UNAUTHENTICATED,
@@ -105,9 +109,10 @@ class OpenAITarget:
         self.address = config.address
         self.model = config.model
         token = config.token.tokens()[0] if config.token else "none"
-        http_client = None
-        if config.tls is not None:
-            http_client = openai.DefaultHttpxClient(verify=_ssl_context(config))
+        # Each request carries the route's trace context while tracing is on.
+        hooks = {"request": [_trace_context]}
+        http_client = (openai.DefaultHttpxClient(verify=_ssl_context(config), event_hooks=hooks)
+                       if config.tls is not None else openai.DefaultHttpxClient(event_hooks=hooks))
         self.client = openai.OpenAI(base_url=config.address, api_key=token, max_retries=0,
                                     http_client=http_client)
 
@@ -122,6 +127,12 @@ class OpenAITarget:
 
     def close(self) -> None:
         self.client.close()
+
+
+def _trace_context(request: httpx.Request) -> None:
+    """An httpx request hook, run in the calling thread: the route's call span is current."""
+    for name, value in inject(()):
+        request.headers[name] = value
 
 
 def _ssl_context(config: TargetConfig) -> ssl.SSLContext:

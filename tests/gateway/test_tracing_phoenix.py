@@ -32,6 +32,8 @@ from opentelemetry.sdk.trace.export import BatchSpanProcessor
 from oricf.audio import encode_wav, synthesize
 from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.host.gateway import Gateway
+from oricf.gateway.pipeline import Pipeline
+from oricf.gateway.values import AudioClip
 from oricf.tracing import traced_with
 from tests.support.data import video_frames
 from tests.support.processes import free_port, oricf_process, wait_serving
@@ -217,3 +219,45 @@ def test_a_spoken_question_is_one_trace_from_the_utterance_to_the_speech(
     for call in ("call Generate", "call Synthesize"):
         events = [e["name"] for s in spans if s["name"] == call for e in s.get("events", [])]
         assert "first piece" in events, (call, events)
+
+
+def test_a_call_over_http_carries_the_trace_to_the_services_openai_api(
+        phoenix: tuple[str, str], tmp_path: Path) -> None:
+    """The gateway's `protocol: openai` endpoint sends `traceparent` in its HTTP headers; the
+    speech service's OpenAI-compatible API makes its span of the request a child of the
+    route's call."""
+    base, otlp_grpc = phoenix
+    over_grpc = {"OTEL_EXPORTER_OTLP_ENDPOINT": otlp_grpc, "OTEL_EXPORTER_OTLP_PROTOCOL": "grpc",
+                 "OTEL_BSP_SCHEDULE_DELAY": "200"}
+    address, http = f"127.0.0.1:{free_port()}", free_port()
+    with oricf_process("serve", "asr", "--listen", address, "--http-listen",
+                       f"127.0.0.1:{http}", env=over_grpc) as asr:
+        wait_serving(address, process=asr)
+        config = parse_pipeline({
+            "endpoints": {"asr": {"protocol": "openai", "address": f"http://127.0.0.1:{http}/v1",
+                                  "model": "whisper-tiny-en", "deadline_ms": 60000}},
+            "routes": {"speech": {
+                "input": {"topic": "/audio", "type": "std_msgs/Int16MultiArray"},
+                "call": {"service": "asr", "method": "Transcribe", "language": "en"},
+                "outputs": [{"jsonl": str(tmp_path / "said.jsonl"), "from": "transcript"}]}}},
+            "asr over HTTP")
+        with gateway_traced_over_http(base):
+            pipeline = Pipeline(config, lambda *sent: None)
+            pipeline.start()
+            try:
+                clip = AudioClip(synthesize(QUESTION).astype("<i2").tobytes(), 16000, 1)
+                pipeline.submit("speech", lambda: {"audio": clip})
+                assert pipeline.idle(60)
+            finally:
+                pipeline.stop()
+            assert pipeline.routes["speech"].stats.ok == 1
+
+        def linked() -> bool:
+            spans = spans_in(base)
+            calls = {s["context"]["span_id"]: s["context"]["trace_id"] for s in spans
+                     if s["name"] == "call Transcribe"}
+            return any(s["name"] == "POST /v1/audio/transcriptions"
+                       and calls.get(s.get("parent_id")) == s["context"]["trace_id"]
+                       for s in spans)
+
+        wait_for(linked, 60, "the service's HTTP span under the gateway's call in Phoenix")

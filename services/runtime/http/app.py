@@ -25,8 +25,10 @@ from oricf.services.runtime.http.guards import (
     TokenAuth,
 )
 from oricf.services.runtime.http.metrics import HttpMetrics, MetricsMiddleware
+from oricf.services.runtime.http.tracing import TraceMiddleware
 from oricf.services.runtime.limits import CallLimit
 from oricf.services.runtime.model import ModelSlot
+from oricf.tracing import active as tracing_active
 
 
 def _health(slot: ModelSlot[Any], draining: Callable[[], bool]) -> Route:
@@ -79,6 +81,8 @@ def build_app(routes: Sequence[BaseRoute], slot: ModelSlot[Any], server: ServerS
         paths = [route.path for route in all_routes if isinstance(route, Route)]
         middleware.append(Middleware(MetricsMiddleware, metrics=HttpMetrics(registry),
                                      routes=paths))
+    if tracing_active():  # a span per request (docs/tracing.md)
+        middleware.append(Middleware(TraceMiddleware))
     middleware.append(Middleware(ErrorShape, limit=limit))
     if server.auth is not None:
         middleware.append(Middleware(TokenAuth, tokens=server.auth.tokens()))
