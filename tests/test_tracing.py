@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 
 import pytest
@@ -10,6 +12,7 @@ from oricf import tracing
 from oricf.errors import ConfigError
 from oricf.services.runtime.config import ServerSettings
 from oricf.tracing import TracingConfig, protocol, setup_tracing, wanted
+from tests.gateway.test_pipeline import pipeline_config
 
 SDK_MODULES = ("opentelemetry.sdk", "opentelemetry.sdk.resources", "opentelemetry.sdk.trace",
                "opentelemetry.sdk.trace.export")
@@ -59,3 +62,23 @@ def test_not_asked_for_does_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.delenv(name, raising=False)
     assert not setup_tracing("oricf-test")
     assert not tracing.active()
+
+
+def test_the_yaml_key_alone_turns_traces_on() -> None:
+    """In a process of its own (traces are on for a process' life): no OTEL_ variable, the
+    key; the gRPC exporter as the protocol variable says."""
+    env = {key: value for key, value in os.environ.items() if not key.startswith("OTEL_")}
+    env["OTEL_EXPORTER_OTLP_PROTOCOL"] = "grpc"
+    script = ("import sys; from oricf.tracing import TracingConfig, active, setup_tracing; "
+              "on = setup_tracing('oricf-test', TracingConfig(enabled=True)); "
+              "print(on, active(), *(f'opentelemetry.exporter.otlp.proto.{p}.trace_exporter' "
+              "in sys.modules for p in ('grpc', 'http')))")
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                          text=True, timeout=60, check=True)
+    assert done.stdout.split() == ["True", "True", "True", "False"]  # gRPC's exporter only
+
+
+def test_the_yaml_key_of_a_pipeline() -> None:
+    config = pipeline_config("127.0.0.1:1", {"tracing": {"enabled": True}})
+    assert config.tracing == TracingConfig(enabled=True)
+    assert pipeline_config("127.0.0.1:1").tracing is None
