@@ -15,11 +15,11 @@ an unregistered region, and the ring is registered again on the next call.
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import logging
 import os
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -39,6 +39,7 @@ Payload = bytes | memoryview | int
 SHARED = ("shm", "auto")  # the image transports that use shared memory
 RING_SLOTS = 2  # a frame being read by the server while the next one is written
 REGISTER_TIMEOUT_S = 2.0
+IN_USE_POLL_S = 0.01  # how often to ask again while a server says a region is in use
 # Refusals that may pass (a server starting, busy or full): the wire now, another try later.
 PASSING = frozenset({grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED,
                      grpc.StatusCode.RESOURCE_EXHAUSTED})
@@ -195,11 +196,19 @@ class SharedMemoryTransport:
     def _unregister(target: Any, ring: Ring) -> None:
         stub = oip_grpc.GRPCInferenceServiceStub(target.channel)
         for slot in ring.slots:
-            # A server that is gone or forgot the region holds nothing of it.
-            with contextlib.suppress(grpc.RpcError):
-                stub.SystemSharedMemoryUnregister(
-                    oip.SystemSharedMemoryUnregisterRequest(name=slot.name),
-                    timeout=REGISTER_TIMEOUT_S, metadata=target.metadata)
+            deadline = time.monotonic() + REGISTER_TIMEOUT_S
+            while True:
+                try:
+                    stub.SystemSharedMemoryUnregister(
+                        oip.SystemSharedMemoryUnregisterRequest(name=slot.name),
+                        timeout=REGISTER_TIMEOUT_S, metadata=target.metadata)
+                    break
+                except grpc.RpcError as exc:
+                    # A server that is gone or forgot the region holds nothing of it; one
+                    # still answering the last call through it (Triton) lets go shortly.
+                    if not in_use(exc) or time.monotonic() > deadline:
+                        break
+                    time.sleep(IN_USE_POLL_S)
 
     def close(self, targets: list[Any]) -> None:
         for target in targets:
@@ -219,6 +228,13 @@ def lost_regions(exc: grpc.RpcError) -> bool:
              and "shared-memory region" in details)
             or (exc.code() == grpc.StatusCode.NOT_FOUND
                 and "shared memory region" in details))
+
+
+def in_use(exc: grpc.RpcError) -> bool:
+    """Triton's refusal to unregister a region that the response it has just sent still
+    holds (it lets go after the call ends): INTERNAL, "it is currently in use"."""
+    return (exc.code() == grpc.StatusCode.INTERNAL
+            and "currently in use" in (exc.details() or ""))
 
 
 def restricted(exc: grpc.RpcError) -> bool:
