@@ -170,9 +170,8 @@ class Route:
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised.
         While tracing is on, the message's trace: receive, the call, post steps, publish."""
-        with span(f"route {self.name}",
-                                            context=getattr(load, "trace_context", None),
-                                            attributes={"oricf.route": self.name}):
+        with span(f"route {self.name}", context=getattr(load, "trace_context", None),
+                  attributes={"oricf.route": self.name}):
             self._process(load)
 
     def _process(self, load: Loader) -> None:
