@@ -18,6 +18,11 @@
 #    file itself: a docker client with buildx, else the first one on PATH older than 23
 #    (BuildKit built in; Debian's docker.io), else the build stops saying so. The classic
 #    builder would send the whole repository (.venv too) as the build context.
+# 5. ORICF_ARCH (Debian's name, e.g. arm64; default this machine's) builds for another
+#    architecture, every step run through qemu-user-static (binfmt_misc): the base image is
+#    $ORICF_BASE_IMAGE, else localhost/oricf-base:bookworm-ARCH, made by
+#    compose/make-base-image.sh when missing; the build context holds that architecture's
+#    wheels (its llama-cpp-python wheel: scripts/arm64-setup.sh's, for arm64).
 # The build log goes to ${TMPDIR:-/tmp}/oricf-build-TAG.log; its end is shown on failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -45,8 +50,17 @@ buildkit_docker() {  # a docker client that builds with BuildKit
         "install the buildx plugin, or Debian's docker.io (its client has BuildKit built in)"
 }
 
+HOST_ARCH=$(dpkg --print-architecture)
+ARCH="${ORICF_ARCH:-$HOST_ARCH}"
+FOREIGN=0
+[[ "$ARCH" != "$HOST_ARCH" ]] && FOREIGN=1
+
 base_image() {
     if [[ -n "${ORICF_BASE_IMAGE:-}" ]]; then echo "$ORICF_BASE_IMAGE"
+    elif ((FOREIGN)); then
+        image_exists "localhost/oricf-base:bookworm-$ARCH" \
+            || ORICF_ENGINE=$ENGINE ORICF_ARCH=$ARCH compose/make-base-image.sh >&2
+        echo "localhost/oricf-base:bookworm-$ARCH"
     elif image_exists python:3.11-slim; then echo python:3.11-slim
     elif image_exists localhost/oricf-base:bookworm; then echo localhost/oricf-base:bookworm
     elif timeout 120 "$ENGINE" pull -q python:3.11-slim >/dev/null 2>&1; then echo python:3.11-slim
@@ -62,7 +76,7 @@ BASE=$(base_image)
 OPTIONS="${ORICF_PIP_OPTIONS-}"
 if [[ "${ORICF_PREPARE:-1}" != 0 && -x "$VENV_PY" ]]; then
     echo "==> build context: compose/prepare-build.sh $EXTRAS${MODELS[*]:+ ${MODELS[*]}}"
-    compose/prepare-build.sh "$EXTRAS" "${MODELS[@]}" >>"$LOG" 2>&1 \
+    ORICF_ARCH=$ARCH compose/prepare-build.sh "$EXTRAS" "${MODELS[@]}" >>"$LOG" 2>&1 \
         || { tail -20 "$LOG"; die "compose/prepare-build.sh failed (log: $LOG)"; }
     if [[ -z "${ORICF_PIP_OPTIONS+set}" ]]; then
         venv_py=$("$VENV_PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')
@@ -77,7 +91,10 @@ else
     client=$(buildkit_docker) || exit 1
     BUILD=("$client" build)
 fi
-echo "==> image $TAG: base $BASE, EXTRAS=$EXTRAS, MODELS='${MODELS[*]}', PIP_OPTIONS='$OPTIONS'"
+# The platform only for another architecture: a native build stays as it was on engines
+# whose builder takes no --platform.
+((FOREIGN)) && BUILD+=(--platform "linux/$ARCH")
+echo "==> image $TAG ($ARCH): base $BASE, EXTRAS=$EXTRAS, MODELS='${MODELS[*]}', PIP_OPTIONS='$OPTIONS'"
 DOCKER_BUILDKIT=1 "${BUILD[@]}" -f compose/Dockerfile -t "$TAG" \
     --build-arg "BASE_IMAGE=$BASE" --build-arg "PIP_OPTIONS=$OPTIONS" \
     --build-arg "EXTRAS=$EXTRAS" --build-arg "MODELS=${MODELS[*]}" . >>"$LOG" 2>&1 \

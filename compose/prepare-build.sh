@@ -13,6 +13,9 @@
 # The llama.cpp wheel is compiled for this machine's CPU: an image made with it runs on CPUs
 # of the same kind. Leave compose/.wheels empty to compile inside the build instead.
 # Wheels are for the Python of .venv: use them only with a base image of the same version.
+# ORICF_ARCH (Debian's name, e.g. arm64) prepares an image of another architecture: the
+# llama-cpp-python wheel built for it without a CPU's extensions (scripts/arm64-setup.sh
+# makes the arm64 one) and that architecture's wheels of everything else.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if (($#)); then
@@ -24,6 +27,11 @@ else
 fi
 PY="${ORICF_VENV:-.venv}/bin/python"
 CACHE="${ORICF_CACHE:-$HOME/.cache/oricf}"
+HOST_ARCH=$(dpkg --print-architecture)
+ARCH="${ORICF_ARCH:-$HOST_ARCH}"
+# For another architecture, the options scripts/llama-wheel.sh picks for it (it reads
+# ORICF_ARCH too) with no CPU to read: no extension of one CPU in an image for all.
+[[ "$ARCH" != "$HOST_ARCH" ]] && export ORICF_CPUINFO=/dev/null
 # shellcheck source=scripts/llama-wheel.sh
 source scripts/llama-wheel.sh     # LLAMA_WHEELS: the folder scripts/setup.sh builds into
 
@@ -32,9 +40,20 @@ rm -f compose/.wheels/llama_cpp_python-*.whl   # never one built with other opti
 if ls "$LLAMA_WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl >/dev/null 2>&1; then
     cp -p "$LLAMA_WHEELS"/llama_cpp_python-"$LLAMA_VERSION"-*.whl compose/.wheels/
 fi
-echo "==> wheels for .[$EXTRAS] into compose/.wheels"
+PLATFORM=()
+if [[ "$ARCH" != "$HOST_ARCH" ]]; then
+    # Another architecture's wheels, for .venv's Python: binary only (nothing is built
+    # here for it), each manylinux level up to Debian bookworm's glibc 2.36.
+    case "$ARCH" in arm64) machine=aarch64 ;; amd64) machine=x86_64 ;; *) machine=$ARCH ;; esac
+    for tag in linux manylinux2014 manylinux_2_{17,24,26,27,28,31,34,35,36}; do
+        PLATFORM+=(--platform "${tag}_$machine")
+    done
+    py=$("$PY" -c 'import sys; print("%d%d" % sys.version_info[:2])')
+    PLATFORM+=(--only-binary=:all: --python-version "$py" --implementation cp --abi "cp$py")
+fi
+echo "==> wheels for .[$EXTRAS] ($ARCH) into compose/.wheels"
 "$PY" -m pip download -q -d compose/.wheels --find-links compose/.wheels \
-    ".[$EXTRAS]" "setuptools>=69" wheel pip
+    "${PLATFORM[@]+"${PLATFORM[@]}"}" ".[$EXTRAS]" "setuptools>=69" wheel pip
 rm -f compose/.wheels/oricf-*     # the project itself is built from source in the image
 
 echo "==> models into compose/.models: ${MODELS[*]:-none}"

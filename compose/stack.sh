@@ -24,7 +24,8 @@
 # podman-compose: $ORICF_PODMAN_COMPOSE, else the one install-podman-compose made, else the
 # one on PATH; CONTAINERS_CONF defaults to compose/containers.conf. Images: compose/build-image.sh (base image, build context, the
 # build command). Also read: ORICF_IMAGE, ORICF_GATEWAY_IMAGE, ORICF_CERTS,
-# ORICF_WAIT_TIMEOUT (s, default 600). docs/containers.md.
+# ORICF_WAIT_TIMEOUT (s, default 600), ORICF_ARCH (images of another architecture, run under
+# emulation with compose/emulated.yaml). docs/containers.md.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
@@ -353,6 +354,15 @@ mkdir -p "$LOGS"
 COMPOSE_TOOL="${COMPOSE[*]}"
 COMPOSE+=(-p "$PROJECT")
 for file in "${FILES[@]}"; do COMPOSE+=(-f "$file"); done
+# Images of another architecture (ORICF_ARCH, compose/build-image.sh) run under emulation:
+# compose/emulated.yaml gives their containers the emulated CPU's /proc/cpuinfo.
+if [[ -n "${ORICF_ARCH:-}" && "$ORICF_ARCH" != "$(dpkg --print-architecture)" ]]; then
+    export ORICF_EMULATED_CPUINFO="$LOGS/cpuinfo-$ORICF_ARCH"
+    ORICF_QEMU_CPU=$(scripts/arm64-root.sh qemu-cpu)
+    export ORICF_QEMU_CPU
+    scripts/arm64-root.sh cpuinfo >"$ORICF_EMULATED_CPUINFO"
+    COMPOSE+=(-f compose/emulated.yaml)
+fi
 if [[ $COMMAND == env ]]; then
     printf 'export ORICF_ENGINE=%q\n' "$ENGINE"
     [[ $ENGINE == docker ]] || printf 'export CONTAINERS_CONF=%q ORICF_PODMAN_COMPOSE=%q\n' \

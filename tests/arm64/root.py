@@ -9,6 +9,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -59,20 +60,23 @@ def run_in_root(*command: str, timeout: float = 600.0) -> str:
 
 
 @contextmanager
-def root_process(*command: str) -> Iterator[subprocess.Popen[str]]:
-    """COMMAND started in the root in a process group of its own, killed on exit; its output
-    goes with a failure."""
-    process = subprocess.Popen([str(ROOT_SCRIPT), "run", *command], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        yield process
-    except BaseException:
-        stop(process)
-        print(f"{command} in the arm64 root:\n{process.stderr.read() if process.stderr else ''}",
-              file=sys.stderr)
-        raise
-    finally:
-        stop(process)
+def root_process(*command: str, stdout: bool = False) -> Iterator[subprocess.Popen[str]]:
+    """COMMAND started in the root in a process group of its own, killed on exit. Its log
+    goes to a file (a pipe nobody reads would stop it once full) and with a failure; its
+    standard output to `process.stdout` when `stdout`, else to that file too."""
+    with tempfile.TemporaryFile("w+") as log:
+        process = subprocess.Popen([str(ROOT_SCRIPT), "run", *command], text=True,
+                                   stdout=subprocess.PIPE if stdout else log, stderr=log,
+                                   start_new_session=True)
+        try:
+            yield process
+        except BaseException:
+            stop(process)
+            log.seek(0)
+            print(f"{command} in the arm64 root:\n{log.read()[-20000:]}", file=sys.stderr)
+            raise
+        finally:
+            stop(process)
 
 
 def stop(process: subprocess.Popen[str]) -> None:

@@ -32,7 +32,8 @@ def test_the_gateway_counts_people_from_the_video_to_json_lines(
     address = arm64_detector.address
     with root_process(ORICF, "gateway", "--config", "configs/pipelines/people_video.yaml",
                       "--set", f"endpoints.detector.address={address}",
-                      "--set", f"endpoints.detector.deadline_ms={DEADLINE_MS}") as gateway:
+                      "--set", f"endpoints.detector.deadline_ms={DEADLINE_MS}",
+                      stdout=True) as gateway:
         assert gateway.stdout is not None
         lines: queue.Queue[dict[str, Any]] = queue.Queue()
         threading.Thread(target=read_lines, args=(gateway.stdout, lines), daemon=True).start()
