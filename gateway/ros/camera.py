@@ -122,7 +122,10 @@ class CameraReceiver:
 
     def _run(self) -> None:
         try:
-            wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, self._context.handle)
+            handle = self._context.handle
+            if handle is None:  # the context was shut down before the thread ran
+                return
+            wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, handle)
             while not self._stopping.is_set() and self._context.ok():
                 if time.monotonic() >= self._next_check:
                     self._match_publishers()
