@@ -44,7 +44,12 @@ case "$_arch" in
         ;;
 esac
 export CMAKE_ARGS
+# The key names the architecture too where the options alone may not (a generic Arm build
+# and an x86 one without AVX both have no options); x86-64's key stays the options' alone,
+# so its wheels cached before are taken as they are.
+_key="$LLAMA_VERSION $CMAKE_ARGS"
+case "$_arch" in x86_64|amd64) ;; *) _key+=" $_arch" ;; esac
 # shellcheck disable=SC2034  # read by the scripts that source this file
-LLAMA_WHEELS="$CACHE/wheels/$(echo "$LLAMA_VERSION $CMAKE_ARGS" | sha256sum | cut -c1-12)"
-unset _arch _cpuinfo _cpu_flags _pair _tags
+LLAMA_WHEELS="$CACHE/wheels/$(echo "$_key" | sha256sum | cut -c1-12)"
+unset _arch _cpuinfo _cpu_flags _pair _tags _key
 unset -f _cpu_line

@@ -75,3 +75,15 @@ def test_the_cache_folder_is_keyed_by_the_options(tmp_path: Path) -> None:
     graviton = build_options(tmp_path, "aarch64", CPUINFO / "graviton3.txt")[1]
     again = build_options(tmp_path, "aarch64", CPUINFO / "jetson-orin-nx.txt")[1]
     assert jetson == again != graviton and Path(jetson).parent == tmp_path / "wheels"
+
+
+def test_generic_builds_of_two_architectures_do_not_share_a_folder(tmp_path: Path) -> None:
+    # No options on either (an x86 CPU without AVX, an Arm one without extensions): the key
+    # must still tell them apart, or one would take the other's wheel.
+    plain_x86 = tmp_path / "x86.txt"
+    plain_x86.write_text("processor\t: 0\nflags\t\t: fpu sse sse2\n")
+    plain_arm = tmp_path / "arm.txt"
+    plain_arm.write_text("processor\t: 0\nFeatures\t: fp asimd\n")
+    x86_args, x86 = build_options(tmp_path, "x86_64", plain_x86)
+    arm_args, arm = build_options(tmp_path, "aarch64", plain_arm)
+    assert x86_args == arm_args == "-DGGML_NATIVE=OFF" and x86 != arm
