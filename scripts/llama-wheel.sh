@@ -13,13 +13,16 @@
 # options, e.g. to cross-compile for it, and tests/test_llama_wheel.py).
 LLAMA_VERSION="0.3.36"
 _arch="${ORICF_ARCH:-$(uname -m)}"
+# One name per architecture (Debian's and Docker's arm64 and amd64 are the kernel's aarch64
+# and x86_64), so the cache key below is the same whichever way it was named.
+case "$_arch" in arm64) _arch=aarch64 ;; amd64) _arch=x86_64 ;; esac
 _cpuinfo="${ORICF_CPUINFO:-/proc/cpuinfo}"
 # The first line of cpuinfo named $1, its words between spaces; none where it is absent
 # (a container's or an emulator's cpuinfo may lack it: then the generic build).
 _cpu_line() { echo " $({ grep -m1 "^$1[[:space:]]*:" "$_cpuinfo" || true; } | cut -d: -f2) "; }
 CMAKE_ARGS="-DGGML_NATIVE=OFF"
 case "$_arch" in
-    x86_64|amd64)
+    x86_64)
         _cpu_flags=$(_cpu_line flags)
         for _pair in avx:AVX avx2:AVX2 fma:FMA f16c:F16C bmi2:BMI2 avx_vnni:AVX_VNNI \
                      avx512f:AVX512 avx512vbmi:AVX512_VBMI avx512_vnni:AVX512_VNNI \
@@ -27,7 +30,7 @@ case "$_arch" in
             [[ "$_cpu_flags" == *" ${_pair%%:*} "* ]] && CMAKE_ARGS+=" -DGGML_${_pair#*:}=ON"
         done
         ;;
-    aarch64|arm64)
+    aarch64)
         # GGML's own Arm option: GGML_CPU_ARM_ARCH becomes -march= (ggml-cpu/CMakeLists.txt).
         # The kernel's feature names (the `Features` line) map to GCC's extensions; any of
         # them needs Armv8.2-A as the base. None of them: plain Armv8-A (GGML's default).
@@ -48,7 +51,7 @@ export CMAKE_ARGS
 # and an x86 one without AVX both have no options); x86-64's key stays the options' alone,
 # so its wheels cached before are taken as they are.
 _key="$LLAMA_VERSION $CMAKE_ARGS"
-case "$_arch" in x86_64|amd64) ;; *) _key+=" $_arch" ;; esac
+case "$_arch" in x86_64) ;; *) _key+=" $_arch" ;; esac
 # shellcheck disable=SC2034  # read by the scripts that source this file
 LLAMA_WHEELS="$CACHE/wheels/$(echo "$_key" | sha256sum | cut -c1-12)"
 unset _arch _cpuinfo _cpu_flags _pair _tags _key

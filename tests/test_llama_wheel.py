@@ -87,3 +87,9 @@ def test_generic_builds_of_two_architectures_do_not_share_a_folder(tmp_path: Pat
     x86_args, x86 = build_options(tmp_path, "x86_64", plain_x86)
     arm_args, arm = build_options(tmp_path, "aarch64", plain_arm)
     assert x86_args == arm_args == "-DGGML_NATIVE=OFF" and x86 != arm
+
+
+def test_an_architecture_named_either_way_has_one_folder(tmp_path: Path) -> None:
+    # uname -m says aarch64 in the arm64 root; the image scripts say arm64 (Docker's name).
+    jetson = CPUINFO / "jetson-orin-nx.txt"
+    assert build_options(tmp_path, "arm64", jetson) == build_options(tmp_path, "aarch64", jetson)
