@@ -284,16 +284,18 @@ def check_batching(model: DeclaredModel) -> None:
     alone = [model.infer(feeds) for feeds in items]
     for name in alone[0]:
         apart = max(float(np.abs(alone[0][name] - alone[1][name]).max()), 1e-12)
-        scale = max(float(np.abs(alone[0][name]).max()), 1.0)
         # On the CPU a batch gives its items' answers to rounding. On an accelerator a batch
         # takes other kernels (cuDNN's choice, TF32 sums), so it is held to a small share of
         # how far two different items' answers are apart: mixed items would be that far.
-        allowed = BATCH_TOLERANCE * scale if on_cpu else ACCELERATED_BATCH_TOLERANCE * apart
-        worst = max(float(np.abs(batched[i][name] - alone[i][name]).max()) for i in range(2))
-        if worst > allowed:
-            raise ConfigError(f"model {model.name}: inputs declare a free batch dimension, but "
-                              f"the graph does not batch (output '{name}' of a batch differs "
-                              f"from that of its items run alone by {worst:.3g}, two items "
-                              f"differ by {apart:.3g}); declare the batch dimension as 1")
+        for i in range(2):
+            scale = max(float(np.abs(alone[i][name]).max()), 1.0)
+            allowed = BATCH_TOLERANCE * scale if on_cpu else ACCELERATED_BATCH_TOLERANCE * apart
+            worst = float(np.abs(batched[i][name] - alone[i][name]).max())
+            if worst > allowed:
+                raise ConfigError(
+                    f"model {model.name}: inputs declare a free batch dimension, but the graph "
+                    f"does not batch (output '{name}' of a batch differs from that of its "
+                    f"items run alone by {worst:.3g}, two items differ by {apart:.3g}); "
+                    f"declare the batch dimension as 1")
     log.info("model %s: batch dimension freed; a batch gives what its items give alone",
              model.name)

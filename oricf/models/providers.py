@@ -36,8 +36,7 @@ def open_in_order(ort: Any, model: str | bytes, options: Any,
     """The session on the first declared provider that starts, and the declared providers
     ahead of it, each with why it was passed over."""
     available = ort.get_available_providers()
-    skipped = [f"{p}: not in this onnxruntime build" for p in settings.providers
-               if p not in available]
+    why = {p: "not in this onnxruntime build" for p in settings.providers if p not in available}
     wanted = [p for p in settings.providers if p in available]
     if not wanted:
         raise ConfigError(f"backend.providers: none of {', '.join(settings.providers)} is in "
@@ -55,16 +54,11 @@ def open_in_order(ort: Any, model: str | bytes, options: Any,
             if start == len(wanted) - 1:
                 raise ConfigError(f"backend.providers: no provider could open the model "
                                   f"({name}: {_first_line(exc)})") from None
-            skipped.append(f"{name}: {_first_line(exc)}")
+            why[name] = _first_line(exc)
             continue
         first = session.get_providers()[0]
         # Ones onnxruntime dropped itself while the session started (it logs why).
         ahead = wanted[start:wanted.index(first)] if first in wanted else wanted[start:]
-        skipped += [f"{p}: did not start (onnxruntime's log says why)" for p in ahead]
-        return session, _declared_order(skipped, settings)
+        why.update({p: "did not start (onnxruntime's log says why)" for p in ahead})
+        return session, [f"{p}: {why[p]}" for p in settings.providers if p in why]
     raise AssertionError("unreachable: the last provider either opens or raises")
-
-
-def _declared_order(skipped: list[str], settings: OnnxRuntimeBackend) -> list[str]:
-    order = {name: i for i, name in enumerate(settings.providers)}
-    return sorted(skipped, key=lambda line: order.get(line.split(":")[0], len(order)))
