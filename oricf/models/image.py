@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from oricf.models.declaration import ImageInput
+from oricf.models.image_input import ImageInput
 from oricf.models.tensors import DATATYPES
 
 

@@ -1,27 +1,31 @@
-"""A declared policy, loaded: a state vector in, a chunk of bounded actions out.
+"""A declared policy, loaded: a state vector (and the images of its cameras) in, a chunk of
+bounded actions out.
 
-The model class of `oricf serve policy`. It checks what arrives (length, NaN, infinity),
-normalises the state as declared, runs the model and returns `chunk` actions of `dim`
-values each, clipped to the declared bounds; an answer that is not finite is refused, never
-sent to a robot.
+The model class of `oricf serve policy`. It checks what arrives (length, NaN, infinity;
+every declared camera's image and no other), normalises the state as declared, makes each
+image its input's tensor as the declaration says (as a detector's image), runs the model and
+returns `chunk` actions of `dim` values each, clipped to the declared bounds; an answer that
+is not finite is refused, never sent to a robot.
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 
 import numpy as np
 
 from oricf.errors import ConfigError, InvalidInput
 from oricf.models.declaration import ModelDeclaration
 from oricf.models.declared import DeclaredModel
+from oricf.models.image import to_tensor
 from oricf.models.info import ModelInfo
-from oricf.models.policy_task import PolicyTask
+from oricf.models.policy_shapes import camera_inputs
+from oricf.models.policy_task import CameraInput, PolicyTask
 from oricf.models.tensors import DATATYPES
 from oricf.store import ModelStore
 
 log = logging.getLogger(__name__)
-
 
 
 def require_finite(values: np.ndarray, name: str) -> None:
@@ -52,6 +56,8 @@ class PolicyModel:
         self._output = ""
         self._feed_shape: tuple[int, ...] = ()
         self._dtype = np.dtype(np.float32)
+        # camera name -> (its settings, its model input, the network size (w, h))
+        self._cameras: dict[str, tuple[CameraInput, str, tuple[int, int]]] = {}
 
     def load(self) -> None:
         self.model.load()  # checks the file's shapes against the task
@@ -63,9 +69,16 @@ class PolicyModel:
         # One item: a batch of 1 when the input has a batch dimension.
         self._feed_shape = (1, self.task.state.size) if len(spec.shape) == 2 \
             else (self.task.state.size,)
-        log.info("policy %s: state %d, action %d x %d at %.1f Hz, %d steps ahead", self.name,
-                 self.task.state.size, self.task.chunk, self.task.action.dim,
-                 self.task.rate_hz, self.task.lead_steps)
+        found = camera_inputs(str(self.model.declaration.source), self.task,
+                              self.model.inputs, spec.name)
+        settings = {camera.name: camera for camera in self.task.images}
+        self._cameras = {name: (settings[name], input_spec.name, size)
+                         for name, (input_spec, size) in found.items()}
+        cameras = ", ".join(f"{name} {w}x{h}" for name, (_, _, (w, h)) in self._cameras.items())
+        log.info("policy %s: state %d%s, action %d x %d at %.1f Hz, %d steps ahead", self.name,
+                 self.task.state.size, f", cameras {cameras}" if cameras else "",
+                 self.task.chunk, self.task.action.dim, self.task.rate_hz,
+                 self.task.lead_steps)
 
     def close(self) -> None:
         self.model.close()
@@ -84,14 +97,47 @@ class PolicyModel:
             raise InvalidInput(f"state: {state.size} values, policy {self.name} takes {size}")
         require_finite(state, "state")
 
-    def act(self, state: np.ndarray) -> np.ndarray:
-        """[chunk, dim] actions for one state vector (float32, checked here)."""
+    @property
+    def cameras(self) -> list[str]:
+        """The names of the cameras whose images every observation must carry."""
+        return [camera.name for camera in self.task.images]
+
+    def check_images(self, images: Mapping[str, object]) -> None:
+        """Exactly the declared cameras (InvalidInput naming the missing or unknown one)."""
+        missing = [name for name in self.cameras if name not in images]
+        if missing:
+            raise InvalidInput(f"images: no image from camera {missing[0]} (policy "
+                               f"{self.name} sees {', '.join(self.cameras)})")
+        unknown = sorted(set(images) - set(self.cameras))
+        if unknown:
+            raise InvalidInput(f"images: policy {self.name} has no camera "
+                               f"{unknown[0][:64]!r} (its cameras: "
+                               f"{', '.join(self.cameras) or 'none'})")
+
+    def act(self, state: np.ndarray, images: Mapping[str, np.ndarray] | None = None
+            ) -> np.ndarray:
+        """[chunk, dim] actions for one state vector (float32, checked here) and the image
+        of each declared camera (BGR uint8, height x width x 3, as decode_image gives)."""
         state = np.asarray(state, np.float32)
         self.check_state(state)
-        feed = ((state - self._mean) / self._std).astype(self._dtype).reshape(self._feed_shape)
-        raw = self.model.infer({self._input: feed})[self._output]
+        self.check_images(images or {})
+        feed = {self._input: ((state - self._mean) / self._std).astype(self._dtype)
+                .reshape(self._feed_shape)}
+        for name, (camera, input_name, size) in self._cameras.items():
+            feed[input_name] = _image_tensor((images or {})[name], camera, size, name)
+        raw = self.model.infer(feed)[self._output]
         actions = np.asarray(raw, np.float32).reshape(self.task.chunk, self.task.action.dim)
         if not np.all(np.isfinite(actions)):
             raise PolicyFailed(f"policy {self.name} answered NaN or infinity for this "
                                f"observation; no action is given")
         return np.clip(actions, self.low, self.high)
+
+
+def _image_tensor(image: np.ndarray, camera: CameraInput, size: tuple[int, int],
+                  name: str) -> np.ndarray:
+    if not (isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim == 3
+            and image.shape[2] == 3 and min(image.shape[:2]) >= 1):
+        shape = getattr(image, "shape", None)
+        raise InvalidInput(f"images: camera {name}: not a colour image (shape {shape})")
+    tensor, _ = to_tensor(image, camera, size)
+    return tensor

@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 
 from oricf.errors import ConfigError
-from oricf.models.policy_task import PolicyTask
+from oricf.models.image import network_size
+from oricf.models.policy_task import CameraInput, PolicyTask
 from oricf.models.tensors import TensorSpec
 
 FLOATS = ("FP16", "FP32", "FP64")
@@ -35,10 +36,7 @@ def check_policy(source: str, task: PolicyTask, inputs: list[TensorSpec],
                  outputs: list[TensorSpec]) -> None:
     """Raises ConfigError naming source (the declaration's file) and the task's key."""
     state = _named(source, "task.state.input", task.state.input, inputs, "input")
-    others = [s.name for s in inputs if s.name != state.name]
-    if others:
-        raise ConfigError(f"{source}: task.images: the model has inputs beyond the state "
-                          f"({', '.join(others)}); camera inputs are not supported yet")
+    camera_inputs(source, task, inputs, state.name)
     if state.datatype not in FLOATS:
         raise ConfigError(f"{source}: task.state.input: '{state.name}' is {state.datatype}, "
                           f"a policy's state is floating point")
@@ -56,3 +54,50 @@ def check_policy(source: str, task: PolicyTask, inputs: list[TensorSpec],
         raise ConfigError(f"{source}: {key}: {task.chunk} x {task.action.dim} actions, the "
                           f"model output '{action.name}' gives {values} values (shape "
                           f"{list(action.shape)})")
+
+
+def camera_inputs(source: str, task: PolicyTask, inputs: list[TensorSpec],
+                  state: str) -> dict[str, tuple[TensorSpec, tuple[int, int]]]:
+    """Each camera's model input and network size (width, height), by camera name; every
+    input of the model is the state or one camera's, or ConfigError."""
+    others = [spec for spec in inputs if spec.name != state]
+    found: dict[str, tuple[TensorSpec, tuple[int, int]]] = {}
+    for index, camera in enumerate(task.images):
+        key = f"task.images[{index}]"
+        if camera.input is None:
+            if not others:
+                raise ConfigError(f"{source}: {key}: the model has no input beyond the "
+                                  f"state '{state}' for camera {camera.name}")
+            spec = others[0]
+        else:
+            spec = _named(source, f"{key}.input", camera.input, others, "image input")
+        found[camera.name] = (spec, _camera_size(source, key, camera, spec))
+    used = {spec.name for spec, _ in found.values()}
+    unfed = [spec.name for spec in others if spec.name not in used]
+    if unfed:
+        raise ConfigError(f"{source}: task.images: the model input {', '.join(unfed)} is "
+                          f"neither the state nor a camera's (declare a camera for it)")
+    return found
+
+
+def _camera_size(source: str, key: str, camera: CameraInput,
+                 spec: TensorSpec) -> tuple[int, int]:
+    if spec.datatype != camera.datatype:
+        raise ConfigError(f"{source}: {key}.datatype: {camera.datatype}, the model input "
+                          f"'{spec.name}' is {spec.datatype}")
+    shape = spec.shape
+    channels = shape[1] if camera.layout == "nchw" else shape[-1] if shape else 0
+    if len(shape) != 4 or channels not in (3, -1):
+        raise ConfigError(f"{source}: {key}.layout: {camera.layout}, the model input "
+                          f"'{spec.name}' is shaped {list(shape)}, not a batch of 3-channel "
+                          f"images in that layout")
+    try:
+        size = network_size(camera, shape)
+    except ValueError as exc:
+        raise ConfigError(f"{source}: {key}.size: {exc}".replace("task.image.size",
+                                                                  f"{key}.size")) from None
+    height, width = (shape[2], shape[3]) if camera.layout == "nchw" else (shape[1], shape[2])
+    if (width > 0 and width != size[0]) or (height > 0 and height != size[1]):
+        raise ConfigError(f"{source}: {key}.size: {list(size)}, the model input "
+                          f"'{spec.name}' takes {width}x{height} (shape {list(shape)})")
+    return size

@@ -8,6 +8,9 @@
       rate_hz: 60.606                            # the control rate the policy was trained at
       lead_steps: 0                              # the chunk's first action: steps after the
                                                  # observation (a policy acting ahead)
+      images:                                    # optional: cameras, each an image input
+        - {name: top, input: image, size: [32, 32], resize: stretch, color: rgb,
+           scale: 0.00392156862745098}
 
 The model file's shapes are checked against these at load (oricf.models.policy).
 """
@@ -16,12 +19,15 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema
+from oricf.models.image_input import ImageInput
 
 MAX_SIZE = 1 << 16  # values in a state or an action chunk
 MAX_LEAD = 1024  # steps ahead: far beyond any round trip a chunk could bridge
+MAX_CAMERAS = 8
+CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 
 
 class StateInput(Schema):
@@ -41,6 +47,13 @@ class StateInput(Schema):
         if self.std is not None and min(self.std) <= 0:
             raise ValueError("std: every value must be > 0")
         return self
+
+
+class CameraInput(ImageInput):
+    """One camera as a model input, by the name observations give its images under; made
+    into the input's tensor as a detector's image is (resize, colour, scale, layout)."""
+
+    name: str = Field(pattern=CAMERA_NAME, description="the camera's name in observations")
 
 
 class ActionOutput(Schema):
@@ -72,9 +85,9 @@ class ActionOutput(Schema):
 class PolicyTask(Schema):
     kind: Literal["policy"]
     state: StateInput
-    images: list[str] = Field(
-        default_factory=list, max_length=0,
-        description="camera inputs: not yet supported (a state vector only)")
+    images: list[CameraInput] = Field(
+        default_factory=list, max_length=MAX_CAMERAS,
+        description="camera inputs, each an image input of the model (none: the state only)")
     action: ActionOutput
     chunk: int = Field(1, ge=1, le=1024, description="actions per answer, one per step")
     rate_hz: float = Field(gt=0, le=10_000, description="the control rate, steps per second")
@@ -82,6 +95,17 @@ class PolicyTask(Schema):
         0, ge=0, le=MAX_LEAD,
         description="the chunk's first action is for this many steps after the observation: "
                     "a policy trained to act ahead of a known round trip")
+
+    @field_validator("images")
+    @classmethod
+    def _cameras(cls, images: list[CameraInput]) -> list[CameraInput]:
+        names = [camera.name for camera in images]
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:
+            raise ValueError(f"the name {', '.join(twice)} is given twice")
+        if len(images) > 1 and any(camera.input is None for camera in images):
+            raise ValueError("with more than one camera, each names its input")
+        return images
 
     @model_validator(mode="after")
     def _chunk_size(self) -> PolicyTask:

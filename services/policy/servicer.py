@@ -1,4 +1,5 @@
-"""oricf.v1.Policy: observations become state vectors, the policy's chunks become answers.
+"""oricf.v1.Policy: observations become state vectors and camera images, the policy's chunks
+become answers.
 
 An answer's first action is for the step of the observation it answers plus the policy's
 declared `lead_steps` (0: the policy acts on what it sees; more: a policy trained to act
@@ -17,6 +18,7 @@ import grpc
 import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.imaging import decode_image
 from oricf.models.policy import PolicyModel, require_finite
 from oricf.services.runtime import ModelSlot
 from oricf.services.runtime.errors import status_for
@@ -57,13 +59,12 @@ class PolicyServicer(policy_pb2_grpc.PolicyServicer):
     def act(self, request: policy_pb2.Observation) -> policy_pb2.ActionChunk:
         started = time.perf_counter()
         policy = self.slot.get()
-        if request.images:
-            raise InvalidInput(f"images: policy {policy.name} takes a state vector only "
-                               f"(camera inputs are not supported yet)")
+        policy.check_images(request.images)  # names first: nothing unknown is decoded
         _check_committed(request.committed, policy.task.action.dim)
         state = np.asarray(request.state, np.float32)
+        images = {name: _decoded(name, image) for name, image in request.images.items()}
         inference = time.perf_counter()
-        actions = policy.act(state)
+        actions = policy.act(state, images)
         inference_ms = (time.perf_counter() - inference) * 1e3
         chunk = policy_pb2.ActionChunk(
             start_step=request.step + policy.task.lead_steps, observation_step=request.step,
@@ -72,6 +73,13 @@ class PolicyServicer(policy_pb2_grpc.PolicyServicer):
         chunk.timings.inference_ms = inference_ms
         chunk.timings.total_ms = (time.perf_counter() - started) * 1e3
         return chunk
+
+
+def _decoded(camera: str, image: common_pb2.Image) -> np.ndarray:
+    try:
+        return decode_image(image.data, image.encoding, image.width, image.height)
+    except InvalidInput as exc:
+        raise InvalidInput(f"images: camera {camera[:64]}: {exc}") from None
 
 
 def _check_committed(committed: policy_pb2.CommittedActions, dim: int) -> None:

@@ -4,6 +4,7 @@ the file and the key."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -12,10 +13,12 @@ import pytest
 import yaml
 
 from oricf.config import REPO_ROOT
-from oricf.errors import ConfigError
+from oricf.errors import ConfigError, InvalidInput
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
 from oricf.store import ModelStore
+from tests.support.camera_policy import CAMERA
+from tests.support.camera_policy import declaration as camera_policy
 
 POLICIES = REPO_ROOT / "configs" / "models" / "policies"
 HOPPER = POLICIES / "hopper.yaml"
@@ -69,13 +72,19 @@ def test_a_declaration_that_disagrees_with_its_model_file_is_refused_at_load(
     ({"state": {"std": [0.0] * 15}}, r"task\.policy\.state: std: every value must be > 0"),
     ({"action": {"low": [0.0, 0.0]}}, r"task\.policy\.action: low: 2 values, dim is 3"),
     ({"action": {"low": 2.0}}, r"task\.policy\.action: low: above high"),
-    ({"images": ["wrist"]}, r"task\.policy\.images: List should have at most 0 items"),
+    ({"images": [{"name": "top"}, {"name": "top"}]},
+     r"task\.policy\.images: the name top is given twice"),
+    ({"images": [{"name": "top"}, {"name": "wrist"}]},
+     r"task\.policy\.images: with more than one camera, each names its input"),
+    ({"images": [{"name": "top camera"}]}, r"task\.policy\.images\[0\]\.name: String should "
+                                          r"match pattern"),
     ({"rate_hz": 0}, r"task\.policy\.rate_hz: Input should be greater than 0"),
     ({"lead_steps": -1}, r"task\.policy\.lead_steps: Input should be greater than or equal "
                          r"to 0"),
     ({"lead_steps": 1025}, r"task\.policy\.lead_steps: Input should be less than or equal "
                            r"to 1024"),
-], ids=["mean", "std", "bounds", "low above high", "images", "rate", "lead below 0",
+], ids=["mean", "std", "bounds", "low above high", "camera twice", "inputs unnamed",
+        "camera name", "rate", "lead below 0",
         "lead too far"])
 def test_a_declaration_at_odds_with_itself_is_refused_naming_file_and_key(
         tmp_path: Path, task: dict[str, Any], message: str) -> None:
@@ -105,3 +114,39 @@ def test_normalisation_is_applied_before_the_model(tmp_path: Path) -> None:
     state = np.linspace(-1.0, 2.0, 15, dtype=np.float32)
     assert abs(plain.act(state) - plain.act((state - 1.0) / 2.0)).max() > 0.01
     np.testing.assert_allclose(shifted.act(state), plain.act((state - 1.0) / 2.0), atol=1e-6)
+
+
+@pytest.mark.parametrize(("task", "message"), [
+    ({"images": []}, "task.images: the model input image is neither the state nor a camera's"),
+    ({"images": [{"name": "top", "input": "picture"}]},
+     r"task.images\[0\].input: the model has no image input 'picture' \(image inputs: image\)"),
+    ({"images": [{"name": "top", "size": [16, 16]}]},
+     r"task.images\[0\].size: \[16, 16\], the model input 'image' takes 8x8"),
+    ({"images": [{"name": "top", "datatype": "UINT8"}]},
+     "task.images\\[0\\].datatype: UINT8, the model input 'image' is FP32"),
+    ({"images": [{"name": "top", "size": [8, 8], "layout": "nhwc"}]},
+     r"task.images\[0\].layout: nhwc, the model input 'image' is shaped \[-1, 3, 8, 8\]"),
+    ({"images": [{"name": "top", "size": [8, 8]}, {"name": "wrist", "input": "wrist"}]},
+     r"task\.policy\.images: with more than one camera, each names its input"),
+], ids=["no camera", "no such input", "size", "datatype", "layout", "unnamed inputs"])
+def test_a_camera_that_disagrees_with_its_model_input_is_refused_at_load(
+        tmp_path: Path, task: dict[str, Any], message: str) -> None:
+    try:
+        policy = PolicyModel(load_declaration(camera_policy(tmp_path, **task)), ModelStore())
+    except ConfigError as exc:  # caught by the schema already
+        assert re.search(message, str(exc)), exc
+        return
+    with pytest.raises(ConfigError, match=f"policy.yaml: {message}"):
+        policy.load()
+
+
+def test_a_policy_with_a_camera_is_fed_its_image_as_declared(tmp_path: Path) -> None:
+    policy = PolicyModel(load_declaration(camera_policy(tmp_path)), ModelStore())
+    policy.load()
+    assert policy.cameras == [CAMERA]
+    blue_left = np.zeros((40, 60, 3), np.uint8)
+    blue_left[:, :30, 0] = 255  # BGR: the left half blue
+    actions = policy.act(np.array([0.5, -2.0], np.float32), {CAMERA: blue_left})
+    np.testing.assert_allclose(actions, [[0.0, 0.0, 0.5, 0.5, -2.0]], atol=1e-6)
+    with pytest.raises(InvalidInput, match=f"images: no image from camera {CAMERA}"):
+        policy.act(np.zeros(2, np.float32))

@@ -21,10 +21,12 @@ from hypothesis import strategies as st
 from oricf.audio import wav_header
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.v1 import detector_pb2, language_pb2, policy_pb2, speech_pb2, synthesis_pb2
+from tests.support.camera_policy import CAMERA
+from tests.support.camera_policy import declaration as camera_policy
 from tests.support.fuzzing import examples
 from tests.support.services import RunningService, running_service
 
-EXAMPLES = examples(70)  # per RPC: 24 RPCs, 1,680 requests of 1-3 messages in all (half by default)
+EXAMPLES = examples(70)  # per RPC: 27 RPCs, 1,890 requests of 1-3 messages in all (half by default)
 # Refusals a client may get for a hostile request. INTERNAL and UNKNOWN are bugs;
 # DEADLINE_EXCEEDED would mean the service did not answer in time.
 ACCEPTABLE = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
@@ -41,6 +43,8 @@ SERVICES: dict[str, tuple[ServiceDescriptor, dict[str, Any]]] = {
     "models": (oip.DESCRIPTOR.services_by_name["GRPCInferenceService"], {}),
     "tts": (synthesis_pb2.DESCRIPTOR.services_by_name["SpeechSynthesizer"], {}),
     "policy": (policy_pb2.DESCRIPTOR.services_by_name["Policy"], {}),
+    # A policy that sees: images by camera name are decoded before the state is checked.
+    "policy:cameras": (policy_pb2.DESCRIPTOR.services_by_name["Policy"], {}),
 }
 CASES = [(service, method.name) for service, (descriptor, _) in SERVICES.items()
          for method in descriptor.methods]
@@ -64,6 +68,7 @@ INTS = st.one_of(st.integers(-3, 70_000), st.sampled_from([-(2**31), 2**31 - 1, 
 FIELD_VALUES: dict[str, st.SearchStrategy[Any]] = {
     "oricf.v1.Fact.name": st.one_of(st.sampled_from(["people_count", "people_count", "dogs",
                                                      ""]), TEXTS),
+    "oricf.v1.Observation.ImagesEntry.key": st.one_of(st.just(CAMERA), TEXTS),
 }
 
 
@@ -176,9 +181,13 @@ def vm_hwm_mb() -> float:
 
 
 @pytest.fixture(scope="module")
-def service(request: pytest.FixtureRequest) -> Iterator[tuple[str, RunningService]]:
+def service(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+            ) -> Iterator[tuple[str, RunningService]]:
     name = request.param
-    with running_service(name, SERVICES[name][1]) as running:
+    config = dict(SERVICES[name][1])
+    if name == "policy:cameras":
+        config["model"] = str(camera_policy(tmp_path_factory.mktemp("camera-policy")))
+    with running_service(name.split(":")[0], config) as running:
         before = vm_hwm_mb()
         yield name, running
         assert vm_hwm_mb() - before < MAX_GROWTH_MB, "memory grew without bound"

@@ -127,7 +127,7 @@ BAD = {
     "empty": (policy_pb2.Observation(step=1), "state: 0 values"),
     "long": (observe(1, np.zeros(100_000, np.float32)), "state: 100000 values"),
     "image": (observe(1, GOOD, images={"wrist": common_pb2.Image(data=b"x")}),
-              "images: policy pybullet-hopper takes a state vector only"),
+              "images: policy pybullet-hopper has no camera 'wrist' \\(its cameras: none\\)"),
     "partial action": (observe(1, GOOD, committed=policy_pb2.CommittedActions(
         start_step=2, actions=[0.1] * 4)), "committed.actions: 4 values is not a whole"),
     "nan committed": (observe(1, GOOD, committed=policy_pb2.CommittedActions(

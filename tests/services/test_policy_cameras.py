@@ -1,0 +1,100 @@
+"""The policy service with a policy that sees (tests/support/camera_policy.py: the action is
+the image's channel means, then the state): each declared camera's image, raw or encoded,
+reaches the model as declared; a missing, unknown or broken image is INVALID_ARGUMENT and the
+service goes on."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+
+import cv2
+import grpc
+import numpy as np
+import pytest
+
+from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
+from tests.support.camera_policy import CAMERA, declaration
+from tests.support.services import RunningService, running_service
+
+STATE = [0.25, -1.5]
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
+    folder = tmp_path_factory.mktemp("camera-policy")
+    with running_service("policy", {"model": str(declaration(folder))}) as running:
+        yield running
+
+
+@pytest.fixture
+def stub(service: RunningService) -> policy_pb2_grpc.PolicyStub:
+    return policy_pb2_grpc.PolicyStub(service.channel)
+
+
+def bgr(blue: int, green: int, red: int, size: tuple[int, int] = (48, 64)) -> np.ndarray:
+    image = np.zeros((*size, 3), np.uint8)
+    image[...] = (blue, green, red)
+    return image
+
+
+def observe(images: dict[str, common_pb2.Image], step: int = 3) -> policy_pb2.Observation:
+    return policy_pb2.Observation(step=step, capture_time_ns=9, state=STATE, images=images)
+
+
+def raw(image: np.ndarray) -> common_pb2.Image:
+    return common_pb2.Image(data=image.tobytes(), encoding="bgr8", width=image.shape[1],
+                            height=image.shape[0])
+
+
+def encoded(image: np.ndarray, encoding: str) -> common_pb2.Image:
+    ok, data = cv2.imencode(f".{encoding}", image)
+    assert ok
+    return common_pb2.Image(data=data.tobytes(), encoding=encoding)
+
+
+@pytest.mark.parametrize("encoding", ["bgr8", "png", "jpeg"])
+def test_each_cameras_image_reaches_the_model_in_the_declared_colour_order_and_scale(
+        stub: policy_pb2_grpc.PolicyStub, encoding: str) -> None:
+    red = bgr(0, 0, 255)
+    image = raw(red) if encoding == "bgr8" else encoded(red, encoding)
+    chunk = stub.Act(observe({CAMERA: image}), timeout=10)
+    # rgb, 0-1: red is the first channel; the state follows unchanged
+    np.testing.assert_allclose(chunk.actions, [1.0, 0.0, 0.0, *STATE], atol=0.02)
+    assert (chunk.observation_step, chunk.capture_time_ns) == (3, 9)
+
+
+def test_a_stream_of_images_is_answered_image_by_image(stub: policy_pb2_grpc.PolicyStub) -> None:
+    colours = [bgr(255, 0, 0), bgr(0, 128, 0), bgr(0, 0, 0)]
+    chunks = list(stub.ActStream(iter([observe({CAMERA: raw(c)}, step=i)
+                                       for i, c in enumerate(colours)]), timeout=10))
+    means = [list(np.round(c.actions[:3], 2)) for c in chunks]
+    assert means == [[0.0, 0.0, 1.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.0]]
+
+
+BAD = {
+    "no image": ({}, "images: no image from camera top \\(policy channel-means sees top\\)"),
+    "unknown camera": ({CAMERA: raw(bgr(0, 0, 0)), "wrist": raw(bgr(0, 0, 0))},
+                       "images: policy channel-means has no camera 'wrist'"),
+    "lying size": ({CAMERA: common_pb2.Image(data=bytes(30), encoding="bgr8", width=64,
+                                             height=48)},
+                   r"images: camera top: bgr8 image 64x48 needs 9,216 bytes \(64x48x3\), got 30"),
+    "not a png": ({CAMERA: common_pb2.Image(data=b"\x89PNG\r\n\x1a\nxx", encoding="png")},
+                  "images: camera top: PNG file without its IHDR header"),
+    "unknown encoding": ({CAMERA: common_pb2.Image(data=b"x", encoding="yuv")},
+                         "images: camera top: unknown image encoding"),
+}
+
+
+@pytest.mark.parametrize("case", BAD)
+def test_a_missing_unknown_or_broken_image_is_invalid_argument(
+        stub: policy_pb2_grpc.PolicyStub, case: str) -> None:
+    images, message = BAD[case]
+    with pytest.raises(grpc.RpcError) as err:
+        stub.Act(observe(images), timeout=10)
+    assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert re.search(message, err.value.details()), err.value.details()
+    chunk = stub.Act(observe({CAMERA: raw(bgr(0, 0, 255))}), timeout=10)  # it goes on
+    assert chunk.actions[0] == pytest.approx(1.0, abs=0.02)
+
+
