@@ -24,7 +24,9 @@ from __future__ import annotations
 
 import threading
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +45,9 @@ class Request:
     state: np.ndarray
     capture_time_ns: int
     committed: tuple[int, np.ndarray] | None   # (first step, actions) already queued
+    # Each camera's image, by its name, as the transport carries it (the gateway: frames as
+    # they came off the topic; the bench: arrays). None: a policy without cameras.
+    images: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -99,7 +104,8 @@ class ControlLoop:
         self._last: np.ndarray | None = None
         self._dry = 0                             # ticks since the queue gave an action
 
-    def ask(self, step: int, state: np.ndarray, now_ns: int = 0) -> Request | None:
+    def ask(self, step: int, state: np.ndarray, now_ns: int = 0,
+            images: Mapping[str, Any] | None = None) -> Request | None:
         """Before the action for `step` is taken: the request to send for the observation
         captured at `step`, if the queue is short enough and no request is pending (or
         fewer than `max_in_flight`)."""
@@ -113,7 +119,7 @@ class ControlLoop:
             self._in_flight.add(step)
             self.counts.requests += 1
         committed = self.queue.committed(step) if self.send_committed else None
-        return Request(step, state, now_ns, committed)
+        return Request(step, state, now_ns, committed, images)
 
     def act(self, step: int, now_ns: int | None = None) -> Tick:
         """The action for `step`: the queue's, else the last one held, else the safe one;
