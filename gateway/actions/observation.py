@@ -1,15 +1,21 @@
 """A control loop's observation: the newest message of each of its state topics, each part
-no older than `max_age_ms`, joined into one state vector in the order the parts are listed.
+no older than `max_age_ms`, joined into one state vector in the order the parts are listed,
+and the newest image of each of the policy's cameras, as old at most.
 
     state:
       - {topic: /arm/joint_states, type: sensor_msgs/JointState,
          fields: [position, velocity], joints: [shoulder, elbow]}   # in this order
       - {topic: /arm/goal, type: std_msgs/Float64MultiArray}
+    images:
+      - {name: wrist, topic: /arm/wrist/image_raw, type: sensor_msgs/Image}
 
 A JointState part takes the named joints' values (by name, so a driver that orders them
 otherwise is read right), each field in turn; without `joints`, the message's own order. A
 part that has not arrived, is too old, has the wrong length or a value that is not finite
 makes the observation missing: the loop then asks nothing and runs out what it has queued.
+So does a camera whose newest image is missing, too old, or not an image. The images are
+kept as the transport made them (the gateway: frames as they came, decoded only by the
+policy), by the name of the policy's camera each feeds.
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ from oricf.config import Schema
 
 StateType = Literal["sensor_msgs/JointState", "std_msgs/Float64MultiArray"]
 JointField = Literal["position", "velocity", "effort"]
+ImageType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage"]
+CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"  # as a policy declares its cameras
 
 
 class StatePart(Schema):
@@ -45,13 +53,31 @@ class StatePart(Schema):
         return self
 
 
+class CameraPart(Schema):
+    """One camera of the policy: the topic its images come on."""
+
+    name: str = Field(pattern=CAMERA_NAME, description="the policy's camera it feeds")
+    topic: str = Field(description="a ROS topic")
+    type: ImageType = "sensor_msgs/Image"
+
+
 class MissingState(Exception):
     """No observation now; the message says which part and why."""
 
 
 @dataclass
 class Latest:
-    values: np.ndarray
+    values: Any           # a state part's values (np.ndarray), or a camera's image
+    received_ns: int
+
+
+@dataclass(frozen=True)
+class Observed:
+    """One observation: the state vector, each camera's image, and when the oldest of its
+    parts was received."""
+
+    state: np.ndarray
+    images: dict[str, Any]
     received_ns: int
 
 
@@ -83,14 +109,35 @@ def values_of(part: StatePart, msg: Any) -> np.ndarray:
 class Observation:
     """Thread-safe: message callbacks `take`, the loop's thread `assemble`s."""
 
-    def __init__(self, parts: list[StatePart], size: int, max_age_ms: float) -> None:
+    def __init__(self, parts: list[StatePart], size: int, max_age_ms: float,
+                 cameras: list[CameraPart] | None = None) -> None:
         """`size`: the state's length, -1 when the parts do not say."""
         self.parts = parts
+        self.cameras = cameras or []
         self.size = size
         self.max_age_ns = int(max_age_ms * 1e6)
         self.refused = 0          # messages whose values could not be used
         self._latest: list[Latest | None] = [None] * len(parts)
+        self._images: list[Latest | None] = [None] * len(self.cameras)
         self._lock = threading.Lock()
+
+    def take_image(self, index: int, image: Any, received_ns: int | None = None) -> None:
+        """Camera `index`'s newest image, already checked by the transport."""
+        with self._lock:
+            self._images[index] = Latest(image, received_ns or time.monotonic_ns())
+
+    def newest_image(self, index: int) -> Any | None:
+        """Camera `index`'s newest image kept (None: none, or the last was refused)."""
+        with self._lock:
+            got = self._images[index]
+        return None if got is None else got.values
+
+    def refuse_image(self, index: int, reason: str) -> None:
+        """Camera `index` sent what is not an image: its last good one is not used on."""
+        with self._lock:
+            self.refused += 1
+            self._images[index] = None
+        raise MissingState(f"{self.cameras[index].topic}: {reason}")
 
     def take(self, index: int, msg: Any, received_ns: int | None = None) -> None:
         part = self.parts[index]
@@ -104,17 +151,15 @@ class Observation:
         with self._lock:
             self._latest[index] = Latest(values, received_ns or time.monotonic_ns())
 
-    def assemble(self, now_ns: int) -> tuple[np.ndarray, int]:
-        """The state vector and the time its oldest part was received, or MissingState."""
+    def assemble(self, now_ns: int) -> Observed:
+        """The state vector, the images and when the oldest part was received, or
+        MissingState."""
         with self._lock:
             latest = list(self._latest)
-        for part, got in zip(self.parts, latest, strict=True):
-            if got is None:
-                raise MissingState(f"{part.topic}: nothing received")
-            age_ns = now_ns - got.received_ns
-            if age_ns > self.max_age_ns:
-                raise MissingState(f"{part.topic}: the newest message is {age_ns / 1e6:.0f} ms old "
-                                   f"(max_age_ms {self.max_age_ns / 1e6:g})")
+            images = list(self._images)
+        topics = [part.topic for part in self.parts] + [c.topic for c in self.cameras]
+        for topic, got in zip(topics, latest + images, strict=True):
+            self._fresh(topic, got, now_ns)
         state = np.concatenate([got.values for got in latest if got is not None])
         if self.size >= 0 and state.size != self.size:
             raise MissingState(f"the state parts give {state.size} values, the policy takes "
@@ -122,5 +167,15 @@ class Observation:
         bad = np.flatnonzero(~np.isfinite(state))
         if bad.size:
             raise MissingState(f"state[{bad[0]}] is {state[bad[0]]}: not finite")
-        oldest = min(got.received_ns for got in latest if got is not None)
-        return state, oldest
+        oldest = min(got.received_ns for got in latest + images if got is not None)
+        return Observed(state, {camera.name: got.values for camera, got
+                                in zip(self.cameras, images, strict=True) if got is not None},
+                        oldest)
+
+    def _fresh(self, topic: str, got: Latest | None, now_ns: int) -> None:
+        if got is None:
+            raise MissingState(f"{topic}: nothing received")
+        age_ns = now_ns - got.received_ns
+        if age_ns > self.max_age_ns:
+            raise MissingState(f"{topic}: the newest message is {age_ns / 1e6:.0f} ms old "
+                               f"(max_age_ms {self.max_age_ns / 1e6:g})")

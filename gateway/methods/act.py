@@ -2,7 +2,9 @@
 on ORICF's policy service (oricf.v1.Policy, `oricf serve policy`). A control loop
 (oricf.gateway.sources.control) fills the record: `state` (the state vector), `step` (the
 robot's control step it was captured at), `capture_time_ns` (its clock then) and, for
-real-time chunking, `committed` (the actions already queued, from which step). The result's
+real-time chunking, `committed` (the actions already queued, from which step), and `images`
+(each camera's newest frame, by the policy's camera name; sent as the endpoint's `image`
+settings say: raw as they came, or JPEG for a link that is short of bandwidth). The result's
 `actions` are row-major `[chunk, action_dim]`, the first for `start_step`.
 """
 
@@ -18,7 +20,7 @@ from oricf.gateway.components import CallBase, Invoke, Method
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.methods.base import health_check
 from oricf.gateway.products import ProductStore
-from oricf.gateway.values import Record
+from oricf.gateway.values import Frame, Record
 from oricf.v1 import policy_pb2, policy_pb2_grpc
 
 
@@ -36,7 +38,8 @@ class Actions:
     observation_step: int     # the step of the observation it answers
 
 
-def observation(record: Record) -> policy_pb2.Observation:
+def observation(record: Record, transport: str = "raw",
+                jpeg_quality: int = 80) -> policy_pb2.Observation:
     state = record.get("state")
     if not isinstance(state, np.ndarray) or state.ndim != 1:
         raise InvalidInput("Act needs a state vector (a control input)")
@@ -48,6 +51,10 @@ def observation(record: Record) -> policy_pb2.Observation:
         start, rows = committed
         request.committed.start_step = int(start)
         request.committed.actions.extend(np.asarray(rows, np.float32).ravel().tolist())
+    for name, frame in (record.get("images") or {}).items():
+        if not isinstance(frame, Frame):
+            raise InvalidInput(f"images: camera {name}: not an image")
+        request.images[name].CopyFrom(frame.to_proto(transport, jpeg_quality))
     return request
 
 
@@ -64,7 +71,8 @@ def actions(reply: policy_pb2.ActionChunk) -> Actions:
 
 def bind(call: ActCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
     def invoke(record: Record) -> Actions:
-        request = observation(record)
+        image = endpoint.config.image
+        request = observation(record, image.transport, image.jpeg_quality)
 
         def over_grpc(target: GrpcTarget, timeout: float) -> Actions:
             return actions(target.invoke("Act", request, timeout))

@@ -10,6 +10,7 @@ policy (bounds, rate, deadman), the safe action when nothing is queued.
             rate_hz: 80
             state: [{topic: /arm/joint_states, type: sensor_msgs/JointState,
                      fields: [position, velocity]}]
+            images: [{name: wrist, topic: /arm/wrist/image_raw}]   # the policy's cameras
             max_age_ms: 50          # an older state part: nothing is asked
             action_dim: 4
             safe_action: [0, 0, 0, 0]
@@ -37,14 +38,14 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from oricf.config import Schema
-from oricf.errors import ConfigError
+from oricf.errors import ConfigError, InvalidInput
 from oricf.gateway.actions.loop import ControlLoop, Request
-from oricf.gateway.actions.observation import MissingState, Observation, StatePart
+from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
 from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
 from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
 from oricf.gateway.components import ComponentContext, OnEnd, Source, SourceKind, Submit
 from oricf.gateway.throttle import ThrottledLog
-from oricf.gateway.values import Record
+from oricf.gateway.values import Frame, Record, compressed_frame, raw_frame
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +58,9 @@ class ControlSettings(Schema):
         "goes out as soon as it is known: at once when queued, else when the answer to that "
         "state comes (or with the next state)")
     state: list[StatePart] = Field(min_length=1, max_length=32)
+    images: list[CameraPart] = Field(
+        default_factory=list, max_length=8,
+        description="the policy's cameras: the newest image of each goes with the state")
     max_age_ms: float = Field(100.0, gt=0, le=10_000)
     action_dim: int = Field(ge=1, le=4096)
     safe_action: list[float] | None = Field(None, description="sent when nothing is "
@@ -76,6 +80,9 @@ class ControlSettings(Schema):
         if self.safe_action is not None and len(self.safe_action) != self.action_dim:
             raise ValueError(f"safe_action: {len(self.safe_action)} values for action_dim "
                              f"{self.action_dim}")
+        names = [camera.name for camera in self.images]
+        if len(set(names)) != len(names):
+            raise ValueError(f"images: a camera is named twice ({', '.join(names)})")
         size = self.target.size()
         if size is not None and size != self.action_dim:
             raise ValueError(f"target: its joints, fields or bounds give {size} values for "
@@ -101,7 +108,7 @@ class Asked:
         request = self.request
         return {"state": request.state, "step": request.step,
                 "capture_time_ns": request.capture_time_ns, "committed": request.committed,
-                "reply_to": self}
+                "images": request.images, "reply_to": self}
 
     def answered(self, record: Record) -> None:
         self.source.answered(self.request, record)
@@ -125,11 +132,14 @@ class ControlSource:
         self.loop = ControlLoop(queue, settings.safe(), settings.request_at,
                                 settings.deadline_steps, settings.hold_steps,
                                 settings.send_committed, settings.max_in_flight)
-        self.observation = Observation(settings.state, _state_size(settings), settings.max_age_ms)
+        self.observation = Observation(settings.state, _state_size(settings),
+                                       settings.max_age_ms, settings.images)
         self.target = ActionTarget(settings.target, context.topics.publisher(
             settings.target.topic, settings.target.type), settings.safe())
         for index, part in enumerate(settings.state):
             context.topics.subscribe(part.topic, part.type, self._taker(index))
+        for index, camera in enumerate(settings.images):
+            context.topics.subscribe(camera.topic, camera.type, self._image_taker(index))
         context.loops[route] = self.loop
         self._submit = submit
         self._throttle = ThrottledLog(log)
@@ -151,6 +161,22 @@ class ControlSource:
                                        self.route, exc)
             if ticks and not self._stop.is_set():
                 self._on_state()
+        return take
+
+    def _image_taker(self, index: int) -> Any:
+        camera = self.settings.images[index]
+
+        def take(msg: Any) -> None:
+            try:
+                frame = _frame(camera.type, msg)
+            except (InvalidInput, TypeError, ValueError, AttributeError) as exc:
+                try:
+                    self.observation.refuse_image(index, str(exc))
+                except MissingState as refused:
+                    self._throttle.warning(f"image:{index}", "route %s: image refused: %s",
+                                           self.route, refused)
+                return
+            self.observation.take_image(index, frame)
         return take
 
     def start(self) -> None:
@@ -192,12 +218,13 @@ class ControlSource:
     def _ask(self, step: int) -> bool:
         """Sends the observation to the policy if the loop asks for it now; whether it did."""
         try:
-            state, received_ns = self.observation.assemble(time.monotonic_ns())
+            observed = self.observation.assemble(time.monotonic_ns())
         except MissingState as exc:
             self.loop.counts.missing_state += 1
             self._throttle.warning("missing", "route %s: no observation: %s", self.route, exc)
             return False
-        request = self.loop.ask(step, state, received_ns)
+        request = self.loop.ask(step, observed.state, observed.received_ns,
+                                observed.images or None)
         if request is not None:
             self._submit(Asked(self, request))
         return request is not None
@@ -246,6 +273,15 @@ class ControlSource:
         self.loop.failed(request.step)
 
 
+def _frame(type_: str, msg: Any) -> Frame:
+    """A camera's message as the frame it carries (checked: sizes, encoding), not decoded:
+    the policy decodes it, wherever it runs."""
+    if type_ == "sensor_msgs/CompressedImage":
+        return compressed_frame(bytes(msg.data), str(msg.format))
+    return raw_frame(bytes(msg.data), str(msg.encoding), int(msg.width), int(msg.height),
+                     int(msg.step))
+
+
 def _state_size(settings: ControlSettings) -> int:
     """The state's length as the parts say, or -1 when a part does not say (checked on the
     first observation against what arrives)."""
@@ -264,4 +300,4 @@ COMPONENT = SourceKind("control", ControlInput, lambda config: "state", open_sou
                        latest=lambda config: True, ros=True, acts=True,
                        rate_hz=lambda config: config.control.rate_hz,
                        more_fields=lambda config: frozenset(
-                           {"step", "capture_time_ns", "committed"}), rank=6)
+                           {"step", "capture_time_ns", "committed", "images"}), rank=6)
