@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
+from pathlib import Path
 
 import cv2
 import grpc
 import numpy as np
 import pytest
 
+from oricf.models.wire import infer_request, response_outputs
+from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
 from tests.support.camera_policy import CAMERA, declaration
 from tests.support.services import RunningService, running_service
@@ -98,3 +101,15 @@ def test_a_missing_unknown_or_broken_image_is_invalid_argument(
     assert chunk.actions[0] == pytest.approx(1.0, abs=0.02)
 
 
+
+
+def test_the_same_declaration_is_served_over_the_open_inference_protocol(
+        tmp_path: Path) -> None:
+    with running_service("models", {"models": [str(declaration(tmp_path))]}) as models:
+        stub = oip_grpc.GRPCInferenceServiceStub(models.channel)
+        image = np.zeros((1, 3, 8, 8), np.float32)
+        image[0, 1] = 0.5  # raw tensors: the image as the model takes it
+        request = infer_request("channel-means", {
+            "state": np.asarray([STATE], np.float32), "image": image})
+        outputs = response_outputs(stub.ModelInfer(request, timeout=10))
+    np.testing.assert_allclose(outputs["action"][0], [0.0, 0.5, 0.0, *STATE], atol=1e-6)
