@@ -73,13 +73,18 @@ def metrics_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
+    path = Path(args.config or SERVICES[args.service].config)
+    data, sources = read_with_overlays(path, args.overlay)
+    if args.service == "llm":  # before grpc, numpy or OpenCV load theirs (its docstring)
+        from oricf.services.llm.preload import load_llama_first
+
+        load_llama_first(data)
+
     from oricf.services import load_spec
     from oricf.services.runtime import serve
     from oricf.store import ModelStore
 
     spec = load_spec(args.service)
-    path = Path(args.config or SERVICES[args.service].config)
-    data, sources = read_with_overlays(path, args.overlay)
     data = deep_merge(data, security_overrides(args))
     data = deep_merge(data, metrics_overrides(args))
     config = validate(data, spec.config_schema, " + ".join(sources), base_dir=path.parent)

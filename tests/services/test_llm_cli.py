@@ -70,3 +70,21 @@ def test_bench_runs_and_prints_its_table() -> None:
     row = next(line for line in result.stdout.splitlines()
                if line.startswith("smollm2-135m-instruct "))
     assert "/8" in row and "ms" in row
+
+
+def test_serve_llm_loads_llama_cpp_before_grpc_numpy_and_opencv(tmp_path: Path) -> None:
+    """A CUDA build of llama.cpp loaded after those libraries crashed the process
+    (services/llm/preload.py): their order of import, as Python reports it."""
+    overlay = tmp_path / "bad.yaml"
+    overlay.write_text("model: {threads: 0, omp_wait_policy: ACTIVE}\n")  # refused, after
+    result = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "oricf", "serve", "llm", "--overlay",
+         str(overlay)], capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode != 0 and "model.threads" in result.stderr
+    # -X importtime lists a module once its imports are done: llama_cpp's own line comes
+    # after numpy (which it imports itself, after its libraries) but before grpc's.
+    order = [line.rsplit("|", 1)[1].strip() for line in result.stderr.splitlines()
+             if line.startswith("import time:") and "|" in line]
+    assert order.index("llama_cpp") < order.index("grpc")
+    assert "cv2" not in order[:order.index("llama_cpp")]
+    assert "numpy" not in order[:order.index("llama_cpp.llama_cpp")]
