@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,11 +57,24 @@ def _override(specs: list[TensorSpec], overrides: list[TensorOverride], where: s
     return result
 
 
+@dataclass(frozen=True)
+class FixedBatch:
+    """Batches run at one size, padded: `size` rows, where `on` says (None: where the model
+    runs on an accelerator). onnxruntime's CUDA provider plans cuDNN anew whenever the input
+    shape differs from the last run's, seconds each time (1.3-3.6 s for YOLOX-Nano on an
+    H200, against 9-12 ms for a batch of 16 at an unchanged shape; docs/platforms.md), so a
+    batcher whose batches vary in size stalls on every change. Padded to one size, every
+    run after the first reuses the plan: a few images' compute for no stall."""
+
+    size: int
+    on: bool | None = None
+
+
 class DeclaredModel:
     def __init__(self, declaration: ModelDeclaration, store: ModelStore,
-                 batched: bool = False) -> None:
+                 batched: bool = False, fixed_batch: FixedBatch | None = None) -> None:
         """batched: the service batches requests to it, so it must take a batch (checked at
-        load)."""
+        load); fixed_batch: how its batches run (FixedBatch)."""
         if declaration.weights is None:
             raise ConfigError(f"model {declaration.name}: weights: required to serve it")
         self.declaration = declaration
@@ -76,6 +89,8 @@ class DeclaredModel:
         self.sha256 = ""
         self.license = declaration.license
         self.batched = batched
+        self.fixed_batch = fixed_batch
+        self.pad_to = 0  # rows every batch runs at, padded (0: as they come)
 
     def weights_path(self) -> Path:
         weights = self.declaration.weights
@@ -137,6 +152,29 @@ class DeclaredModel:
             raise ConfigError(f"model {self.name}: batching: its inputs take no batch of any "
                               f"size ({fixed}); declare the batch dimension free (inputs: "
                               f"[{{name: ..., shape: [-1, ...]}}]) where the graph allows it")
+        self._fix_batch()
+
+    def _fix_batch(self) -> None:
+        fixed = self.fixed_batch
+        if fixed is None or not self.batchable or fixed.size < 2:
+            return
+        if not (fixed.on if fixed.on is not None else not self.on_cpu):
+            return
+        self.pad_to = fixed.size
+        self.infer_batch([self._zeros()])  # the one shape, planned now rather than on a call
+        log.info("model %s: every batch runs at %d rows, padded (batching.fixed_size; on %s "
+                 "a new batch size is planned anew)", self.name, self.pad_to,
+                 self.info().providers[0])
+
+    @property
+    def on_cpu(self) -> bool:
+        return self.info().providers[:1] in (["CPUExecutionProvider"], ["CPU"])
+
+    def _zeros(self) -> dict[str, np.ndarray]:
+        """One item of zeros for every input (its free dimensions 1)."""
+        return {spec.name: np.zeros([d if d > 0 else 1 for d in spec.shape],
+                                    np.dtype(DATATYPES[spec.datatype].numpy))
+                for spec in self.inputs}
 
     @property
     def batchable(self) -> bool:
@@ -148,9 +186,7 @@ class DeclaredModel:
     def _warm_up(self) -> None:
         if any(spec.datatype == "BYTES" for spec in self.inputs):
             return
-        feeds = {spec.name: np.zeros([d if d > 0 else 1 for d in spec.shape],
-                                     np.dtype(DATATYPES[spec.datatype].numpy))
-                 for spec in self.inputs}
+        feeds = self._zeros()
         if self.head is None:
             self.infer(feeds)
             return
@@ -198,13 +234,20 @@ class DeclaredModel:
     def infer_batch(self, items: list[dict[str, np.ndarray]]) -> list[dict[str, np.ndarray]]:
         """One run for several requests' inputs, joined along the batch dimension (every
         item the same names and shapes but the first dimension); each item's outputs."""
-        if len(items) == 1:
+        if len(items) == 1 and not self.pad_to:
             return [self.infer(items[0])]
         rows = [len(next(iter(feeds.values()))) for feeds in items]
         joined = {name: np.concatenate([feeds[name] for feeds in items])
                   for name in items[0]}
-        outputs = self.infer(joined)
         total = sum(rows)
+        if 0 < total < self.pad_to:  # copies of the first row: real, finite inputs
+            joined = {name: np.concatenate([value, np.repeat(value[:1], self.pad_to - total,
+                                                             axis=0)])
+                      for name, value in joined.items()}
+        outputs = self.infer(joined)
+        if total < self.pad_to:
+            outputs = {name: value[:total] if value.ndim and len(value) == self.pad_to
+                       else value for name, value in outputs.items()}
         for name, value in outputs.items():
             if value.ndim == 0 or value.shape[0] != total:
                 raise InvalidInput(f"model {self.name}: output '{name}' of shape "
@@ -280,7 +323,7 @@ def check_batching(model: DeclaredModel) -> None:
     except Exception as exc:
         raise ConfigError(f"model {model.name}: inputs declare a free batch dimension, but "
                           f"the graph does not run a batch of 2: {exc}") from None
-    on_cpu = model.info().providers[:1] in (["CPUExecutionProvider"], ["CPU"])
+    on_cpu = model.on_cpu
     alone = [model.infer(feeds) for feeds in items]
     for name in alone[0]:
         apart = max(float(np.abs(alone[0][name] - alone[1][name]).max()), 1e-12)

@@ -57,6 +57,13 @@ def open_in_order(ort: Any, model: str | bytes, options: Any,
             why[name] = _first_line(exc)
             continue
         first = session.get_providers()[0]
+        if first != name and first in wanted and settings.provider_options.get(first):
+            # onnxruntime dropped providers itself and retried on its own fallback list,
+            # without their options (a CUDA provider without its declared cuDNN search):
+            # the session is opened again from that provider, with them.
+            session = ort.InferenceSession(
+                model, options, providers=[_with_options(p, settings)
+                                           for p in wanted[wanted.index(first):]])
         # Ones onnxruntime dropped itself while the session started (it logs why).
         ahead = wanted[start:wanted.index(first)] if first in wanted else wanted[start:]
         why.update({p: "did not start (onnxruntime's log says why)" for p in ahead})

@@ -6,7 +6,7 @@ import grpc
 
 from oricf.errors import ConfigError
 from oricf.models.declaration import DetectionTask, load_declaration
-from oricf.models.declared import DeclaredModel
+from oricf.models.declared import DeclaredModel, FixedBatch
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services import SERVICES
 from oricf.services.detector.config import DetectorConfig
@@ -24,7 +24,10 @@ def create_model(config: DetectorConfig, store: ModelStore) -> DeclaredModel:
     declaration = load_declaration(config.model)
     if not isinstance(declaration.task, DetectionTask):
         raise ConfigError(f"{config.model}: task.kind: the detector serves detection models")
-    return DeclaredModel(declaration, store, batched=config.batching is not None)
+    batching = config.batching
+    fixed = (None if batching is None
+             else FixedBatch(batching.max_batch_size, batching.fixed_size))
+    return DeclaredModel(declaration, store, batched=batching is not None, fixed_batch=fixed)
 
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[DeclaredModel],

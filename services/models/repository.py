@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable
+from collections.abc import Iterable, Mapping
 
 from oricf.errors import ConfigError, NotFound
 from oricf.models.declaration import ModelDeclaration
-from oricf.models.declared import DeclaredModel
+from oricf.models.declared import DeclaredModel, FixedBatch
 from oricf.models.info import ModelInfo
 from oricf.models.tensors import clip
 from oricf.store import ModelStore
@@ -14,14 +14,16 @@ from oricf.store import ModelStore
 
 class ModelRepository:
     def __init__(self, declarations: Iterable[ModelDeclaration], store: ModelStore,
-                 batched: Collection[str] = ()) -> None:
+                 batched: Mapping[str, FixedBatch] | None = None) -> None:
+        """batched: the models the service batches requests to, and how their batches run."""
+        batched = batched or {}
         self.models: dict[str, DeclaredModel] = {}
         for declaration in declarations:
             if declaration.name in self.models:
                 raise ConfigError(f"models: two declarations name the model "
                                   f"'{declaration.name}'")
-            self.models[declaration.name] = DeclaredModel(declaration, store,
-                                                          declaration.name in batched)
+            self.models[declaration.name] = DeclaredModel(
+                declaration, store, declaration.name in batched, batched.get(declaration.name))
         unknown = sorted(set(batched) - set(self.models))
         if unknown:
             raise ConfigError(f"batching: no model '{unknown[0]}' among models "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import grpc
 
 from oricf.models.declaration import load_declaration
+from oricf.models.declared import FixedBatch
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.services import SERVICES
 from oricf.services.models.batching import batch_runner
@@ -18,8 +19,10 @@ from oricf.store import ModelStore
 
 
 def create_model(config: ModelsConfig, store: ModelStore) -> ModelRepository:
+    batched = {name: FixedBatch(settings.max_batch_size, settings.fixed_size)
+               for name, settings in config.batching.items()}
     return ModelRepository((load_declaration(path) for path in config.models), store,
-                           batched=config.batching)
+                           batched=batched)
 
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[ModelRepository],

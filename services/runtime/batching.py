@@ -55,6 +55,10 @@ class BatchingSettings(Schema):
         description="items waiting beyond this are refused RESOURCE_EXHAUSTED at once")
     instances: int = Field(
         1, ge=1, le=64, description="batches that run at the same time (worker threads)")
+    fixed_size: bool | None = Field(
+        None, description="every batch runs at max_batch_size rows, padded: on a GPU a new "
+                          "batch size is planned anew (seconds with onnxruntime's CUDA "
+                          "provider); null: where the model runs on an accelerator")
 
 
 class Ticket(Generic[T, R]):

@@ -15,7 +15,7 @@ from onnx import TensorProto, helper, numpy_helper
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError
 from oricf.models.declaration import ModelDeclaration, load_declaration
-from oricf.models.declared import DeclaredModel
+from oricf.models.declared import DeclaredModel, FixedBatch
 from oricf.store import ModelStore
 from tests.support.data import video_frames
 
@@ -120,3 +120,36 @@ def test_batching_a_model_whose_batch_is_fixed_is_refused_at_load(tmp_path: Path
                           batched=True)
     with pytest.raises(ConfigError, match=r"batching: .*'x' \[1, 4\].*shape: \[-1"):
         model.load()
+
+
+def batch_revealing(tmp_path: Path) -> ModelDeclaration:
+    """y = x + the number of rows the graph ran with: a batch's size, seen from inside."""
+    graph = helper.make_graph(
+        [helper.make_node("Shape", ["x"], ["shape"]),
+         helper.make_node("Gather", ["shape", "zero"], ["rows"], axis=0),
+         helper.make_node("Cast", ["rows"], ["count"], to=TensorProto.FLOAT),
+         helper.make_node("Add", ["x", "count"], ["y"])],
+        "rows", [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["batch", 2])],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["batch", 2])],
+        [numpy_helper.from_array(np.array(0, np.int64), "zero")])
+    path = tmp_path / "rows.onnx"
+    onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)]), path)
+    return ModelDeclaration.model_validate({"name": "rows", "weights": {"path": str(path)}})
+
+
+@pytest.mark.parametrize(("on", "runs_at"), [(True, 8), (None, 0), (False, 0)],
+                         ids=["fixed", "auto on the CPU", "off"])
+def test_a_fixed_batch_size_pads_every_batch_and_gives_each_item_its_own_rows(
+        tmp_path: Path, on: bool | None, runs_at: int) -> None:
+    model = DeclaredModel(batch_revealing(tmp_path), ModelStore(), batched=True,
+                          fixed_batch=FixedBatch(8, on))
+    model.load()
+    assert model.pad_to == runs_at
+    items = [{"x": np.array([[1.0, 2.0]], np.float32)},
+             {"x": np.array([[3.0, 4.0], [5.0, 6.0]], np.float32)}]
+    for batch in ([items[0]], items):
+        rows = sum(len(item["x"]) for item in batch)
+        outputs = model.infer_batch(batch)
+        for item, output in zip(batch, outputs, strict=True):
+            # the graph saw the fixed size, or the batch as it came; each item its own rows
+            np.testing.assert_array_equal(output["y"], item["x"] + (runs_at or rows))

@@ -73,3 +73,34 @@ def test_the_service_says_where_its_model_runs(caplog: pytest.LogCaptureFixture)
     assert info.model == "yolox-nano-gpu" and info.providers[0] == "CPUExecutionProvider"
     assert any(r.getMessage().endswith("runs on CPUExecutionProvider; SERVING")
                for r in caplog.records)
+
+
+class FallingBackOnnxRuntime:
+    """onnxruntime's own behaviour when TensorRT's libraries are missing, which only a GPU
+    build shows: InferenceSession logs the error and retries on CUDA and the CPU by name,
+    without the options given for them (seen with onnxruntime-gpu 1.31.1 on an H200)."""
+
+    def __init__(self) -> None:
+        self.opened: list[list[object]] = []
+
+    def get_available_providers(self) -> list[str]:
+        return ["TensorrtExecutionProvider", "CUDAExecutionProvider", "CPUExecutionProvider"]
+
+    def InferenceSession(self, model: str, options: object,
+                         providers: list[object]) -> object:
+        names = [p if isinstance(p, str) else p[0] for p in providers]
+        if names[0] == "TensorrtExecutionProvider":
+            providers = ["CUDAExecutionProvider", "CPUExecutionProvider"]  # its fallback
+        self.opened.append(providers)
+        first = providers[0] if isinstance(providers[0], str) else providers[0][0]
+        return type("Session", (), {"get_providers": lambda self: [first]})()
+
+
+def test_providers_onnxruntime_falls_back_to_itself_keep_their_declared_options() -> None:
+    from oricf.models.providers import open_in_order
+
+    backend = load_declaration(MODELS / "yolox-nano-gpu.yaml").backend
+    ort = FallingBackOnnxRuntime()
+    _, passed_over = open_in_order(ort, "model.onnx", None, backend)  # type: ignore[arg-type]
+    assert ort.opened[-1][0] == ("CUDAExecutionProvider", {"cudnn_conv_algo_search": "HEURISTIC"})
+    assert passed_over == ["TensorrtExecutionProvider: did not start (onnxruntime's log says why)"]

@@ -173,3 +173,27 @@ def test_a_full_queue_refuses_with_pushback_and_a_stop_drains_it(
         assert service.host.stop(grace=WAIT_S)
         assert count(queued.result(), "person") == count(unbatched[0], "person")
 
+
+
+def test_a_fixed_batch_size_runs_padded_batches_with_each_callers_own_answers(
+        requests: list[detector_pb2.DetectRequest],
+        unbatched: list[detector_pb2.DetectResponse]) -> None:
+    """batching.fixed_size: every batch at max_batch_size rows (what a GPU needs), here
+    forced on the CPU: three callers' frames in a batch padded to 8 answer as alone."""
+    settings = batching(max_batch_size=8, fixed_size=True)
+    settings["batching"]["max_queue_delay_ms"] = 200  # type: ignore[index]
+    with running_service("detector", settings) as service:
+        assert service.host.slot.peek().pad_to == 8
+        channels = [grpc.insecure_channel(service.address) for _ in requests[:3]]
+        try:
+            with ThreadPoolExecutor(3) as pool:
+                answers = list(pool.map(
+                    lambda pair: detector_pb2_grpc.DetectorStub(pair[0]).Detect(
+                        pair[1], timeout=WAIT_S), zip(channels, requests, strict=False)))
+        finally:
+            for channel in channels:
+                channel.close()
+    for got, alone in zip(answers, unbatched, strict=False):
+        assert got.frame_id == alone.frame_id
+        assert [(label, pytest.approx(score, abs=1e-4), pytest.approx(box, abs=1e-2))
+                for label, score, box in boxes(alone)] == boxes(got)
