@@ -98,13 +98,18 @@ class ControlInput(Schema):
 
 
 class Asked:
-    """One request as the route's loader; the route tells it its answer or its failure."""
+    """One request as the route's loader; the route tells it its answer or its failure, on
+    the route's worker thread, which also made the call: the CPU of the whole request on
+    the robot (the record, the call's message, the gRPC call on that thread, taking the
+    answer) is that thread's between the two."""
 
     def __init__(self, source: ControlSource, request: Request) -> None:
         self.source = source
         self.request = request
+        self._started_cpu_ns = 0
 
     def __call__(self) -> Record:
+        self._started_cpu_ns = time.thread_time_ns()
         request = self.request
         return {"state": request.state, "step": request.step,
                 "capture_time_ns": request.capture_time_ns, "committed": request.committed,
@@ -112,9 +117,15 @@ class Asked:
 
     def answered(self, record: Record) -> None:
         self.source.answered(self.request, record)
+        self._spent()
 
     def fail(self, message: str) -> None:
         self.source.failed(self.request, message)
+        self._spent()
+
+    def _spent(self) -> None:
+        if self._started_cpu_ns:
+            self.source.loop.counts.cpu_ns += time.thread_time_ns() - self._started_cpu_ns
 
     def on_drop(self, reason: str) -> None:
         self.source.failed(self.request, reason)
@@ -200,7 +211,9 @@ class ControlSource:
         started = time.monotonic()
         step = 0
         while not self._stop.is_set():
+            cpu = time.thread_time_ns()
             self._tick(step)
+            self.loop.counts.cpu_ns += time.thread_time_ns() - cpu
             step += 1
             due = started + step * period
             wait = due - time.monotonic()
@@ -238,6 +251,13 @@ class ControlSource:
         """tick: state: a new step. The step before it, if still waiting for its answer,
         is acted on now (held or safe); this one at once when an action is queued for it,
         else when its answer comes."""
+        cpu = time.thread_time_ns()
+        try:
+            self._step_on_state()
+        finally:
+            self.loop.counts.cpu_ns += time.thread_time_ns() - cpu
+
+    def _step_on_state(self) -> None:
         with self._lock:
             if self._stop.is_set():
                 return

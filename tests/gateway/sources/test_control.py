@@ -158,6 +158,11 @@ def test_the_loop_publishes_the_policys_action_for_the_robots_state_on_time(
         assert metrics.value("oricf_gateway_control_action_age_seconds_count",
                              route="hopper") > 0
         assert metrics.value("oricf_gateway_control_safe_ticks_total", route="hopper") >= 3
+        # The loop's own CPU: its ticks and its 20 requests took some, and less than all
+        # the time the loop has run (its threads' time, not the process's).
+        ticks = metrics.value("oricf_gateway_control_ticks_total", route="hopper")
+        cpu_s = metrics.value("oricf_gateway_control_cpu_seconds_total", route="hopper")
+        assert 0 < cpu_s < ticks / RATE_HZ
         status = PipelineView(run.gateway.pipeline).status()["control"]["hopper"]
         assert status["answers"] >= 20 and status["action_age_steps_p50"] is not None
 
