@@ -6,6 +6,7 @@
 #
 #   scripts/triton-server.sh --install     # once (needs glibc 2.35+, x86-64 or arm64)
 #   scripts/triton-server.sh [--grpc-port 8001] [--http-port 8000] [--restrict-shared-memory]
+#                            [--access-token-file FILE]
 #
 # The model file comes from ORICF's model store: `oricf models pull yolox-nano`.
 set -euo pipefail

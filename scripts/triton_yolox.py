@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -112,6 +113,10 @@ def main() -> None:
     parser.add_argument("--restrict-shared-memory", action="store_true",
                         help="keep pytriton's default: the shared-memory protocol only with "
                              "its access token, which callers other than pytriton lack")
+    parser.add_argument("--access-token-file", type=Path, default=None,
+                        help="the restricted protocols' access token (a random one when not "
+                             "given): callers send it as triton-grpc-protocol-triton-access-"
+                             "token")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     yolox = Yolox(args.model)
@@ -124,7 +129,10 @@ def main() -> None:
                   if args.restrict_shared_memory or e != "shared-memory"]
     unbatched = ModelConfig(batching=False)
     with Triton(config=config,
-                security_config=TritonSecurityConfig(restricted_endpoints=restricted)) as triton:
+                security_config=TritonSecurityConfig(
+                    access_token=(args.access_token_file.read_text().strip()
+                                  if args.access_token_file else None),
+                    restricted_endpoints=restricted)) as triton:
         triton.bind("yolox-nano", yolox.network,
                     [Tensor(name="images", dtype=np.float32, shape=(1, 3, SIZE, SIZE))],
                     [Tensor(name="output", dtype=np.float32, shape=(1, 3549, 85))],

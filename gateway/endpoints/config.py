@@ -70,6 +70,11 @@ class TargetConfig(Schema):
     model: str | None = Field(None, description="openai: the model's name on the server")
     tls: ClientTls | None = Field(None, description="TLS to the server (mTLS with cert/key)")
     token: TokenSource | None = Field(None, description="bearer token sent with every call")
+    token_header: str | None = Field(
+        None, pattern=r"^[a-z0-9][a-z0-9_.-]{0,127}$",
+        description="grpc: the metadata key the token goes in, as the token itself (e.g. "
+                    "triton-grpc-protocol-triton-access-token for Triton's restricted "
+                    "protocols); default: authorization, as `Bearer TOKEN`")
 
     @field_validator("address")
     @classmethod
@@ -89,6 +94,15 @@ class TargetConfig(Schema):
                                  "names the host its certificate must have")
         elif self.model is not None:
             raise ValueError("model: only with protocol openai (a gRPC service serves one)")
+        if self.token_header is not None:
+            if self.protocol != "grpc":
+                raise ValueError("token_header: only with protocol grpc (an OpenAI-compatible "
+                                 "server takes `Authorization: Bearer`)")
+            if self.token is None:
+                raise ValueError("token_header: given without a token")
+            if self.token_header.endswith("-bin") or self.token_header.startswith("grpc-"):
+                raise ValueError(f"token_header: {self.token_header}: gRPC keeps grpc-* "
+                                 f"keys for itself, and *-bin ones carry bytes")
         _check_server_name(self.protocol, self.address, self.tls)
         return self
 
@@ -149,7 +163,7 @@ class EndpointConfig(TargetConfig):
     def targets(self) -> dict[str, TargetConfig]:
         """{"address": the primary, "fallback": the fallback (if any)}."""
         primary = TargetConfig(protocol=self.protocol, address=self.address, model=self.model,
-                               tls=self.tls, token=self.token)
+                               tls=self.tls, token=self.token, token_header=self.token_header)
         found = {"address": primary}
         if isinstance(self.fallback, str):
             found["fallback"] = primary.model_copy(update={"address": self.fallback})

@@ -59,7 +59,9 @@ class GrpcTarget:
                                     channel_options(config.address, CHANNEL_OPTIONS))
         self.stub = service.stub(self.channel)
         token = config.token.tokens()[0] if config.token else None
-        self.metadata: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
+        self.metadata: Metadata = (
+            () if token is None else ((config.token_header, token),) if config.token_header
+            else (("authorization", f"Bearer {token}"),))
         self._ready = service.ready
 
     def invoke(self, rpc: str, request: Any, timeout: float) -> Any:

@@ -10,6 +10,7 @@ import logging
 import subprocess
 import sys
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import grpc
@@ -186,6 +187,30 @@ def test_a_restricted_shared_memory_protocol_is_refused_once(
     refusals = [r.getMessage() for r in caplog.records if "not possible" in r.getMessage()]
     assert len(refusals) == 1 and "This protocol is restricted" in refusals[0], refusals
     assert not [r for r in caplog.records if "registering with" in r.getMessage()]
+
+
+def test_a_restricted_shared_memory_protocol_takes_frames_with_its_access_token(
+        onboard: list[int], tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """With the access token in the endpoint (`token_header`: the key Triton reads it
+    from), the gateway registers its regions with a restricted Triton and every frame goes
+    through shared memory."""
+    token = tmp_path / "triton-token"
+    token.write_text("not-a-real-secret-but-long-enough-0123456789\n")
+    keyed = {"endpoints": {"models": {
+        "token": {"file": str(token)},
+        "token_header": "triton-grpc-protocol-triton-access-token"}}}
+    try:
+        with triton_server("--restrict-shared-memory", "--access-token-file", str(token)
+                           ) as address, \
+                caplog.at_level(logging.DEBUG, "oricf.gateway.endpoints.shared_memory"):
+            _, outputs = run_frames(infer_config(address, with_changes(SHM, keyed)), FRAMES)
+    except NotInstalled as missing:
+        pytest.fail(str(missing))
+    assert counts(outputs) == onboard
+    messages = [r.getMessage() for r in caplog.records]
+    assert not [m for m in messages if "not possible" in m], messages
+    assert [m for m in messages if "shared-memory regions of" in m and "registered" in m], \
+        messages
 
 
 def test_bench_models_measures_triton_beside_oricfs_server() -> None:
