@@ -5,12 +5,15 @@ Pure functions: no server, no threads."""
 
 from __future__ import annotations
 
+import json
 import math
 import zlib
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from foxglove import Schema
 from foxglove.messages import (
+    CircleAnnotation,
     Color,
     CompressedImage,
     ImageAnnotations,
@@ -30,6 +33,7 @@ from oricf.imaging import ENCODED, Detection, encode_image
 PALETTE = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
            (0.58, 0.4, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.74, 0.74, 0.13))
 MAX_LOG_CHARS = 4000
+INVISIBLE = Color(r=0.0, g=0.0, b=0.0, a=0.0)
 
 
 def timestamp(ns: int) -> Timestamp:
@@ -56,7 +60,11 @@ def caption(detection: Detection) -> str:
 
 
 def image_annotations(detections: Iterable[Detection], ns: int) -> ImageAnnotations:
-    """Each detection as a closed outline of its box (pixels of the frame) and its caption."""
+    """Each detection as a closed outline of its box (pixels of the frame) and its caption.
+    A frame without detections gets one invisible circle instead: the message has no time of
+    its own, only its annotations do, and a viewer that matches annotations to images by
+    time (Lichtblick's Image panel with sync on) would otherwise wait for them and not show
+    the frame."""
     stamp = timestamp(ns)
     boxes, texts = [], []
     for d in detections:
@@ -70,6 +78,10 @@ def image_annotations(detections: Iterable[Detection], ns: int) -> ImageAnnotati
                                     text=caption(d), font_size=14.0,
                                     text_color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
                                     background_color=label_color(d.label, 0.7)))
+    if not boxes:
+        return ImageAnnotations(circles=[CircleAnnotation(
+            timestamp=stamp, position=Point2(x=0, y=0), diameter=0.0, thickness=0.0,
+            fill_color=INVISIBLE, outline_color=INVISIBLE)])
     return ImageAnnotations(points=boxes, texts=texts)
 
 
@@ -92,6 +104,15 @@ def plottable(value: Any) -> dict[str, float] | None:
 def log_line(text: str, name: str, ns: int) -> Log:
     return Log(timestamp=timestamp(ns), level=LogLevel.Info, message=text[:MAX_LOG_CHARS],
                name=name)
+
+
+def json_channel_schema(topic: str, first: Mapping[str, Any]) -> Schema:
+    """A JSON channel's schema, named after its topic (`/people/count`: oricf.people.count):
+    viewers show the name beside each message (the SDK would name it `schema-` and random
+    letters)."""
+    name = "oricf" + ".".join(topic.split("/"))
+    return Schema(name=name, encoding="jsonschema",
+                  data=json.dumps(json_schema(first)).encode())
 
 
 def json_schema(message: Mapping[str, Any]) -> dict[str, Any]:

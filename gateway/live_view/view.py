@@ -214,8 +214,8 @@ class LiveView:
         with self._lock:
             if topic not in self._channels:
                 self._channels[topic] = foxglove.Channel(
-                    topic, schema=messages.json_schema(first), message_encoding="json",
-                    context=self._context)
+                    topic, schema=messages.json_channel_schema(topic, first),
+                    message_encoding="json", context=self._context)
             return self._channels[topic]
 
     def stop(self) -> None:

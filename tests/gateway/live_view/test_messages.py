@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 from typing import Any
 
 import cv2
@@ -72,3 +73,20 @@ def test_the_foxglove_flag_sets_the_listen_address(capsys: object) -> None:
     args = build_parser().parse_args(["--foxglove", "127.0.0.1:9999"])
     assert args.foxglove == "127.0.0.1:9999"
     assert main(["--config", "people_video", "--foxglove", "127.0.0.1:9999", "--check"]) == 0
+
+
+def test_a_json_channels_schema_is_named_after_its_topic() -> None:
+    schema = messages.json_channel_schema("/routes/people/state", {"received": 3})
+    assert schema.name == "oricf.routes.people.state" and schema.encoding == "jsonschema"
+    assert json.loads(schema.data) == {"type": "object",
+                                       "properties": {"received": {"type": "number"}}}
+
+
+def test_a_frame_without_detections_still_carries_its_time() -> None:
+    # Viewers that match annotations to images by time need one annotation with the
+    # frame's timestamp, or they never show the frame: an invisible circle.
+    annotations: Any = decoded(messages.image_annotations([], 1_500_000_001))
+    assert not annotations.points and not annotations.texts
+    (circle,) = annotations.circles
+    assert (circle.timestamp.seconds, circle.timestamp.nanos) == (1, 500_000_001)
+    assert circle.diameter == 0 and circle.outline_color.a == 0 and circle.fill_color.a == 0
