@@ -179,7 +179,7 @@ class ControlSource:
 
         def take(msg: Any) -> None:
             try:
-                frame = _frame(camera.type, msg)
+                frame = camera_frame(camera.type, msg)
             except (InvalidInput, TypeError, ValueError, AttributeError) as exc:
                 try:
                     self.observation.refuse_image(index, str(exc))
@@ -293,7 +293,7 @@ class ControlSource:
         self.loop.failed(request.step)
 
 
-def _frame(type_: str, msg: Any) -> Frame:
+def camera_frame(type_: str, msg: Any) -> Frame:
     """A camera's message as the frame it carries (checked: sizes, encoding), not decoded:
     the policy decodes it, wherever it runs."""
     if type_ == "sensor_msgs/CompressedImage":

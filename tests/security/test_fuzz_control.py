@@ -1,5 +1,6 @@
 """Property-based fuzzing of a control loop's parts with what a hostile or broken robot and
-edge can send: state messages of any length with NaN, infinity and huge values; chunks of
+edge can send: state messages of any length with NaN, infinity and huge values; camera
+messages whose sizes, steps and encodings lie; chunks of
 any shape and values, for any step, late, early, repeated; and the loop's own ticks in any
 order. Whatever arrives, every action that goes out is finite, the right length and within
 the target's bounds, the queue stays bounded, and only the typed refusals are raised."""
@@ -14,10 +15,13 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from oricf.errors import InvalidInput
 from oricf.gateway.actions.loop import ControlLoop
-from oricf.gateway.actions.observation import MissingState, Observation, StatePart
+from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
 from oricf.gateway.actions.queue import MAX_AHEAD, MAX_CHUNK, ActionQueue, BadChunk, Origin
 from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
+from oricf.gateway.sources.control import camera_frame
+from oricf.gateway.values import Frame
 
 DIM = 3
 BOUNDS = [(-1.0, 1.0)] * DIM
@@ -35,6 +39,21 @@ def state_message() -> st.SearchStrategy[Any]:
         st.just(SimpleNamespace()))
 
 
+def camera_message() -> st.SearchStrategy[Any]:
+    """sensor_msgs/Image (or CompressedImage) fields as rclpy gives them, often lying."""
+    sizes = st.one_of(st.integers(0, 8), st.sampled_from([2**31 - 1, 70_000]))
+    raw = st.builds(lambda w, h, step, encoding, data: (
+        "sensor_msgs/Image", SimpleNamespace(width=w, height=h, step=step, encoding=encoding,
+                                             data=data)),
+        sizes, sizes, st.integers(0, 40), st.sampled_from(["bgr8", "rgb8", "mono8", "yuv", ""]),
+        st.binary(max_size=200))
+    compressed = st.builds(lambda fmt, data: (
+        "sensor_msgs/CompressedImage", SimpleNamespace(format=fmt, data=data)),
+        st.sampled_from(["jpeg", "png", "bgr8; jpeg compressed bgr8", "tiff", ""]),
+        st.binary(max_size=200))
+    return st.one_of(raw, compressed, st.just(("sensor_msgs/Image", SimpleNamespace())))
+
+
 def chunk() -> st.SearchStrategy[Any]:
     return st.one_of(
         st.builds(np.array, st.lists(st.lists(hostile, min_size=DIM, max_size=DIM),
@@ -47,6 +66,7 @@ def chunk() -> st.SearchStrategy[Any]:
 
 event = st.one_of(
     st.tuples(st.just("state"), state_message()),
+    st.tuples(st.just("image"), camera_message()),
     st.tuples(st.just("tick"), st.integers(0, 3)),
     st.tuples(st.just("answer"), chunk(),
               st.one_of(st.integers(-5, 50), st.integers(-MAX_AHEAD * 2, MAX_AHEAD * 2)),
@@ -66,21 +86,31 @@ def test_whatever_arrives_only_finite_bounded_actions_go_out(
     loop = ControlLoop(ActionQueue(DIM, late, merge), SAFE, request_at=2,  # type: ignore[arg-type]
                        deadline=5, hold_steps=1, send_committed=True, max_in_flight=2)
     observation = Observation([StatePart(topic="/s", type="std_msgs/Float64MultiArray",
-                                         size=DIM * 2)], DIM * 2, max_age_ms=1e6)
+                                         size=DIM * 2)], DIM * 2, max_age_ms=1e6,
+                              cameras=[CameraPart(name="top", topic="/c")])
     step = 0
     for kind, *args in events:
         if kind == "state":
             with contextlib.suppress(MissingState):
                 observation.take(0, args[0], received_ns=1)
+        elif kind == "image":
+            try:  # as the control input takes a camera's message
+                observation.take_image(0, camera_frame(*args[0]), received_ns=1)
+            except (InvalidInput, TypeError, ValueError, AttributeError) as exc:
+                with contextlib.suppress(MissingState):
+                    observation.refuse_image(0, str(exc))
         elif kind == "tick":
             for _ in range(args[0] + 1):
                 try:
-                    state, received = observation.assemble(2)
+                    observed = observation.assemble(2)
                 except MissingState:
                     pass
                 else:
-                    request = loop.ask(step, state, received)
+                    request = loop.ask(step, observed.state, observed.received_ns,
+                                       observed.images)
                     assert request is None or np.isfinite(request.state).all()
+                    image = (request.images or {}).get("top") if request else None
+                    assert image is None or (isinstance(image, Frame) and image.data)
                 target._last_sent = -np.inf  # every tick's action is looked at, not rated
                 target.send(loop.act(step).action)
                 step += 1
