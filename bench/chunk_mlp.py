@@ -81,9 +81,15 @@ class Adam:
 
 def train(x: np.ndarray, y: np.ndarray, hidden: list[int], fit: Fit, seed: int) -> Layers:
     """An MLP x -> hidden... -> y fitted by minibatch Adam, in float32."""
-    x, y = x.astype(np.float32), y.astype(np.float32)
     rng = np.random.default_rng(seed)
     layers = init_layers([x.shape[1], *hidden, y.shape[1]], rng)
+    return fit_layers(layers, x, y, fit, rng)
+
+
+def fit_layers(layers: Layers, x: np.ndarray, y: np.ndarray, fit: Fit,
+               rng: np.random.Generator) -> Layers:
+    """`layers` fitted further to x -> y by minibatch Adam (in place), in float32."""
+    x, y = x.astype(np.float32), y.astype(np.float32)
     adam = Adam(layers, fit.lr)
     for epoch in range(fit.epochs):
         order = rng.permutation(len(x))

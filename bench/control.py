@@ -4,11 +4,14 @@ every way of running them side by side in one run.
 The policies are declared models (PolicyModel, onnxruntime): pybullet's trained Hopper, Ant
 and InvertedDoublePendulum (configs/models/policies/, one action per answer, 60.6 Hz) and,
 for a metaworld v3 task, a chunk policy behaviour-cloned from its scripted expert
-(bench/train_chunk_policy.py, 16 actions per answer, 80 Hz, trained once and cached). Each
-runs through the gateway's control loop (oricf.gateway.actions) in simulated time: a round
-trip of `delay_ms` is `ceil(delay_ms / step_ms)` steps, and an answer to the observation of
-step `t` is delivered before the action for `t + d` (bench/control_run.py), so every figure
-but the CPU is the same on any machine for the same seed.
+(bench/train_chunk_policy.py, 16 actions per answer, 80 Hz, trained once and cached); for
+reacher-camera, a chunk policy that sees: the arm's joints and a top-down camera's image in
+(bench/train_camera_policy.py, 8 actions per answer, 60.6 Hz, trained once and cached), the
+image going with each request. Each runs through the gateway's control loop
+(oricf.gateway.actions) in simulated time: a round trip of `delay_ms` is
+`ceil(delay_ms / step_ms)` steps, and an answer to the observation of step `t` is delivered
+before the action for `t + d` (bench/control_run.py), so every figure but the CPU is the
+same on any machine for the same seed.
 
     onboard        the policy on the robot, no delay (once per task: the reference); a
                    chunk is played through before the next is asked for
@@ -26,9 +29,12 @@ but the CPU is the same on any machine for the same seed.
     placed         where the gateway's placement puts it with a latency budget in steps
                    (--budget-steps), having timed the edge's round trip: onboard when
                    that is over the budget, else on the edge; the reason printed
+    onboard-blind  a sim with cameras only, added by itself: onboard with every image
+                   blanked (all zeros), so the table shows what the camera is worth
 
-For pybullet's robots the figure is the return (no success); for metaworld, the success
-rate and the steps to success. `--json` writes one row per task, mode and delay.
+For pybullet's robots the figure is the return (no success); for metaworld and
+reacher-camera, the success rate and the steps to success. `--json` writes one row per
+task, mode and delay.
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ from pathlib import Path
 
 from oricf.bench.control_report import Row, print_goals, print_task, summarise
 from oricf.bench.control_run import (
+    BLIND,
     MODES,
     TRAINED_MODES,
     Episode,
@@ -52,7 +59,7 @@ from oricf.bench.control_run import (
     setting,
 )
 from oricf.bench.entry import need
-from oricf.bench.sims import Sim, open_sim, sim_names
+from oricf.bench.sims import Sim, open_sim, reacher_camera, sim_names
 from oricf.bench.sims.pybullet import ROBOTS
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError
@@ -66,6 +73,7 @@ DEFAULT_TASKS = ("hopper", "ant", "inverted-double-pendulum", "pick-place-v3")
 PYBULLET_DELAYS_MS = (0.0, 16.5, 33.0, 66.0, 132.0)    # 0, 1, 2, 4, 8 steps at 60.6 Hz
 METAWORLD_DELAYS_MS = (0.0, 25.0, 50.0, 100.0, 150.0, 200.0)  # 0-16 steps at 80 Hz
 POLICIES = REPO_ROOT / "configs" / "models" / "policies"
+CAMERA_TASKS = (reacher_camera.NAME,)
 
 
 def parse_delays(text: str) -> list[float]:
@@ -98,10 +106,15 @@ def check_tasks(tasks: list[str]) -> None:
 
 
 def declaration_of(task: str, lead: int = 0) -> Path:
-    """The declaration of a pybullet robot's policy, or of the chunk policy trained for a
-    metaworld task to act `lead` steps ahead (trained now when it is not cached)."""
+    """The declaration of a pybullet robot's policy, of reacher-camera's policy that sees,
+    or of the chunk policy trained for a metaworld task to act `lead` steps ahead (the
+    trained ones trained now when they are not cached)."""
     if task in ROBOTS:
         return POLICIES / f"{task}.yaml"
+    if task == reacher_camera.NAME:
+        from oricf.bench.train_camera_policy import trained_policy as camera_policy
+
+        return camera_policy()
     from oricf.bench.train_chunk_policy import trained_policy
 
     return trained_policy(task, lead=lead)
@@ -116,8 +129,11 @@ def load_policy(task: str, lead: int = 0) -> PolicyModel:
 
 def task_modes(task: str, modes: list[str]) -> list[str]:
     """The modes run for `task`: those that need a policy trained for the round trip
-    (edge-ahead) only where there is a trainer (metaworld)."""
-    return [m for m in modes if task not in ROBOTS or m not in TRAINED_MODES]
+    (edge-ahead) only where there is a trainer (metaworld); for a sim with cameras, also
+    onboard-blind (the policy without them)."""
+    metaworld = task not in ROBOTS and task not in CAMERA_TASKS
+    kept = [m for m in modes if metaworld or m not in TRAINED_MODES]
+    return [*kept, BLIND] if task in CAMERA_TASKS else kept
 
 
 def ahead_policies(task: str, runs: list[tuple[str, int]], policy: PolicyModel
@@ -133,9 +149,9 @@ def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Plac
     """The runs to make, as (mode, round trip in steps): onboard once, each edge mode once
     per distinct round trip (delays of as many steps give the same episodes), and what a
     placed policy runs as."""
-    runs = [("onboard", 0)]
+    runs = [("onboard", 0), *([(BLIND, 0)] if BLIND in modes else [])]
     for ms, d in steps.items():
-        wanted = [m for m in modes if m not in ("onboard", "placed")]
+        wanted = [m for m in modes if m not in ("onboard", BLIND, "placed")]
         if "placed" in modes:
             wanted.append(placements[ms].mode)
         runs += [(m, 0 if m == "onboard" else d) for m in wanted]
@@ -162,9 +178,10 @@ def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) ->
                 episodes[mode, d].append(run_episode(sim, used, setting(mode, d, chunk),
                                                      args.seed + i, max_steps))
         metaworld = task not in ROBOTS
-        rows = [summarise(task, "onboard", 0.0, 0, episodes["onboard", 0], metaworld)]
+        rows = [summarise(task, mode, 0.0, 0, episodes[mode, 0], metaworld)
+                for mode in ("onboard", BLIND) if (mode, 0) in episodes]
         for ms, d in steps.items():
-            for mode in [m for m in modes if m != "onboard"]:
+            for mode in [m for m in modes if m not in ("onboard", BLIND)]:
                 placed = placements[ms] if mode == "placed" else None
                 run_as = placed.mode if placed else mode
                 row = summarise(task, mode, ms, d, episodes[run_as, 0 if run_as == "onboard"
@@ -195,12 +212,14 @@ def parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="oricf bench control", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", action="append", help="a pybullet robot (hopper, ant, "
-                        "inverted-double-pendulum) or a metaworld v3 task (pick-place-v3, "
-                        "...); repeatable (default: " + ", ".join(DEFAULT_TASKS) + ")")
+                        "inverted-double-pendulum), reacher-camera, or a metaworld v3 task "
+                        "(pick-place-v3, ...); repeatable (default: " + ", ".join(DEFAULT_TASKS)
+                        + ")")
     parser.add_argument("--delays-ms", type=str, default=None,
                         help="round trips to the edge, e.g. 0,50,100 (default: "
                         f"{','.join(f'{d:g}' for d in PYBULLET_DELAYS_MS)} for pybullet's "
-                        f"robots, {','.join(f'{d:g}' for d in METAWORLD_DELAYS_MS)} for "
+                        "robots and reacher-camera, "
+                        f"{','.join(f'{d:g}' for d in METAWORLD_DELAYS_MS)} for "
                         "metaworld)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per mode and delay")
     parser.add_argument("--seed", type=int, default=0, help="the first episode's seed")
@@ -237,6 +256,10 @@ def options(argv: list[str] | None) -> argparse.Namespace:
             raise ConfigError(f"--{name.replace('_', '-')}: must be 1 or more")
     if args.budget_steps is not None and args.budget_steps < 1:
         raise ConfigError("--budget-steps: must be 1 or more")
+    seeing = [task for task in args.task if task in CAMERA_TASKS]
+    if args.realtime and seeing:
+        raise ConfigError(f"--realtime: --task {seeing[0]}: the simulated robot publishes no "
+                          f"camera topics, so a policy that sees runs in simulated time only")
     return args
 
 
@@ -244,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
     args = options(argv)
     rows: list[Row] = []
     for task in args.task:
-        delays = args.delays or list(PYBULLET_DELAYS_MS if task in ROBOTS
+        at_pybullet_rate = task in ROBOTS or task in CAMERA_TASKS
+        delays = args.delays or list(PYBULLET_DELAYS_MS if at_pybullet_rate
                                      else METAWORLD_DELAYS_MS)
         task_rows = measure_task(task, delays, args)
         if args.realtime:

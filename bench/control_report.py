@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass
 
 from oricf.bench.common import print_table
 from oricf.bench.control_run import Episode, delay_steps
+from oricf.bench.sims import reacher_camera
 from oricf.stats import percentile
 
 EDGE_MODES = ("edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead")
@@ -167,7 +168,8 @@ def cpu_goal(rows: list[Row]) -> Goal:
 
 
 def goals(rows: list[Row]) -> list[Goal]:
-    metaworld = list(dict.fromkeys(r.task for r in rows if r.success_rate is not None))
+    metaworld = list(dict.fromkeys(r.task for r in rows if r.success_rate is not None
+                                   and r.task != reacher_camera.NAME))
     pick_place = [t for t in metaworld if t == "pick-place-v3"]
     return [metaworld_goal(rows, 100.0, 0.9, 1.3, pick_place),
             metaworld_goal(rows, 50.0, 0.95, None, metaworld),

@@ -16,6 +16,7 @@ import logging
 import math
 import time
 from collections import defaultdict
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,7 @@ class Setting:
     max_in_flight: int
     delay_steps: int
     policy_onboard: bool        # the policy's call is the robot's CPU
+    blind: bool = False         # the cameras' images blanked (all zeros) before they go
 
 
 @dataclass
@@ -72,9 +74,21 @@ class Wire:
             loop.deliver(actions, start_step, origin, now=step - 1)
 
 
-def answer(policy: PolicyModel, message: list[float]) -> list[float]:
-    """The policy's chunk for a state as it went over the wire, as it comes back."""
-    return list(policy.act(np.asarray(message, np.float32)).reshape(-1).tolist())
+def answer(policy: PolicyModel, message: list[float],
+           images: Mapping[str, np.ndarray] | None = None) -> list[float]:
+    """The policy's chunk for a state as it went over the wire (and the cameras' images
+    that went with it), as it comes back."""
+    chunk = policy.act(np.asarray(message, np.float32), images)
+    return list(chunk.reshape(-1).tolist())
+
+
+def camera_views(sim: Sim, blind: bool) -> dict[str, np.ndarray] | None:
+    """The sim's cameras' views now (None without cameras); blind: each blanked, all zeros
+    of its size, as a policy without its cameras would see them."""
+    if not sim.cameras:
+        return None
+    views = sim.images()
+    return {name: np.zeros_like(view) for name, view in views.items()} if blind else views
 
 
 def control_loop(sim: Sim, setting: Setting, max_steps: int) -> ControlLoop:
@@ -95,14 +109,15 @@ def run_episode(sim: Sim, policy: PolicyModel, setting: Setting, seed: int,
     episode = Episode(0.0, 0, False, [], loop.queue.counts, 0, 0)
     played: Origin | None = None
     for step in range(min(max_steps, sim.max_steps)):
+        images = camera_views(sim, setting.blind)  # the camera's work, not the loop's
         start = time.thread_time_ns()
         wire.arrive(loop, step, chunk, dim)
-        request = loop.ask(step, observation, now_ns=step)
+        request = loop.ask(step, observation, now_ns=step, images=images)
         message = request.state.tolist() if request is not None else None
         mark = time.thread_time_ns()
         episode.cpu_ns += mark - start
         if request is not None and message is not None:
-            reply = answer(policy, message)
+            reply = answer(policy, message, request.images)
             if setting.policy_onboard:
                 episode.cpu_ns += time.thread_time_ns() - mark
             send(wire, request, reply, policy.task.lead_steps)
@@ -143,6 +158,7 @@ def delay_steps(delay_ms: float, rate_hz: float) -> int:
 
 MODES = ("onboard", "edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead",
          "placed")
+BLIND = "onboard-blind"  # onboard, the cameras' images blanked: added for a sim with cameras
 TRAINED_MODES = ("edge-ahead",)  # need a policy trained for the round trip: metaworld only
 MERGES: dict[str, Merge] = {"edge-latest": "latest", "edge-weighted": "weighted",
                             "edge-ensemble": "ensemble"}
@@ -162,8 +178,8 @@ def setting(mode: str, delay_steps: int, chunk: int) -> Setting:
     `delay_steps`. `edge-ahead` is `edge-latest` for a policy trained to act `delay_steps`
     ahead: its chunk starts at the step it arrives at, so `chunk` actions are queued then,
     and asking at `chunk` asks as soon as it is in, as the other delay-aware modes do."""
-    if mode == "onboard":  # each chunk played through, then the next asked for
-        return Setting("skip", "latest", 0, 1, 0, True)
+    if mode in ("onboard", BLIND):  # each chunk played through, then the next asked for
+        return Setting("skip", "latest", 0, 1, 0, True, blind=mode == BLIND)
     if mode == "edge-sync":
         if chunk == 1:  # pipelined: the robot acts on observations `d` steps old
             return Setting("shift", "latest", 1, delay_steps + 1, delay_steps, False)

@@ -35,6 +35,8 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -108,32 +110,43 @@ def train_or_find(settings: Settings, root: Path | None = None) -> Trained:
     return Trained(declaration, trained=True)
 
 
+@contextmanager
+def staging(folder: Path) -> Iterator[Path]:
+    """A temporary folder beside `folder`, moved into its place whole once the block has
+    written it (so a reader never sees half of a policy), and removed if the block fails."""
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staged = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        yield staged
+        os.replace(staged, folder)
+    finally:
+        shutil.rmtree(staged, ignore_errors=True)
+
+
+def yaml_list(array: np.ndarray) -> str:
+    """`[v, ...]`: the values of a 1-D array in a YAML flow list, 9 significant digits."""
+    return "[" + ", ".join(f"{float(v):.9g}" for v in array) + "]"
+
+
 def write(folder: Path, settings: Settings, demos: Demos, layers: Layers,
           timings: dict[str, float]) -> None:
     """policy.onnx, policy.yaml and training.json, made in a temporary folder and moved
     into place whole, so a reader never sees half of them."""
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    with staging(folder) as staged:
         arrays = {name: array for (w_name, b_name), (w, b) in zip(LAYERS, layers, strict=True)
                   for name, array in ((w_name, w), (b_name, b))}
-        model = staging / "policy.onnx"
+        model = staged / "policy.onnx"
         model.write_bytes(to_onnx(arrays, (layers[0][0].shape[0], layers[-1][0].shape[1]),
                                   f"bc-{settings.task}"))
         mean, std = demos.normalisation()
-        (staging / "policy.yaml").write_text(declaration_text(settings, folder.name, model,
-                                                              mean, std))
-        (staging / "training.json").write_text(json.dumps(
+        (staged / "policy.yaml").write_text(declaration_text(settings, folder.name, model,
+                                                             mean, std))
+        (staged / "training.json").write_text(json.dumps(
             {**asdict(settings), "steps": len(demos.observations), **timings}, indent=1))
-        os.replace(staging, folder)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
 
 
 def declaration_text(settings: Settings, key: str, model: Path, mean: np.ndarray,
                      std: np.ndarray) -> str:
-    def values(array: np.ndarray) -> str:
-        return "[" + ", ".join(f"{float(v):.9g}" for v in array) + "]"
     return (
         f"# A chunk policy behaviour-cloned from metaworld's scripted expert for "
         f"{settings.task}\n# (python -m oricf.bench.train_chunk_policy; training.json: "
@@ -146,7 +159,7 @@ def declaration_text(settings: Settings, key: str, model: Path, mean: np.ndarray
         f"backend: {{engine: onnxruntime, threads: 1}}\n"
         f"task:\n  kind: policy\n"
         f"  state:\n    input: observation\n    size: {mean.size}\n"
-        f"    mean: {values(mean)}\n    std: {values(std)}\n"
+        f"    mean: {yaml_list(mean)}\n    std: {yaml_list(std)}\n"
         f"  action: {{output: action, dim: 4, low: -1.0, high: 1.0}}\n"
         f"  chunk: {settings.chunk}\n  rate_hz: 80\n  lead_steps: {settings.lead}\n")
 

@@ -27,7 +27,8 @@ class Step:
 
 
 class Sim(Protocol):
-    """A simulated robot and its task, stepped at `rate_hz` one action at a time."""
+    """A simulated robot and its task, stepped at `rate_hz` one action at a time; its
+    `cameras` by name (none for most), whose views `images()` gives."""
 
     name: str
     rate_hz: float
@@ -36,6 +37,7 @@ class Sim(Protocol):
     action_low: np.ndarray
     action_high: np.ndarray
     max_steps: int
+    cameras: tuple[str, ...]
 
     def reset(self, seed: int) -> np.ndarray:
         """Starts an episode, the same one for the same seed: its first observation."""
@@ -43,6 +45,11 @@ class Sim(Protocol):
 
     def step(self, action: np.ndarray) -> Step:
         """Applies one action (clipped to the bounds) for one control step."""
+        ...
+
+    def images(self) -> dict[str, np.ndarray]:
+        """Each camera's view after the last reset or step (BGR uint8, height x width x 3),
+        by name: empty for a sim without cameras."""
         ...
 
     def close(self) -> None: ...

@@ -64,6 +64,7 @@ class MetaworldSim:
     rate_hz = RATE_HZ
     state_size = 39
     action_dim = 4
+    cameras: tuple[str, ...] = ()
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -87,6 +88,9 @@ class MetaworldSim:
         success = bool(info.get("success", False))
         self._over = success or bool(terminated) or bool(truncated)
         return Step(np.asarray(observation, np.float64), float(reward), self._over, success)
+
+    def images(self) -> dict[str, np.ndarray]:
+        return {}  # no camera: the state is the whole observation
 
     def close(self) -> None:
         self._env.close()

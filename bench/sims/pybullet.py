@@ -86,6 +86,7 @@ class PybulletSim:
 
     rate_hz = RATE_HZ
     max_steps = MAX_STEPS
+    cameras: tuple[str, ...] = ()
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -109,6 +110,9 @@ class PybulletSim:
         self._steps += 1
         self._over = bool(done) or self._steps >= self.max_steps
         return Step(np.asarray(observation, np.float64), float(reward), self._over, False)
+
+    def images(self) -> dict[str, np.ndarray]:
+        return {}  # no camera: the state is the whole observation
 
     def close(self) -> None:
         self._env.close()
