@@ -13,6 +13,7 @@ import pytest
 
 from oricf.bench import camera_net, control
 from oricf.bench.chunk_mlp import Fit
+from oricf.bench.control_report import Row, goals
 from oricf.bench.control_run import BLIND, MODES, run_episode, setting
 from oricf.bench.sims import open_sim
 from oricf.bench.sims.reacher_camera import ReacherCameraSim
@@ -124,3 +125,12 @@ def test_the_bench_adds_the_blind_row_only_where_there_is_a_camera() -> None:
         [("onboard", 0), (BLIND, 0), ("edge-latest", 4)]
     with pytest.raises(ConfigError, match=r"^--realtime: --task reacher-camera: "):
         control.options(["--task", "reacher-camera", "--realtime"])
+
+
+def test_the_metaworld_goals_leave_reacher_camera_out() -> None:
+    def row(mode: str, delay_ms: float, success: float) -> Row:
+        return Row("reacher-camera", mode, delay_ms, 4 if delay_ms else 0, 10, success, 20.0,
+                   30.0, 5.0, 7.0, 4.0, 100.0, 30.0, 0.4, 30.0)
+    rows = [row("onboard", 0.0, 0.9), row("edge-latest", 50.0, 0.2)]
+    behind_50 = goals(rows)[1]
+    assert behind_50.status == "not measured" and "reacher-camera" not in behind_50.name
