@@ -37,15 +37,17 @@ from oricf.models.declaration import load_declaration
 from oricf.models.policy_task import PolicyTask
 
 
-def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int) -> dict[str, Any]:
+def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int,
+                  cameras: tuple[str, ...] = ()) -> dict[str, Any]:
     """The loop's settings as `oricf bench control` runs them delay-aware, ticked by the
     robot's state (each state a step, its action out as soon as it is known): a chunk policy
     followed on time (late: skip), asked again as an answer comes in; a policy of one action
-    asked with each state."""
+    asked with each state. A policy's cameras: the simulator's views (bench/sim_node.py)."""
     one = chunk == 1
     return {"rate_hz": rate_hz, "tick": "state", "action_dim": action_dim, "max_age_ms": 200,
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
+            "images": [{"name": name, "topic": f"/sim/{name}/image"} for name in cameras],
             "late": "skip", "merge": "latest",
             # The last action held while an answer is on its way, as in simulated time,
             # for half a second at most (then the safe action, zeros).
@@ -117,6 +119,7 @@ class RealtimeTask:
         policy = load_declaration(declaration).task
         assert isinstance(policy, PolicyTask), declaration
         self.settings = (policy.rate_hz, policy.state.size, policy.action.dim, policy.chunk)
+        self.cameras = tuple(camera.name for camera in policy.images)
         self.port = free_port()
         config = folder / "policy.yaml"
         config.write_text(yaml.safe_dump({"server": {"listen": f"127.0.0.1:{self.port}"},
@@ -137,7 +140,8 @@ class RealtimeTask:
         pipeline.write_text(yaml.safe_dump({
             "metrics": {"listen": f"127.0.0.1:{metrics}"},
             "endpoints": {"policy": {"address": address, "deadline_ms": 2000}},
-            "routes": {"policy": {"input": {"control": control_input(*self.settings)},
+            "routes": {"policy": {"input": {"control": control_input(*self.settings,
+                                                                     self.cameras)},
                                   "call": {"method": "Act", "service": "policy"}}}}))
         env = private_domain()
         gateway = subprocess.Popen(oricf("gateway", "--config", str(pipeline)), env=env,

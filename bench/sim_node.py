@@ -2,10 +2,13 @@
 real time at the simulator's rate, publishes each observation (`std_msgs/Float64MultiArray`
 on `--state-topic`) and acts on the newest action received (`std_msgs/Float64MultiArray` on
 `--action-topic`), as a robot's driver does: an action that has not come by a step's time is
-the one before it held (or zeros before any). At the episode's end it prints one JSON line:
-the steps, the return, whether and when the task succeeded, and how many steps had no new
-action (and a line `{"started": NAME}` when the episode starts stepping). Used by the
-control loop's end-to-end test and `oricf bench control --realtime`.
+the one before it held (or zeros before any). A simulator with cameras (reacher-camera)
+publishes each camera's view of the step too, as `sensor_msgs/Image` (bgr8) on
+`--camera-topic` (`{camera}` is the camera's name), just before the state. At the episode's
+end it prints one JSON line: the steps, the return, whether and when the task succeeded,
+and how many steps had no new action (and a line `{"started": NAME}` when the episode
+starts stepping). Used by the control loop's end-to-end test and `oricf bench control
+--realtime`.
 """
 
 from __future__ import annotations
@@ -27,14 +30,20 @@ log = logging.getLogger(__name__)
 class SimRobot:
     """The simulator on a ROS node: a thread that steps it on an absolute schedule."""
 
-    def __init__(self, node: Any, sim: Sim, state_topic: str, action_topic: str) -> None:
+    def __init__(self, node: Any, sim: Sim, state_topic: str, action_topic: str,
+                 camera_topic: str = "/sim/{camera}/image") -> None:
         from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import Image
         from std_msgs.msg import Float64MultiArray
 
         self.sim = sim
         self._message = Float64MultiArray
+        self._image = Image
         self._publisher = node.create_publisher(Float64MultiArray, state_topic,
                                                 QoSProfile(depth=1))
+        self._cameras = {name: node.create_publisher(Image, camera_topic.format(camera=name),
+                                                     QoSProfile(depth=1))
+                         for name in sim.cameras}
         node.create_subscription(Float64MultiArray, action_topic, self._take,
                                  QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         self._lock = threading.Lock()
@@ -53,6 +62,12 @@ class SimRobot:
             self.received += 1
 
     def _publish(self, observation: np.ndarray) -> None:
+        if self._cameras:  # the views first: the state makes the loop's step
+            for name, view in self.sim.images().items():
+                height, width = view.shape[:2]
+                self._cameras[name].publish(self._image(
+                    height=height, width=width, encoding="bgr8", step=width * 3,
+                    data=np.ascontiguousarray(view).tobytes()))
         self._publisher.publish(self._message(data=observation.astype(float).tolist()))
 
     def episode(self, seed: int, max_steps: int, wait_s: float,
@@ -94,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-steps", type=int, default=None)
     parser.add_argument("--state-topic", default="/sim/state")
     parser.add_argument("--action-topic", default="/sim/action")
+    parser.add_argument("--camera-topic", default="/sim/{camera}/image",
+                        help="where each camera's view goes ({camera}: its name)")
     parser.add_argument("--wait-s", type=float, default=30.0,
                         help="how long to wait for the first action")
     args = parser.parse_args(argv)
@@ -108,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init()
     node = Node("oricf_sim")
     sim = open_sim(args.sim)
-    robot = SimRobot(node, sim, args.state_topic, args.action_topic)
+    robot = SimRobot(node, sim, args.state_topic, args.action_topic, args.camera_topic)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)

@@ -4,6 +4,7 @@ loop (the image going with each request), and with the image blanked it does not
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,7 +19,6 @@ from oricf.bench.control_run import BLIND, MODES, run_episode, setting
 from oricf.bench.sims import open_sim
 from oricf.bench.sims.reacher_camera import ReacherCameraSim
 from oricf.bench.train_camera_policy import Settings, cache_key, train_or_find
-from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
 from oricf.store import ModelStore
@@ -123,8 +123,27 @@ def test_the_bench_adds_the_blind_row_only_where_there_is_a_camera() -> None:
     assert BLIND not in control.task_modes("hopper", list(MODES))
     assert control.plan(["onboard", BLIND, "edge-latest"], {50.0: 4}, {}) == \
         [("onboard", 0), (BLIND, 0), ("edge-latest", 4)]
-    with pytest.raises(ConfigError, match=r"^--realtime: --task reacher-camera: "):
-        control.options(["--task", "reacher-camera", "--realtime"])
+
+
+def test_in_real_time_the_loop_subscribes_to_the_simulated_robots_camera() -> None:
+    from oricf.bench.control_realtime import control_input
+
+    settings = control_input(60.6, 6, 2, 8, ("top",))
+    assert settings["images"] == [{"name": "top", "topic": "/sim/top/image"}]
+    assert control_input(60.6, 15, 3, 1)["images"] == []
+
+
+@pytest.mark.bench
+def test_realtime_rows_for_a_policy_that_sees(tmp_path: Path) -> None:
+    """--realtime with reacher-camera: the simulated robot publishes its camera's view beside
+    its state over ROS 2 and the gateway's loop sends both to the policy service; the arm
+    reaches the target behind a one-step round trip."""
+    out = tmp_path / "rows.json"
+    assert control.main(["--task", "reacher-camera", "--delays-ms", "16.5", "--episodes", "2",
+                         "--modes", "onboard", "--realtime", "--json", str(out)]) == 0
+    rows = {row["mode"]: row for row in json.loads(out.read_text())}
+    assert {"realtime-onboard", "realtime-edge"} <= set(rows)
+    assert float(rows["realtime-edge"]["success_rate"]) > 0
 
 
 def test_the_metaworld_goals_leave_reacher_camera_out() -> None:
