@@ -73,6 +73,13 @@ def scrape(port: int) -> dict[str, float]:
     return samples
 
 
+def loop_cpu_us(samples: dict[str, float]) -> float | None:
+    """The loop's own CPU per tick, as the gateway measured it on the loop's threads."""
+    ticks = samples.get("oricf_gateway_control_ticks_total", 0.0)
+    cpu_s = samples.get("oricf_gateway_control_cpu_seconds_total")
+    return None if cpu_s is None or not ticks else cpu_s * 1e6 / ticks
+
+
 def age_percentile(samples: dict[str, float], q: float) -> float | None:
     """The smallest bucket bound of the action-age histogram (steps) holding q% of ages."""
     name = "oricf_gateway_control_action_age_steps_bucket"
@@ -203,7 +210,8 @@ class RealtimeTask:
                 - samples.get("oricf_gateway_control_missing_state_total", 0.0)) / count,
             samples.get("oricf_gateway_control_late_actions_total", 0.0) / count,
             switches / count, jump_sum / switches if switches else None,
-            cpu_s * 1e6 / ticks if ticks else 0.0)
+            cpu_s * 1e6 / ticks if ticks else 0.0,
+            loop_cpu_us_per_tick=loop_cpu_us(samples))
 
 
 def realtime_rows(task: str, declaration: Path, delays_ms: list[float], episodes: int,

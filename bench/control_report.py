@@ -36,6 +36,8 @@ class Row:
     mean_jump: float | None             # max |a_t - a_t-1| at a switch, mean over switches
     cpu_us_per_tick: float              # the robot side's, median over episodes
     budget_steps: int | None = None     # placed only
+    # realtime only: the loop's own work on its threads (oricf_gateway_control_cpu_seconds)
+    loop_cpu_us_per_tick: float | None = None
     placed_onboard: bool | None = None
     reason: str | None = None
 
@@ -86,6 +88,10 @@ def print_task(task: str, rows: list[Row]) -> None:
     for row in rows:
         if row.reason:
             print(f"  placed at {row.delay_ms:g} ms: {row.reason}")
+        if row.loop_cpu_us_per_tick is not None:
+            print(f"  {row.mode} at {row.delay_ms:g} ms: the loop's own work "
+                  f"{row.loop_cpu_us_per_tick:.0f} us a tick of the {row.cpu_us_per_tick:.0f} "
+                  f"us the robot side's processes took")
 
 
 @dataclass(frozen=True)
@@ -163,8 +169,14 @@ def cpu_goal(rows: list[Row]) -> Goal:
                        f"({loop / onboard.cpu_us_per_tick:.2f}x)")
     if not figures:
         return Goal(name, "not measured", "no edge rows")
+    realtime = [r for r in rows
+                if r.mode == "realtime-edge" and r.loop_cpu_us_per_tick is not None]
+    if realtime:  # measured on the loop's threads in real time: it counts too
+        figures.append("in real time, the loop's own work: " + ", ".join(
+            f"{r.task} at {r.delay_ms:g} ms {r.loop_cpu_us_per_tick:.0f} us" for r in realtime))
+        worst = max(worst, *(r.loop_cpu_us_per_tick or 0.0 for r in realtime))
     return Goal(name, "met" if worst <= 500 else "not met",
-                f"worst edge row {worst:.0f} us; " + "; ".join(figures))
+                f"worst {worst:.0f} us; " + "; ".join(figures))
 
 
 def goals(rows: list[Row]) -> list[Goal]:

@@ -198,3 +198,5 @@ def test_realtime_rows_come_from_the_gateway_and_the_robot_over_ros(tmp_path: Pa
     for row in (onboard, edge):
         assert row["episodes"] == 1 and float(row["mean_steps"]) > 0  # type: ignore[arg-type]
         assert float(row["cpu_us_per_tick"]) > 0  # type: ignore[arg-type]
+    # The loop's own work, measured on its threads, is part of the gateway process's CPU.
+    assert 0 < float(edge["loop_cpu_us_per_tick"]) < float(edge["cpu_us_per_tick"])  # type: ignore[arg-type]
