@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from oricf.bench.chunk_mlp import Adam, Fit, Layers, fit_layers, forward, init_layers
+from oricf.models.mlp_source import model_bytes
 
 log = logging.getLogger(__name__)
 
@@ -128,7 +129,6 @@ def to_onnx(net: Net, state_size: int, size: tuple[int, int], name: str) -> byte
     """`state` [batch, state_size] and `image` [batch, 3, h, w] -> `action` [batch, chunk x
     dim]: the keypoints (Conv 1x1, Softmax over the pixels, their expected position), then
     the MLP on [state, keypoints]."""
-    import onnx
     from onnx import TensorProto, helper, numpy_helper
 
     width, height = size
@@ -161,8 +161,4 @@ def to_onnx(net: Net, state_size: int, size: tuple[int, int], name: str) -> byte
          value("image", TensorProto.FLOAT, ["batch", 3, height, width])],
         [value("action", TensorProto.FLOAT, ["batch", net.layers[-1][0].shape[1]])],
         initializer=inits)
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)],
-                              producer_name="oricf")
-    model.ir_version = 8  # readable by every onnxruntime since 1.10
-    onnx.checker.check_model(model)
-    return model.SerializeToString()
+    return model_bytes(graph)

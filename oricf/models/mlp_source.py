@@ -15,6 +15,7 @@ import ast
 import logging
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +89,6 @@ def check_chain(path: Path, arrays: dict[str, np.ndarray]) -> tuple[int, int]:
 
 def to_onnx(arrays: dict[str, np.ndarray], sizes: tuple[int, int], name: str) -> bytes:
     """observation [batch, obs] -> action [batch, act]: MatMul, Add, Relu."""
-    import onnx
     from onnx import TensorProto, helper, numpy_helper
 
     nodes, inits, x = [], [], INPUT
@@ -107,9 +107,18 @@ def to_onnx(arrays: dict[str, np.ndarray], sizes: tuple[int, int], name: str) ->
                                                     ["batch", sizes[0]])],
         [helper.make_tensor_value_info(OUTPUT, TensorProto.FLOAT, ["batch", sizes[1]])],
         initializer=inits)
+    return model_bytes(graph)
+
+
+def model_bytes(graph: Any) -> bytes:
+    """The graph as a checked ONNX model (opset 13, IR 8: readable by every onnxruntime
+    since 1.10)."""
+    import onnx
+    from onnx import helper
+
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)],
                               producer_name="oricf")
-    model.ir_version = 8  # readable by every onnxruntime since 1.10
+    model.ir_version = 8
     onnx.checker.check_model(model)
     return model.SerializeToString()
 

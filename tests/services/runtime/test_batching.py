@@ -59,6 +59,21 @@ def wait_until_queued(service: RunningService, count: int) -> None:
         time.sleep(0.01)
 
 
+def detect_at_once(service: RunningService, requests: list[detector_pb2.DetectRequest]
+                   ) -> list[detector_pb2.DetectResponse]:
+    """Each request from a caller of its own (one channel each: separate robots, not one
+    client's calls), all at once."""
+    channels = [grpc.insecure_channel(service.address) for _ in requests]
+    try:
+        with ThreadPoolExecutor(len(requests)) as pool:
+            return list(pool.map(
+                lambda pair: detector_pb2_grpc.DetectorStub(pair[0]).Detect(
+                    pair[1], timeout=WAIT_S), zip(channels, requests, strict=True)))
+    finally:
+        for channel in channels:
+            channel.close()
+
+
 def boxes(response: detector_pb2.DetectResponse) -> list[tuple[str, float, tuple[float, ...]]]:
     return [(d.label, d.score, (d.box.x_min, d.box.y_min, d.box.x_max, d.box.y_max))
             for d in response.detections]
@@ -75,16 +90,7 @@ def test_concurrent_callers_share_one_batch_and_get_their_own_answers(
         requests: list[detector_pb2.DetectRequest],
         unbatched: list[detector_pb2.DetectResponse]) -> None:
     with running_service("detector", batching()) as service:
-        # One channel per caller: separate robots, not one client's calls.
-        channels = [grpc.insecure_channel(service.address) for _ in requests]
-        try:
-            with ThreadPoolExecutor(CLIENTS) as pool:
-                answers = list(pool.map(
-                    lambda pair: detector_pb2_grpc.DetectorStub(pair[0]).Detect(
-                        pair[1], timeout=WAIT_S), zip(channels, requests, strict=True)))
-        finally:
-            for channel in channels:
-                channel.close()
+        answers = detect_at_once(service, requests)
         assert batch_metric(service, "oricf_batch_size_count") == 1
         assert batch_metric(service, "oricf_batch_size_sum") == CLIENTS
         assert batch_metric(service, "oricf_batch_size_bucket", le="2.0") == 0
@@ -184,15 +190,7 @@ def test_a_fixed_batch_size_runs_padded_batches_with_each_callers_own_answers(
     settings["batching"]["max_queue_delay_ms"] = 200  # type: ignore[index]
     with running_service("detector", settings) as service:
         assert service.host.slot.peek().pad_to == 8
-        channels = [grpc.insecure_channel(service.address) for _ in requests[:3]]
-        try:
-            with ThreadPoolExecutor(3) as pool:
-                answers = list(pool.map(
-                    lambda pair: detector_pb2_grpc.DetectorStub(pair[0]).Detect(
-                        pair[1], timeout=WAIT_S), zip(channels, requests, strict=False)))
-        finally:
-            for channel in channels:
-                channel.close()
+        answers = detect_at_once(service, requests[:3])
     for got, alone in zip(answers, unbatched, strict=False):
         assert got.frame_id == alone.frame_id
         assert [(label, pytest.approx(score, abs=1e-4), pytest.approx(box, abs=1e-2))
