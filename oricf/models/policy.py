@@ -20,7 +20,7 @@ from oricf.models.declaration import ModelDeclaration
 from oricf.models.declared import DeclaredModel
 from oricf.models.image import to_tensor
 from oricf.models.info import ModelInfo
-from oricf.models.policy_shapes import camera_inputs
+from oricf.models.policy_shapes import camera_inputs, committed_input
 from oricf.models.policy_task import CameraInput, PolicyTask
 from oricf.models.tensors import DATATYPES
 from oricf.store import ModelStore
@@ -58,6 +58,7 @@ class PolicyModel:
         self._dtype = np.dtype(np.float32)
         # camera name -> (its settings, its model input, the network size (w, h))
         self._cameras: dict[str, tuple[CameraInput, str, tuple[int, int]]] = {}
+        self._committed_input = ""  # the input the committed actions feed ("" : none)
 
     def load(self) -> None:
         self.model.load()  # checks the file's shapes against the task
@@ -69,8 +70,11 @@ class PolicyModel:
         # One item: a batch of 1 when the input has a batch dimension.
         self._feed_shape = (1, self.task.state.size) if len(spec.shape) == 2 \
             else (self.task.state.size,)
-        found = camera_inputs(str(self.model.declaration.source), self.task,
-                              self.model.inputs, spec.name)
+        source = str(self.model.declaration.source)
+        committed = committed_input(source, self.task, self.model.inputs)
+        self._committed_input = "" if committed is None else committed.name
+        found = camera_inputs(source, self.task,
+                              [s for s in self.model.inputs if s is not committed], spec.name)
         settings = {camera.name: camera for camera in self.task.images}
         self._cameras = {name: (settings[name], input_spec.name, size)
                          for name, (input_spec, size) in found.items()}
@@ -114,17 +118,23 @@ class PolicyModel:
                                f"{unknown[0][:64]!r} (its cameras: "
                                f"{', '.join(self.cameras) or 'none'})")
 
-    def act(self, state: np.ndarray, images: Mapping[str, np.ndarray] | None = None
-            ) -> np.ndarray:
-        """[chunk, dim] actions for one state vector (float32, checked here) and the image
-        of each declared camera (BGR uint8, height x width x 3, as decode_image gives)."""
+    def act(self, state: np.ndarray, images: Mapping[str, np.ndarray] | None = None,
+            committed: tuple[int, np.ndarray] | None = None) -> np.ndarray:
+        """[chunk, dim] actions for one state vector (float32, checked here), the image of
+        each declared camera (BGR uint8, height x width x 3, as decode_image gives) and the
+        actions already committed: (the step of the first after the observation's, [n, dim]
+        finite values), for a policy that takes them (task.committed)."""
         state = np.asarray(state, np.float32)
         self.check_state(state)
         self.check_images(images or {})
-        feed = {self._input: ((state - self._mean) / self._std).astype(self._dtype)
-                .reshape(self._feed_shape)}
+        normalised = ((state - self._mean) / self._std).astype(self._dtype)
+        feed: dict[str, np.ndarray] = {self._input: normalised.reshape(self._feed_shape)}
         for name, (camera, input_name, size) in self._cameras.items():
             feed[input_name] = _image_tensor((images or {})[name], camera, size, name)
+        if self._committed_input and self.task.committed is not None:
+            window = committed_window(committed, self.task.committed.steps,
+                                      self.task.action.dim)
+            feed[self._committed_input] = window.reshape(1, -1).astype(self._dtype)
         raw = self.model.infer(feed)[self._output]
         actions = np.asarray(raw, np.float32).reshape(self.task.chunk, self.task.action.dim)
         if not np.all(np.isfinite(actions)):
@@ -141,3 +151,19 @@ def _image_tensor(image: np.ndarray, camera: CameraInput, size: tuple[int, int],
         raise InvalidInput(f"images: camera {name}: not a colour image (shape {shape})")
     tensor, _ = to_tensor(image, camera, size)
     return tensor
+
+
+def committed_window(committed: tuple[int, np.ndarray] | None, steps: int, dim: int
+                     ) -> np.ndarray:
+    """[steps, dim]: row i the action committed for the observation's step + i, zeros where
+    none is (before the first committed, after the last, or nothing sent)."""
+    window = np.zeros((steps, dim), np.float32)
+    if committed is None:
+        return window
+    offset, actions = committed
+    actions = np.asarray(actions, np.float32).reshape(-1, dim)
+    for row, action in enumerate(actions):
+        step = offset + row
+        if 0 <= step < steps:
+            window[step] = action
+    return window

@@ -36,7 +36,8 @@ def check_policy(source: str, task: PolicyTask, inputs: list[TensorSpec],
                  outputs: list[TensorSpec]) -> None:
     """Raises ConfigError naming source (the declaration's file) and the task's key."""
     state = _named(source, "task.state.input", task.state.input, inputs, "input")
-    camera_inputs(source, task, inputs, state.name)
+    committed = committed_input(source, task, inputs)
+    camera_inputs(source, task, [s for s in inputs if s is not committed], state.name)
     if state.datatype not in FLOATS:
         raise ConfigError(f"{source}: task.state.input: '{state.name}' is {state.datatype}, "
                           f"a policy's state is floating point")
@@ -101,3 +102,20 @@ def _camera_size(source: str, key: str, camera: CameraInput,
         raise ConfigError(f"{source}: {key}.size: {list(size)}, the model input "
                           f"'{spec.name}' takes {width}x{height} (shape {list(shape)})")
     return size
+
+
+def committed_input(source: str, task: PolicyTask, inputs: list[TensorSpec]
+                    ) -> TensorSpec | None:
+    """The input the committed actions feed (floating point, steps x dim values), if any."""
+    if task.committed is None:
+        return None
+    spec = _named(source, "task.committed.input", task.committed.input, inputs, "input")
+    if spec.datatype not in FLOATS:
+        raise ConfigError(f"{source}: task.committed.input: '{spec.name}' is {spec.datatype}, "
+                          f"actions are floating point")
+    values, wanted = _values(spec.shape), task.committed.steps * task.action.dim
+    if values is not None and values != wanted:
+        raise ConfigError(f"{source}: task.committed.steps: {task.committed.steps} x "
+                          f"{task.action.dim} actions, the model input '{spec.name}' takes "
+                          f"{values} values (shape {list(spec.shape)})")
+    return spec

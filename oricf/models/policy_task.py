@@ -8,6 +8,7 @@
       rate_hz: 60.606                            # the control rate the policy was trained at
       lead_steps: 0                              # the chunk's first action: steps after the
                                                  # observation (a policy acting ahead)
+      committed: {input: committed, steps: 8}    # optional: the actions already queued
       images:                                    # optional: cameras, each an image input
         - {name: top, input: image, size: [32, 32], resize: stretch, color: rgb,
            scale: 0.00392156862745098}
@@ -56,6 +57,15 @@ class CameraInput(ImageInput):
     name: str = Field(pattern=CAMERA_NAME, description="the camera's name in observations")
 
 
+class CommittedInput(Schema):
+    """The actions the robot has already committed to, as one model input (real-time
+    chunking): `steps` actions from the observation's own step on, row-major; a step nothing
+    is committed for is zeros."""
+
+    input: str = Field(description="the model input they feed")
+    steps: int = Field(ge=1, le=MAX_LEAD, description="actions, from the observation's step")
+
+
 class ActionOutput(Schema):
     """The action the policy answers: its output, dimension and bounds (answers are clipped
     to them)."""
@@ -89,6 +99,9 @@ class PolicyTask(Schema):
         default_factory=list, max_length=MAX_CAMERAS,
         description="camera inputs, each an image input of the model (none: the state only)")
     action: ActionOutput
+    committed: CommittedInput | None = Field(
+        None, description="feed the actions already committed (Observation.committed) to "
+                          "this input: a policy trained to condition on them")
     chunk: int = Field(1, ge=1, le=1024, description="actions per answer, one per step")
     rate_hz: float = Field(gt=0, le=10_000, description="the control rate, steps per second")
     lead_steps: int = Field(

@@ -64,7 +64,12 @@ class PolicyServicer(policy_pb2_grpc.PolicyServicer):
         state = np.asarray(request.state, np.float32)
         images = {name: _decoded(name, image) for name, image in request.images.items()}
         inference = time.perf_counter()
-        actions = policy.act(state, images)
+        committed = None
+        if request.committed.actions:  # checked above: whole, finite actions
+            dim = policy.task.action.dim
+            committed = (int(request.committed.start_step) - int(request.step),
+                         np.asarray(request.committed.actions, np.float32).reshape(-1, dim))
+        actions = policy.act(state, images, committed)
         inference_ms = (time.perf_counter() - inference) * 1e3
         chunk = policy_pb2.ActionChunk(
             start_step=request.step + policy.task.lead_steps, observation_step=request.step,

@@ -15,9 +15,9 @@ import yaml
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError, InvalidInput
 from oricf.models.declaration import load_declaration
-from oricf.models.policy import PolicyModel
+from oricf.models.policy import PolicyModel, committed_window
 from oricf.store import ModelStore
-from tests.support.camera_policy import CAMERA
+from tests.support.camera_policy import CAMERA, committed_declaration
 from tests.support.camera_policy import declaration as camera_policy
 
 POLICIES = REPO_ROOT / "configs" / "models" / "policies"
@@ -150,3 +150,22 @@ def test_a_policy_with_a_camera_is_fed_its_image_as_declared(tmp_path: Path) -> 
     np.testing.assert_allclose(actions, [[0.0, 0.0, 0.5, 0.5, -2.0]], atol=1e-6)
     with pytest.raises(InvalidInput, match=f"images: no image from camera {CAMERA}"):
         policy.act(np.zeros(2, np.float32))
+
+
+def test_committed_actions_that_disagree_with_their_model_input_are_refused_at_load(
+        tmp_path: Path) -> None:
+    declaration = committed_declaration(tmp_path, steps=3)
+    data = yaml.safe_load(declaration.read_text())
+    data["task"]["committed"]["steps"] = 4
+    declaration.write_text(yaml.safe_dump(data))
+    policy = PolicyModel(load_declaration(declaration), ModelStore())
+    with pytest.raises(ConfigError, match=r"committed.yaml: task.committed.steps: 4 x 2 "
+                                          r"actions, the model input 'committed' takes 6"):
+        policy.load()
+
+
+def test_the_committed_window_holds_each_action_at_its_step_and_zeros_elsewhere() -> None:
+    actions = np.array([[1.0, 1.0], [2.0, 2.0]])
+    assert committed_window((1, actions), 4, 2).tolist() == [[0, 0], [1, 1], [2, 2], [0, 0]]
+    assert committed_window((-1, actions), 2, 2).tolist() == [[2, 2], [0, 0]]  # one played
+    assert committed_window(None, 2, 2).tolist() == [[0, 0], [0, 0]]

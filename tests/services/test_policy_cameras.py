@@ -17,7 +17,7 @@ import pytest
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
-from tests.support.camera_policy import CAMERA, declaration
+from tests.support.camera_policy import CAMERA, committed_declaration, declaration
 from tests.support.services import RunningService, running_service
 
 STATE = [0.25, -1.5]
@@ -113,3 +113,20 @@ def test_the_same_declaration_is_served_over_the_open_inference_protocol(
             "state": np.asarray([STATE], np.float32), "image": image})
         outputs = response_outputs(stub.ModelInfer(request, timeout=10))
     np.testing.assert_allclose(outputs["action"][0], [0.0, 0.5, 0.0, *STATE], atol=1e-6)
+
+
+@pytest.mark.parametrize(("start", "expected"), [
+    (3, [1.0 + 0.25, 1.0 - 1.5]),   # committed from the observation's step: its first row
+    (4, [0.25, -1.5]),              # from the next step on: nothing for this one, zeros
+    (None, [0.25, -1.5]),           # nothing committed
+])
+def test_a_policy_declared_to_take_the_committed_actions_is_fed_them_by_step(
+        tmp_path: Path, start: int | None, expected: list[float]) -> None:
+    with running_service("policy", {"model": str(committed_declaration(tmp_path))}) as policy:
+        stub = policy_pb2_grpc.PolicyStub(policy.channel)
+        request = policy_pb2.Observation(step=3, state=STATE)
+        if start is not None:
+            request.committed.start_step = start
+            request.committed.actions.extend([1.0, 1.0, 2.0, 2.0])
+        chunk = stub.Act(request, timeout=10)
+    np.testing.assert_allclose(chunk.actions, expected, atol=1e-6)

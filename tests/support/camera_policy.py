@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 STATE = 2
@@ -47,5 +48,35 @@ def declaration(folder: Path, **task: object) -> Path:
                             "high": 10.0},
                  "chunk": 1, "rate_hz": 50, **task}}
     path = folder / "policy.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def committed_declaration(folder: Path, steps: int = 3) -> Path:
+    """A policy that takes the committed actions: its action is the one committed for the
+    observation's own step (the window's first row) plus the state."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    nodes = [helper.make_node("Slice", ["committed", "zero", "two", "one"], ["first"]),
+             helper.make_node("Add", ["first", "state"], ["action"])]
+    constants = [numpy_helper.from_array(np.array([v], np.int64), n)
+                 for v, n in ((0, "zero"), (2, "two"), (1, "one"))]
+    graph = helper.make_graph(
+        nodes, "committed-first",
+        [helper.make_tensor_value_info("state", TensorProto.FLOAT, ["batch", STATE]),
+         helper.make_tensor_value_info("committed", TensorProto.FLOAT, ["batch", steps * 2])],
+        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 2])], constants)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    (folder / "committed-first.onnx").write_bytes(model.SerializeToString())
+    data = {"name": "committed-first", "weights": {"path": "./committed-first.onnx"},
+            "backend": {"engine": "onnxruntime", "threads": 1},
+            "task": {"kind": "policy", "state": {"input": "state", "size": STATE},
+                     "committed": {"input": "committed", "steps": steps},
+                     "action": {"output": "action", "dim": 2, "low": -10.0, "high": 10.0},
+                     "chunk": 1, "rate_hz": 50}}
+    path = folder / "committed.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
