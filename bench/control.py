@@ -26,6 +26,10 @@ same on any machine for the same seed.
                    the round trip (train_chunk_policy --lead d, one per round trip, trained
                    once and cached), its chunk starting at the step it arrives at; late:
                    skip, merged latest only, asking again as soon as an answer is in
+    edge-committed  metaworld only, and only when named in --modes: edge-ahead whose policy
+                   also takes the d actions committed before its chunk (sent with each
+                   request), behaviour-cloned then trained by DAgger through this loop
+                   (train_committed_policy; minutes per round trip the first time)
     placed         where the gateway's placement puts it with a latency budget in steps
                    (--budget-steps), having timed the edge's round trip: onboard when
                    that is over the budget, else on the edge; the reason printed
@@ -49,6 +53,7 @@ from oricf.bench.control_report import Row, print_goals, print_task, summarise
 from oricf.bench.control_run import (
     BLIND,
     MODES,
+    OPTIONAL_MODES,
     TRAINED_MODES,
     Episode,
     Placed,
@@ -105,9 +110,10 @@ def check_tasks(tasks: list[str]) -> None:
                           f"pick-place-v3")
 
 
-def declaration_of(task: str, lead: int = 0) -> Path:
+def declaration_of(task: str, lead: int = 0, committed: bool = False) -> Path:
     """The declaration of a pybullet robot's policy, of reacher-camera's policy that sees,
-    or of the chunk policy trained for a metaworld task to act `lead` steps ahead (the
+    or of the chunk policy trained for a metaworld task to act `lead` steps ahead (with
+    `committed`, the one that also takes the actions committed before its chunk; the
     trained ones trained now when they are not cached)."""
     if task in ROBOTS:
         return POLICIES / f"{task}.yaml"
@@ -115,14 +121,19 @@ def declaration_of(task: str, lead: int = 0) -> Path:
         from oricf.bench.train_camera_policy import trained_policy as camera_policy
 
         return camera_policy()
+    if committed:
+        from oricf.bench.train_committed_policy import committed_policy
+
+        return committed_policy(task, lead=lead)
     from oricf.bench.train_chunk_policy import trained_policy
 
     return trained_policy(task, lead=lead)
 
 
-def load_policy(task: str, lead: int = 0) -> PolicyModel:
+def load_policy(task: str, lead: int = 0, committed: bool = False) -> PolicyModel:
     """The task's declared policy (declaration_of), loaded."""
-    policy = PolicyModel(load_declaration(declaration_of(task, lead)), ModelStore())
+    policy = PolicyModel(load_declaration(declaration_of(task, lead, committed)),
+                         ModelStore())
     policy.load()
     return policy
 
@@ -137,11 +148,12 @@ def task_modes(task: str, modes: list[str]) -> list[str]:
 
 
 def ahead_policies(task: str, runs: list[tuple[str, int]], policy: PolicyModel
-                   ) -> dict[int, PolicyModel]:
-    """The policy each edge-ahead run uses, by round trip in steps: one trained to act that
-    many steps ahead (at no delay, the policy itself)."""
-    leads = sorted({d for mode, d in runs if mode in TRAINED_MODES})
-    return {d: load_policy(task, d) if d else policy for d in leads}
+                   ) -> dict[tuple[str, int], PolicyModel]:
+    """The policy each run of a trained mode uses, by mode and round trip in steps: one
+    trained to act that many steps ahead (edge-committed: and to take the actions committed
+    before its chunk); at no delay, the policy itself."""
+    return {(mode, d): (load_policy(task, d, mode == "edge-committed") if d else policy)
+            for mode, d in runs if mode in TRAINED_MODES}
 
 
 def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Placed]
@@ -161,7 +173,7 @@ def plan(modes: list[str], steps: dict[float, int], placements: dict[float, Plac
 def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) -> list[Row]:
     sim: Sim = open_sim(task)
     policy = load_policy(task)
-    ahead: dict[int, PolicyModel] = {}
+    ahead: dict[tuple[str, int], PolicyModel] = {}
     try:
         chunk = policy.task.chunk
         budget = default_budget(chunk) if args.budget_steps is None else args.budget_steps
@@ -174,7 +186,7 @@ def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) ->
         episodes: dict[tuple[str, int], list[Episode]] = {run: [] for run in runs}
         for i in range(args.episodes):  # interleaved, episode by episode (the CPU figures)
             for mode, d in runs:
-                used = ahead[d] if mode in TRAINED_MODES else policy
+                used = ahead[mode, d] if mode in TRAINED_MODES else policy
                 episodes[mode, d].append(run_episode(sim, used, setting(mode, d, chunk),
                                                      args.seed + i, max_steps))
         metaworld = task not in ROBOTS
@@ -224,8 +236,9 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--episodes", type=int, default=10, help="episodes per mode and delay")
     parser.add_argument("--seed", type=int, default=0, help="the first episode's seed")
     parser.add_argument("--modes", type=str, default=",".join(MODES),
-                        help="comma-separated, of " + ", ".join(MODES) + " (onboard, the "
-                        "reference, always runs)")
+                        help="comma-separated, of " + ", ".join(MODES + OPTIONAL_MODES) +
+                        " (onboard, the reference, always runs; edge-committed only when "
+                        "named: it trains a policy per round trip with DAgger)")
     parser.add_argument("--budget-steps", type=int, default=None,
                         help="the placed policy's latency budget in control steps, 1 or more "
                         "(default: 1 for a policy of one action, half a chunk for a chunk "
@@ -247,10 +260,10 @@ def options(argv: list[str] | None) -> argparse.Namespace:
     check_tasks(args.task)
     args.delays = parse_delays(args.delays_ms) if args.delays_ms is not None else None
     args.modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-    unknown = [m for m in args.modes if m not in MODES]
+    unknown = [m for m in args.modes if m not in MODES + OPTIONAL_MODES]
     if unknown or not args.modes:
         raise ConfigError(f"--modes: {', '.join(unknown) or 'none given'}: the modes are "
-                          f"{', '.join(MODES)}")
+                          f"{', '.join(MODES + OPTIONAL_MODES)}")
     for name in ("episodes", "max_steps"):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise ConfigError(f"--{name.replace('_', '-')}: must be 1 or more")

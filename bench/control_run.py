@@ -42,6 +42,7 @@ class Setting:
     delay_steps: int
     policy_onboard: bool        # the policy's call is the robot's CPU
     blind: bool = False         # the cameras' images blanked (all zeros) before they go
+    send_committed: bool = False  # the actions already queued go with each request
 
 
 @dataclass
@@ -75,10 +76,12 @@ class Wire:
 
 
 def answer(policy: PolicyModel, message: list[float],
-           images: Mapping[str, np.ndarray] | None = None) -> list[float]:
-    """The policy's chunk for a state as it went over the wire (and the cameras' images
-    that went with it), as it comes back."""
-    chunk = policy.act(np.asarray(message, np.float32), images)
+           images: Mapping[str, np.ndarray] | None = None,
+           committed: tuple[int, np.ndarray] | None = None) -> list[float]:
+    """The policy's chunk for a state as it went over the wire (and the cameras' images and
+    the actions committed that went with it: from which step after the state's, which), as
+    it comes back."""
+    chunk = policy.act(np.asarray(message, np.float32), images, committed)
     return list(chunk.reshape(-1).tolist())
 
 
@@ -97,6 +100,7 @@ def control_loop(sim: Sim, setting: Setting, max_steps: int) -> ControlLoop:
     # before the first); a request may stay out for the round trip and one step more.
     return ControlLoop(queue, np.zeros(sim.action_dim), setting.request_at,
                        deadline=setting.delay_steps + 1, hold_steps=max_steps,
+                       send_committed=setting.send_committed,
                        max_in_flight=setting.max_in_flight)
 
 
@@ -117,7 +121,9 @@ def run_episode(sim: Sim, policy: PolicyModel, setting: Setting, seed: int,
         mark = time.thread_time_ns()
         episode.cpu_ns += mark - start
         if request is not None and message is not None:
-            reply = answer(policy, message, request.images)
+            committed = None if request.committed is None else (
+                request.committed[0] - step, request.committed[1])
+            reply = answer(policy, message, request.images, committed)
             if setting.policy_onboard:
                 episode.cpu_ns += time.thread_time_ns() - mark
             send(wire, request, reply, policy.task.lead_steps)
@@ -159,7 +165,11 @@ def delay_steps(delay_ms: float, rate_hz: float) -> int:
 MODES = ("onboard", "edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead",
          "placed")
 BLIND = "onboard-blind"  # onboard, the cameras' images blanked: added for a sim with cameras
-TRAINED_MODES = ("edge-ahead",)  # need a policy trained for the round trip: metaworld only
+# Modes run only when asked for (--modes): edge-committed trains a policy per round trip
+# with DAgger rounds, minutes each on two cores.
+OPTIONAL_MODES = ("edge-committed",)
+# need a policy trained for the round trip: metaworld only
+TRAINED_MODES = ("edge-ahead", "edge-committed")
 MERGES: dict[str, Merge] = {"edge-latest": "latest", "edge-weighted": "weighted",
                             "edge-ensemble": "ensemble"}
 
@@ -186,6 +196,8 @@ def setting(mode: str, delay_steps: int, chunk: int) -> Setting:
         return Setting("shift", "latest", 0, 1, delay_steps, False)
     if mode == "edge-ahead":  # a chunk arrives with every action ahead: `chunk` queued
         return Setting("skip", "latest", chunk, 1, delay_steps, False)
+    if mode == "edge-committed":  # edge-ahead, the actions committed sent with the request
+        return Setting("skip", "latest", chunk, 1, delay_steps, False, send_committed=True)
     return Setting("skip", MERGES[mode], ask_ahead(chunk), 1, delay_steps,
                    False)
 

@@ -18,6 +18,7 @@ from oricf.bench.control_report import Row, summarise
 from oricf.bench.control_run import MODES, delay_steps, placement, run_episode, setting
 from oricf.bench.sims import Sim, open_sim
 from oricf.bench.train_chunk_policy import trained_policy
+from oricf.bench.train_committed_policy import committed_policy
 from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
@@ -146,7 +147,11 @@ def drawer_policy(root: Path, lead: int) -> PolicyModel:
 def drawer(drawer_root: Path) -> Iterator[tuple[Sim, dict[str, PolicyModel]]]:
     """The simulator, and the policy of each mode: edge-ahead's trained to act the round
     trip of 50 ms (4 steps) ahead."""
-    policies = {"plain": drawer_policy(drawer_root, 0), "edge-ahead": drawer_policy(drawer_root, 4)}
+    committed = committed_policy(TASK, root=drawer_root, lead=4, rounds=1, rollouts=3,
+                                 rollout_steps=120, **SMALL)
+    policies = {"plain": drawer_policy(drawer_root, 0), "edge-ahead": drawer_policy(drawer_root, 4),
+                "edge-committed": PolicyModel(load_declaration(committed), ModelStore(drawer_root))}
+    policies["edge-committed"].load()
     sim = open_sim("drawer-close-v3")
     yield sim, policies
     sim.close()
@@ -156,7 +161,7 @@ def drawer(drawer_root: Path) -> Iterator[tuple[Sim, dict[str, PolicyModel]]]:
 
 @pytest.mark.parametrize(("mode", "steps"), [("onboard", 0), ("edge-latest", 4),
                                              ("edge-ensemble", 4), ("edge-sync", 4),
-                                             ("edge-ahead", 4)])
+                                             ("edge-ahead", 4), ("edge-committed", 4)])
 def test_a_chunk_policy_closes_the_drawer_through_the_loop_behind_50_ms(
         drawer: tuple[Sim, dict[str, PolicyModel]], mode: str, steps: int) -> None:
     sim, policies = drawer
@@ -174,7 +179,7 @@ def test_a_chunk_policy_closes_the_drawer_through_the_loop_behind_50_ms(
     if mode in ("edge-latest", "edge-ensemble"):  # delay-aware: the late actions dropped
         assert result.late_actions > 0
         assert result.action_age_p50 is not None and steps <= result.action_age_p50 < 2 * steps
-    if mode == "edge-ahead":  # each chunk starts at the step it arrives at: nothing late
+    if mode in ("edge-ahead", "edge-committed"):  # each chunk starts as it arrives
         assert result.late_actions == 0
         assert result.action_age_p50 is not None and steps <= result.action_age_p50 < 2 * steps
 
@@ -200,3 +205,17 @@ def test_realtime_rows_come_from_the_gateway_and_the_robot_over_ros(tmp_path: Pa
         assert float(row["cpu_us_per_tick"]) > 0  # type: ignore[arg-type]
     # The loop's own work, measured on its threads, is part of the gateway process's CPU.
     assert 0 < float(edge["loop_cpu_us_per_tick"]) < float(edge["cpu_us_per_tick"])  # type: ignore[arg-type]
+
+
+def test_the_policy_taking_the_committed_actions_is_cached_and_declares_them(
+        drawer: tuple[Sim, dict[str, PolicyModel]], drawer_root: Path) -> None:
+    settings = {"lead": 4, "rounds": 1, "rollouts": 3, "rollout_steps": 120, **SMALL}
+    declaration = committed_policy(TASK, root=drawer_root, **settings)  # the fixture's
+    written = declaration.stat().st_mtime_ns
+    assert committed_policy(TASK, root=drawer_root, **settings) == declaration
+    assert declaration.stat().st_mtime_ns == written  # found, not trained again
+    task = load_declaration(declaration).task
+    assert task.committed is not None and task.committed.steps == 4  # type: ignore[union-attr]
+    assert task.lead_steps == 4  # type: ignore[union-attr]
+    training = json.loads((declaration.parent / "training.json").read_text())
+    assert training["rounds"] == 1 and training["dagger_pairs"] > 0  # the rollouts' joined
