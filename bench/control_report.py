@@ -12,7 +12,8 @@ from oricf.bench.control_run import Episode, delay_steps
 from oricf.bench.sims import reacher_camera
 from oricf.stats import percentile
 
-EDGE_MODES = ("edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead")
+EDGE_MODES = ("edge-sync", "edge-latest", "edge-weighted", "edge-ensemble", "edge-ahead",
+              "edge-committed")
 HOPPER_EDGE_MS = 30.0   # the goal's edge for Hopper, at a one-step budget
 PYBULLET_HZ = 1 / 0.0165
 
