@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from oricf.bench.chunk_mlp import Adam, Fit, Layers, fit_layers, forward, init_layers
-from oricf.models.mlp_source import model_bytes
+from oricf.models.mlp_source import dense_layers, model_bytes
 
 log = logging.getLogger(__name__)
 
@@ -144,16 +144,9 @@ def to_onnx(net: Net, state_size: int, size: tuple[int, int], name: str) -> byte
              helper.make_node("MatMul", ["weights", "coords"], ["points"]),
              helper.make_node("Reshape", ["points", "by_item"], ["keypoints"]),
              helper.make_node("Concat", ["state", "keypoints"], ["features"], axis=1)]
-    x = "features"
-    for i, (w, b) in enumerate(net.layers):
-        inits += [numpy_helper.from_array(w, f"w{i}"), numpy_helper.from_array(b, f"b{i}")]
-        last = i == len(net.layers) - 1
-        nodes += [helper.make_node("MatMul", [x, f"w{i}"], [f"matmul{i}"]),
-                  helper.make_node("Add", [f"matmul{i}", f"b{i}"],
-                                   ["action" if last else f"dense{i}"])]
-        if not last:
-            nodes.append(helper.make_node("Relu", [f"dense{i}"], [f"relu{i}"]))
-            x = f"relu{i}"
+    mlp_nodes, mlp_inits = dense_layers(net.layers, "features", "action")
+    nodes += mlp_nodes
+    inits += mlp_inits
     value = helper.make_tensor_value_info
     graph = helper.make_graph(
         nodes, name,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import ast
 import logging
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -89,25 +90,38 @@ def check_chain(path: Path, arrays: dict[str, np.ndarray]) -> tuple[int, int]:
 
 def to_onnx(arrays: dict[str, np.ndarray], sizes: tuple[int, int], name: str) -> bytes:
     """observation [batch, obs] -> action [batch, act]: MatMul, Add, Relu."""
-    from onnx import TensorProto, helper, numpy_helper
+    from onnx import TensorProto, helper
 
-    nodes, inits, x = [], [], INPUT
-    for i, (w_name, b_name) in enumerate(LAYERS):
-        inits += [numpy_helper.from_array(arrays[w_name], w_name),
-                  numpy_helper.from_array(arrays[b_name], b_name)]
-        last = i == len(LAYERS) - 1
-        nodes += [helper.make_node("MatMul", [x, w_name], [f"matmul{i}"]),
-                  helper.make_node("Add", [f"matmul{i}", b_name],
-                                   [OUTPUT if last else f"dense{i}"])]
-        if not last:
-            nodes.append(helper.make_node("Relu", [f"dense{i}"], [f"relu{i}"]))
-            x = f"relu{i}"
+    nodes, inits = dense_layers([(arrays[w], arrays[b]) for w, b in LAYERS], INPUT, OUTPUT,
+                                LAYERS)
     graph = helper.make_graph(
         nodes, name, [helper.make_tensor_value_info(INPUT, TensorProto.FLOAT,
                                                     ["batch", sizes[0]])],
         [helper.make_tensor_value_info(OUTPUT, TensorProto.FLOAT, ["batch", sizes[1]])],
         initializer=inits)
     return model_bytes(graph)
+
+
+def dense_layers(layers: Sequence[tuple[np.ndarray, np.ndarray]], x: str, output: str,
+                 names: Sequence[tuple[str, str]] | None = None) -> tuple[list[Any], list[Any]]:
+    """An MLP's ONNX nodes and initializers: MatMul and Add per (weights [in, out], bias
+    [out]) layer, Relu between them, from the tensor `x` to `output`; `names`: each layer's
+    (weights, bias) initializer names (default w0, b0, ...)."""
+    from onnx import helper, numpy_helper
+
+    names = names or [(f"w{i}", f"b{i}") for i in range(len(layers))]
+    nodes, inits = [], []
+    for i, ((weights, bias), (w_name, b_name)) in enumerate(zip(layers, names, strict=True)):
+        inits += [numpy_helper.from_array(weights, w_name),
+                  numpy_helper.from_array(bias, b_name)]
+        last = i == len(layers) - 1
+        nodes += [helper.make_node("MatMul", [x, w_name], [f"matmul{i}"]),
+                  helper.make_node("Add", [f"matmul{i}", b_name],
+                                   [output if last else f"dense{i}"])]
+        if not last:
+            nodes.append(helper.make_node("Relu", [f"dense{i}"], [f"relu{i}"]))
+            x = f"relu{i}"
+    return nodes, inits
 
 
 def model_bytes(graph: Any) -> bytes:

@@ -10,13 +10,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from oricf.models.mlp_source import model_bytes
+
 STATE = 2
 SIZE = 8  # the network's image is SIZE x SIZE
 CAMERA = "top"
 
 
-def model_bytes() -> bytes:
-    import onnx
+def channel_means_model() -> bytes:
     from onnx import TensorProto, helper
 
     means = helper.make_node("ReduceMean", ["image"], ["means"], axes=[2, 3], keepdims=0)
@@ -27,15 +28,12 @@ def model_bytes() -> bytes:
          helper.make_tensor_value_info("image", TensorProto.FLOAT,
                                        ["batch", 3, SIZE, SIZE])],
         [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 3 + STATE])])
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
-    model.ir_version = 8
-    onnx.checker.check_model(model)
-    return model.SerializeToString()
+    return model_bytes(graph)
 
 
 def declaration(folder: Path, **task: object) -> Path:
     """policy.yaml and its model in `folder`; `task` replaces keys of the task."""
-    (folder / "channel-means.onnx").write_bytes(model_bytes())
+    (folder / "channel-means.onnx").write_bytes(channel_means_model())
     data = {
         "name": "channel-means",
         "weights": {"path": "./channel-means.onnx"},
@@ -55,7 +53,6 @@ def declaration(folder: Path, **task: object) -> Path:
 def committed_declaration(folder: Path, steps: int = 3) -> Path:
     """A policy that takes the committed actions: its action is the one committed for the
     observation's own step (the window's first row) plus the state."""
-    import onnx
     from onnx import TensorProto, helper, numpy_helper
 
     nodes = [helper.make_node("Slice", ["committed", "zero", "two", "one"], ["first"]),
@@ -67,10 +64,7 @@ def committed_declaration(folder: Path, steps: int = 3) -> Path:
         [helper.make_tensor_value_info("state", TensorProto.FLOAT, ["batch", STATE]),
          helper.make_tensor_value_info("committed", TensorProto.FLOAT, ["batch", steps * 2])],
         [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 2])], constants)
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
-    model.ir_version = 8
-    onnx.checker.check_model(model)
-    (folder / "committed-first.onnx").write_bytes(model.SerializeToString())
+    (folder / "committed-first.onnx").write_bytes(model_bytes(graph))
     data = {"name": "committed-first", "weights": {"path": "./committed-first.onnx"},
             "backend": {"engine": "onnxruntime", "threads": 1},
             "task": {"kind": "policy", "state": {"input": "state", "size": STATE},
