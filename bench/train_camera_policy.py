@@ -33,12 +33,11 @@ from pathlib import Path
 import numpy as np
 
 from oricf.bench import camera_net
-from oricf.bench.chunk_demos import MIN_STD, chunks, demo_seed
+from oricf.bench.chunk_demos import MIN_STD, chunks, successful
 from oricf.bench.chunk_mlp import Fit
 from oricf.bench.entry import need
 from oricf.bench.sims.reacher_camera import CAMERA, CAMERA_SIZE, NAME, ReacherCameraSim, expert
 from oricf.bench.train_chunk_policy import Trained, staging, yaml_list
-from oricf.errors import ConfigError
 from oricf.models.image import to_tensor
 from oricf.models.policy_task import CameraInput
 from oricf.store import default_root, sha256_of
@@ -118,20 +117,13 @@ def collect(settings: Settings) -> Demos:
     """`settings.demos` successful episodes of the expert (at most 2x as many tried)."""
     sim = ReacherCameraSim()
     act = expert(sim)
-    kept: list[Demos] = []
-    tried = 0
     try:
-        while len(kept) < settings.demos and tried < 2 * settings.demos:
-            demo, success = episode(sim, act, demo_seed(settings.seed, tried), settings.noise)
-            tried += 1
-            if success:
-                kept.append(Demos(demo.states, demo.images,
-                                  chunks(demo.targets, settings.chunk)))
+        kept = [Demos(demo.states, demo.images, chunks(demo.targets, settings.chunk))
+                for demo in successful(
+                    lambda seed: episode(sim, act, seed, settings.noise), settings.demos,
+                    settings.seed, 2, NAME, settings.noise)]
     finally:
         sim.close()
-    if len(kept) < settings.demos:
-        raise ConfigError(f"{NAME}: the expert succeeded in {len(kept)} of {tried} episodes "
-                          f"(noise {settings.noise}): too few demonstrations")
     return Demos(*(np.concatenate([getattr(d, name) for d in kept])
                    for name in ("states", "images", "targets")))
 

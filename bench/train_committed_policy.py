@@ -29,47 +29,42 @@ below that are on unseen episodes.
 from __future__ import annotations
 
 import argparse
-import hashlib
-import importlib.metadata
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from oricf.bench.chunk_demos import chunks, demo_seed
+from oricf.bench.chunk_demos import Demos, chunks, demonstrations
 from oricf.bench.chunk_mlp import Fit, Layers, forward, train
+from oricf.bench.control_run import Wire, control_loop, setting
 from oricf.bench.sims.metaworld import MetaworldSim, expert
-from oricf.bench.train_chunk_policy import staging, yaml_list
-from oricf.errors import ConfigError
-from oricf.gateway.actions.loop import ControlLoop
-from oricf.gateway.actions.queue import ActionQueue, Origin
-from oricf.models.mlp_source import model_bytes
+from oricf.bench.train_chunk_policy import Settings as ChunkSettings
+from oricf.bench.train_chunk_policy import cache_key, staging, yaml_list
+from oricf.gateway.actions.queue import Origin
+from oricf.models.mlp_source import dense_layers, model_bytes
 from oricf.models.policy import committed_window
 from oricf.store import default_root, sha256_of
 
 log = logging.getLogger(__name__)
 
-FORMAT = 1
 ROLLOUT_SEEDS = 3_000_000
 DIM = 4  # metaworld's actions
+Act = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
-class Settings:
-    task: str = "pick-place-v3"
+class Settings(ChunkSettings):
+    """train_chunk_policy's settings (its cache key too: these fields make the keys
+    distinct), acting 8 steps ahead by default, and the DAgger rounds."""
+
     lead: int = 8
     rounds: int = 2          # DAgger rounds after the behaviour cloning
     rollouts: int = 16       # episodes a round
     rollout_steps: int = 160  # steps an episode at most: past it the arm is lost anyway
-    demos: int = 60
-    chunk: int = 16
-    seed: int = 0
-    epochs: int = 300
-    noise: float = 0.1
-    hidden: int = 256
 
 
 @dataclass
@@ -79,50 +74,24 @@ class Data:
     targets: list[np.ndarray]      # [chunk * DIM] each
 
 
-def cache_key(settings: Settings) -> str:
-    text = json.dumps({**asdict(settings), "metaworld": importlib.metadata.version("metaworld"),
-                       "format": FORMAT, "kind": "committed"}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-
 def committed_policy(task: str = "pick-place-v3", *, root: Path | None = None,
                      **settings: int | float) -> Path:
     """The declaration of the policy with these settings, trained first when not cached."""
-    folder = (root or default_root()) / "trained" / cache_key(Settings(task=task, **settings))  # type: ignore[arg-type]
+    chosen = Settings(task=task, **settings)  # type: ignore[arg-type]
+    folder = (root or default_root()) / "trained" / cache_key(chosen)
     if not (folder / "policy.yaml").is_file():
-        train_and_write(Settings(task=task, **settings), folder)  # type: ignore[arg-type]
+        train_and_write(chosen, folder)
     return folder / "policy.yaml"
 
 
-def demonstrations(settings: Settings, sim: MetaworldSim) -> Data:
-    act = expert(settings.task)
+def demonstrated(settings: Settings) -> Data:
+    """The expert's demonstrations as pairs: each observation with the `lead` actions
+    executed from it on, its target the clean actions from `lead` steps on."""
     data = Data([], [], [])
-    kept = tried = 0
-    while kept < settings.demos and tried < 3 * settings.demos:
-        seed = demo_seed(settings.seed, tried)
-        tried += 1
-        rng = np.random.default_rng(seed)
-        observation = sim.reset(seed)
-        observations, clean, executed, success = [], [], [], False
-        for _ in range(sim.max_steps):
-            action = act(observation)
-            observations.append(observation)
-            clean.append(action)
-            executed.append(np.clip(action + rng.normal(0.0, settings.noise, action.shape),
-                                    sim.action_low, sim.action_high))
-            step = sim.step(executed[-1])
-            observation = step.observation
-            if step.done:
-                success = step.success
-                break
-        if success:
-            kept += 1
-            data.observations += observations
-            data.committed += list(chunks(np.asarray(executed), settings.lead))
-            data.targets += list(chunks(np.asarray(clean), settings.chunk, settings.lead))
-    if kept < settings.demos:
-        raise ConfigError(f"{settings.task}: the expert succeeded in {kept} of {tried} "
-                          f"episodes: too few demonstrations")
+    for demo in demonstrations(settings.task, settings.demos, settings.seed, settings.noise):
+        data.observations += list(demo.observations)
+        data.committed += list(chunks(demo.executed, settings.lead))
+        data.targets += list(chunks(demo.clean, settings.chunk, settings.lead))
     return data
 
 
@@ -131,15 +100,13 @@ class Fitted:
     it: answers clipped to [-1, 1]."""
 
     def __init__(self, data: Data, settings: Settings) -> None:
-        observations = np.asarray(data.observations)
-        self.mean = observations.mean(axis=0)
-        std = observations.std(axis=0)
-        self.std = np.where(std < 1e-3, 1.0, std)
+        observations, targets = np.asarray(data.observations), np.asarray(data.targets)
+        self.mean, self.std = Demos(observations, targets).normalisation()
         inputs = np.concatenate([(observations - self.mean) / self.std,
                                  np.asarray(data.committed)], axis=1)
-        self.layers: Layers = train(inputs, np.asarray(data.targets),
-                                    [settings.hidden, settings.hidden],
-                                    Fit(settings.epochs), settings.seed)
+        self.layers: Layers = train(inputs, targets, [settings.hidden, settings.hidden],
+                                    Fit(settings.epochs, settings.batch, settings.lr),
+                                    settings.seed)
 
     def act(self, observation: np.ndarray, committed: np.ndarray) -> np.ndarray:
         x = np.concatenate([(observation - self.mean) / self.std, committed])[None]
@@ -148,25 +115,22 @@ class Fitted:
 
 def rollout(settings: Settings, sim: MetaworldSim, policy: Fitted, seed: int
             ) -> tuple[list[tuple[int, np.ndarray, np.ndarray]], list[np.ndarray]]:
-    """One episode through the loop behind `lead` steps: each request (step, observation,
-    committed window) and every action played."""
+    """One episode through the loop behind `lead` steps, as `edge-committed` runs it in the
+    bench: each request (step, observation, committed window) and every action played."""
     lead, chunk = settings.lead, settings.chunk
-    loop = ControlLoop(ActionQueue(DIM, "skip", "latest"), np.zeros(DIM), request_at=chunk,
-                       deadline=lead + 1, hold_steps=settings.rollout_steps,
-                       send_committed=True)
-    due: dict[int, list[tuple[np.ndarray, int, Origin]]] = {}
+    loop = control_loop(sim, setting("edge-committed", lead, chunk), settings.rollout_steps)
+    wire = Wire(lead)
     observation = sim.reset(seed)
     requests, played = [], []
     for step in range(settings.rollout_steps):
-        for answer in due.pop(step, []):
-            loop.deliver(*answer, now=step - 1)
+        wire.arrive(loop, step, chunk, DIM)
         request = loop.ask(step, observation, now_ns=step)
         if request is not None:
             first, actions = request.committed or (step, np.zeros((0, DIM)))
             window = committed_window((first - step, actions), lead, DIM).reshape(-1)
             requests.append((step, observation.copy(), window))
-            answer_ = policy.act(observation, window).reshape(chunk, DIM)
-            due.setdefault(step + lead, []).append((answer_, step + lead, Origin(step, step)))
+            answer = policy.act(observation, window).tolist()
+            wire.send(step, answer, step + lead, Origin(step, step))
         played.append(loop.act(step).action)
         result = sim.step(played[-1])
         observation = result.observation
@@ -175,10 +139,9 @@ def rollout(settings: Settings, sim: MetaworldSim, policy: Fitted, seed: int
     return requests, played
 
 
-def label(settings: Settings, sim: MetaworldSim, seed: int, played: list[np.ndarray],
-          step: int) -> np.ndarray | None:
+def label(settings: Settings, sim: MetaworldSim, act: Act, seed: int,
+          played: list[np.ndarray], step: int) -> np.ndarray | None:
     """The expert's chunk from `step + lead` on, after the actions played until then."""
-    act = expert(settings.task)
     if step + settings.lead > len(played):
         return None
     observation = sim.reset(seed)
@@ -199,10 +162,11 @@ def label(settings: Settings, sim: MetaworldSim, seed: int, played: list[np.ndar
 
 def train_and_write(settings: Settings, folder: Path) -> None:
     started = time.monotonic()
-    sim, replay = MetaworldSim(settings.task), MetaworldSim(settings.task)
+    data = demonstrated(settings)
+    demonstrations = len(data.targets)
+    sim, replay, act = MetaworldSim(settings.task), MetaworldSim(settings.task), expert(
+        settings.task)
     try:
-        data = demonstrations(settings, sim)
-        demonstrated = len(data.targets)
         policy = Fitted(data, settings)
         for round_ in range(settings.rounds):
             added = 0
@@ -210,7 +174,7 @@ def train_and_write(settings: Settings, folder: Path) -> None:
                 seed = ROLLOUT_SEEDS + 1000 * round_ + episode
                 requests, played = rollout(settings, sim, policy, seed)
                 for step, observation, window in requests:
-                    target = label(settings, replay, seed, played, step)
+                    target = label(settings, replay, act, seed, played, step)
                     if target is not None:
                         data.observations.append(observation)
                         data.committed.append(window)
@@ -221,8 +185,8 @@ def train_and_write(settings: Settings, folder: Path) -> None:
     finally:
         sim.close()
         replay.close()
-    write(folder, settings, policy, {"demonstrated_pairs": demonstrated,
-                                     "dagger_pairs": len(data.targets) - demonstrated,
+    write(folder, settings, policy, {"demonstrated_pairs": demonstrations,
+                                     "dagger_pairs": len(data.targets) - demonstrations,
                                      "seconds": round(time.monotonic() - started, 1)})
 
 
@@ -250,22 +214,14 @@ def write(folder: Path, settings: Settings, policy: Fitted, counts: dict[str, fl
 def to_onnx(layers: Layers, settings: Settings) -> bytes:
     """observation [batch, 39] and committed [batch, lead x 4] -> action [batch, chunk x 4]:
     Concat, then MatMul/Add/Relu."""
-    from onnx import TensorProto, helper, numpy_helper
+    from onnx import TensorProto, helper
 
-    nodes = [helper.make_node("Concat", ["observation", "committed"], ["x0"], axis=1)]
-    inits, x = [], "x0"
-    for i, (weights, bias) in enumerate(layers):
-        inits += [numpy_helper.from_array(weights, f"w{i}"), numpy_helper.from_array(bias, f"b{i}")]
-        last = i == len(layers) - 1
-        nodes += [helper.make_node("MatMul", [x, f"w{i}"], [f"m{i}"]),
-                  helper.make_node("Add", [f"m{i}", f"b{i}"], ["action" if last else f"d{i}"])]
-        if not last:
-            nodes.append(helper.make_node("Relu", [f"d{i}"], [f"r{i}"]))
-            x = f"r{i}"
+    concat = helper.make_node("Concat", ["observation", "committed"], ["joined"], axis=1)
+    nodes, inits = dense_layers(layers, "joined", "action")
     value = helper.make_tensor_value_info
     observations = layers[0][0].shape[0] - settings.lead * DIM
     graph = helper.make_graph(
-        nodes, f"committed-{settings.task}",
+        [concat, *nodes], f"committed-{settings.task}",
         [value("observation", TensorProto.FLOAT, ["batch", observations]),
          value("committed", TensorProto.FLOAT, ["batch", settings.lead * DIM])],
         [value("action", TensorProto.FLOAT, ["batch", settings.chunk * DIM])], inits)
