@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -29,10 +30,12 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from oricf.config import Schema
+from oricf.errors import InvalidInput
 
 StateType = Literal["sensor_msgs/JointState", "std_msgs/Float64MultiArray"]
 JointField = Literal["position", "velocity", "effort"]
 ImageType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage"]
+ImageOf = Callable[[str, Any], Any]  # (a camera's message type, the message) -> its image
 CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"  # as a policy declares its cameras
 
 
@@ -110,10 +113,13 @@ class Observation:
     """Thread-safe: message callbacks `take`, the loop's thread `assemble`s."""
 
     def __init__(self, parts: list[StatePart], size: int, max_age_ms: float,
-                 cameras: list[CameraPart] | None = None) -> None:
-        """`size`: the state's length, -1 when the parts do not say."""
+                 cameras: list[CameraPart] | None = None,
+                 image_of: ImageOf = lambda type_, msg: msg) -> None:
+        """`size`: the state's length, -1 when the parts do not say; `image_of`: a camera's
+        message (of its type) as the image kept, raising what `take` refuses."""
         self.parts = parts
         self.cameras = cameras or []
+        self._image_of = image_of
         self.size = size
         self.max_age_ns = int(max_age_ms * 1e6)
         self.refused = 0          # messages whose values could not be used
@@ -121,8 +127,17 @@ class Observation:
         self._images: list[Latest | None] = [None] * len(self.cameras)
         self._lock = threading.Lock()
 
-    def take_image(self, index: int, image: Any, received_ns: int | None = None) -> None:
-        """Camera `index`'s newest image, already checked by the transport."""
+    def take_image(self, index: int, msg: Any, received_ns: int | None = None) -> None:
+        """Camera `index`'s message: its image kept as the newest, or MissingState naming
+        why not (the camera's last good image is not used on)."""
+        camera = self.cameras[index]
+        try:
+            image = self._image_of(camera.type, msg)
+        except (InvalidInput, TypeError, ValueError, AttributeError) as exc:
+            with self._lock:
+                self.refused += 1
+                self._images[index] = None
+            raise MissingState(f"{camera.topic}: {exc}") from None
         with self._lock:
             self._images[index] = Latest(image, received_ns or time.monotonic_ns())
 
@@ -131,13 +146,6 @@ class Observation:
         with self._lock:
             got = self._images[index]
         return None if got is None else got.values
-
-    def refuse_image(self, index: int, reason: str) -> None:
-        """Camera `index` sent what is not an image: its last good one is not used on."""
-        with self._lock:
-            self.refused += 1
-            self._images[index] = None
-        raise MissingState(f"{self.cameras[index].topic}: {reason}")
 
     def take(self, index: int, msg: Any, received_ns: int | None = None) -> None:
         part = self.parts[index]

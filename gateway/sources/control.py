@@ -38,7 +38,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from oricf.config import Schema
-from oricf.errors import ConfigError, InvalidInput
+from oricf.errors import ConfigError
 from oricf.gateway.actions.loop import ControlLoop, Request
 from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
 from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
@@ -144,7 +144,7 @@ class ControlSource:
                                 settings.deadline_steps, settings.hold_steps,
                                 settings.send_committed, settings.max_in_flight)
         self.observation = Observation(settings.state, _state_size(settings),
-                                       settings.max_age_ms, settings.images)
+                                       settings.max_age_ms, settings.images, camera_frame)
         self.target = ActionTarget(settings.target, context.topics.publisher(
             settings.target.topic, settings.target.type), settings.safe())
         for index, part in enumerate(settings.state):
@@ -175,19 +175,12 @@ class ControlSource:
         return take
 
     def _image_taker(self, index: int) -> Any:
-        camera = self.settings.images[index]
-
         def take(msg: Any) -> None:
             try:
-                frame = camera_frame(camera.type, msg)
-            except (InvalidInput, TypeError, ValueError, AttributeError) as exc:
-                try:
-                    self.observation.refuse_image(index, str(exc))
-                except MissingState as refused:
-                    self._throttle.warning(f"image:{index}", "route %s: image refused: %s",
-                                           self.route, refused)
-                return
-            self.observation.take_image(index, frame)
+                self.observation.take_image(index, msg)
+            except MissingState as exc:
+                self._throttle.warning(f"image:{index}", "route %s: image refused: %s",
+                                       self.route, exc)
         return take
 
     def start(self) -> None:
