@@ -216,8 +216,9 @@ def measure_realtime(task: str, delays_ms: list[float], args: argparse.Namespace
     need("rclpy", "ros", "oricf bench control --realtime")
     from oricf.bench.control_realtime import realtime_rows
 
+    executors = ("python", "events") if args.executor == "both" else (args.executor,)
     return realtime_rows(task, declaration_of(task), delays_ms, args.episodes, args.seed,
-                         task not in ROBOTS, args.max_steps)
+                         task not in ROBOTS, args.max_steps, executors)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -250,6 +251,10 @@ def parser() -> argparse.ArgumentParser:
                         "behind the delay relay, the gateway's control loop in its process, "
                         "the simulator as a robot (bench/control_realtime.py); rows "
                         "realtime-onboard and realtime-edge")
+    parser.add_argument("--executor", choices=("events", "python", "both"), default="events",
+                        help="--realtime: the gateway's ROS executor (its `executor:` key): "
+                        "rclpy's EventsExecutor, its Python executor, or each row on both, "
+                        "side by side (default: events)")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     return parser
 

@@ -2,13 +2,13 @@
 through the delay relay instead of simulated steps. Per task and round trip: the policy
 service (`oricf serve policy`) behind the delay relay (half the round trip each way; none at
 0 ms, the onboard reference), the gateway's control loop in its own process (`oricf gateway`
-with a `control:` input), and each episode the simulator as a ROS 2 robot
-(`python -m oricf.bench.sim_node`) in real time at its rate. The figures are the episodes'
-(success or return, steps) and the gateway's own: its /metrics (action age in steps, empty
-ticks, chunks switched) and the robot side's CPU time per step while an episode steps: the
-gateway's process (observation, call, merging, publishing, with ROS), and the policy
-service's too when it runs onboard (0 ms). Unlike simulated time, these move with the
-machine's load: quote medians of repeated runs.
+with a `control:` input, on rclpy's EventsExecutor unless told otherwise), and each episode
+the simulator as a ROS 2 robot (`python -m oricf.bench.sim_node`) in real time at its rate.
+The figures are the episodes' (success or return, steps) and the gateway's own: its
+/metrics (action age in steps, empty ticks, chunks switched) and the robot side's CPU time
+per step while an episode steps: the gateway's process (observation, call, merging,
+publishing, with ROS), and the policy service's too when it runs onboard (0 ms). Unlike
+simulated time, these move with the machine's load: quote medians of repeated runs.
 """
 
 from __future__ import annotations
@@ -68,16 +68,17 @@ def scrape(port: int) -> dict[str, float]:
     for family in text_string_to_metric_families(text.decode()):
         for sample in family.samples:
             if sample.name.startswith("oricf_gateway_control_"):
-                le = sample.labels.get("le")
-                samples[sample.name + (f"[{le}]" if le else "")] = sample.value
+                label = sample.labels.get("le") or sample.labels.get("work")
+                samples[sample.name + (f"[{label}]" if label else "")] = sample.value
     return samples
 
 
-def loop_cpu_us(samples: dict[str, float]) -> float | None:
-    """The loop's own CPU per tick, as the gateway measured it on the loop's threads."""
-    ticks = samples.get("oricf_gateway_control_ticks_total", 0.0)
-    cpu_s = samples.get("oricf_gateway_control_cpu_seconds_total")
-    return None if cpu_s is None or not ticks else cpu_s * 1e6 / ticks
+def loop_cpu_us(samples: dict[str, float], work: str, per: str = "ticks") -> float | None:
+    """The CPU of the loop's own `work` (tick or request) as the gateway measured it on the
+    loop's threads, in microseconds per tick (or per request)."""
+    count = samples.get(f"oricf_gateway_control_{per}_total", 0.0)
+    cpu_s = samples.get(f"oricf_gateway_control_cpu_seconds_total[{work}]")
+    return None if cpu_s is None or not count else cpu_s * 1e6 / count
 
 
 def age_percentile(samples: dict[str, float], q: float) -> float | None:
@@ -139,13 +140,15 @@ class RealtimeTask:
     def close(self) -> None:
         stop(self.service)
 
-    def row(self, delay_ms: float, seeds: list[int], metaworld: bool) -> Row:
+    def row(self, delay_ms: float, seeds: list[int], metaworld: bool,
+            executor: str = "events") -> Row:
         relay = DelayRelay(("127.0.0.1", self.port), delay_ms / 2000) if delay_ms else None
         address = relay.address if relay else f"127.0.0.1:{self.port}"
         metrics = free_port()
         pipeline = self.folder / f"control-{delay_ms:g}.yaml"
         pipeline.write_text(yaml.safe_dump({
             "metrics": {"listen": f"127.0.0.1:{metrics}"},
+            "executor": executor,
             "endpoints": {"policy": {"address": address, "deadline_ms": 2000}},
             "routes": {"policy": {"input": {"control": control_input(*self.settings,
                                                                      self.cameras)},
@@ -165,7 +168,9 @@ class RealtimeTask:
                 relay.close()
         cpu = sum(cpu for _, cpu in episodes)
         ticks = sum(result["steps"] for result, _ in episodes)
-        return self._summary(delay_ms, [r for r, _ in episodes], samples, cpu, ticks, metaworld)
+        row = self._summary(delay_ms, [r for r, _ in episodes], samples, cpu, ticks, metaworld)
+        row.executor = executor
+        return row
 
     def _episode(self, seed: int, env: dict[str, str], robot: list[int]
                  ) -> tuple[dict[str, Any], float]:
@@ -211,16 +216,26 @@ class RealtimeTask:
             samples.get("oricf_gateway_control_late_actions_total", 0.0) / count,
             switches / count, jump_sum / switches if switches else None,
             cpu_s * 1e6 / ticks if ticks else 0.0,
-            loop_cpu_us_per_tick=loop_cpu_us(samples))
+            loop_cpu_us_per_tick=_sum(loop_cpu_us(samples, "tick"),
+                                      loop_cpu_us(samples, "request")),
+            loop_tick_cpu_us=loop_cpu_us(samples, "tick"),
+            request_cpu_us=loop_cpu_us(samples, "request", per="requests"))
+
+
+def _sum(*values: float | None) -> float | None:
+    return None if None in values else sum(v or 0.0 for v in values)
 
 
 def realtime_rows(task: str, declaration: Path, delays_ms: list[float], episodes: int,
-                  seed: int, metaworld: bool, max_steps: int | None = None) -> list[Row]:
-    """The task's rows in real time: the onboard reference (0 ms) and each round trip."""
+                  seed: int, metaworld: bool, max_steps: int | None = None,
+                  executors: tuple[str, ...] = ("events",)) -> list[Row]:
+    """The task's rows in real time: the onboard reference (0 ms) and each round trip, with
+    the gateway on each ROS executor (PipelineConfig.executor) in turn."""
     with tempfile.TemporaryDirectory(prefix="oricf-bench-control-") as folder:
         runner = RealtimeTask(task, declaration, Path(folder), max_steps)
         try:
             seeds = [seed + i for i in range(episodes)]
-            return [runner.row(ms, seeds, metaworld) for ms in sorted({0.0, *delays_ms})]
+            return [runner.row(ms, seeds, metaworld, executor)
+                    for ms in sorted({0.0, *delays_ms}) for executor in executors]
         finally:
             runner.close()

@@ -39,6 +39,9 @@ class Row:
     budget_steps: int | None = None     # placed only
     # realtime only: the loop's own work on its threads (oricf_gateway_control_cpu_seconds)
     loop_cpu_us_per_tick: float | None = None
+    loop_tick_cpu_us: float | None = None   # of which the ticks', per tick
+    request_cpu_us: float | None = None     # and the requests', per request
+    executor: str | None = None             # realtime only: the gateway's ROS executor
     placed_onboard: bool | None = None
     reason: str | None = None
 
@@ -72,12 +75,16 @@ def _figure(value: float | None, form: str = ".0f") -> str:
     return "-" if value is None else format(value, form)
 
 
+def _mode(row: Row) -> str:
+    return f"{row.mode} ({row.executor})" if row.executor else row.mode
+
+
 def print_task(task: str, rows: list[Row]) -> None:
     metaworld = rows[0].success_rate is not None
     header = ["mode", "delay ms", "steps d", *(["success"] if metaworld else []), "return",
               "steps to success" if metaworld else "steps", "age p50/p99", "empty ticks",
               "late actions", "switches", "jump", "CPU us/tick"]
-    table = [[row.mode, f"{row.delay_ms:g}", row.delay_steps,
+    table = [[_mode(row), f"{row.delay_ms:g}", row.delay_steps,
               *([f"{row.success_rate:.0%}"] if row.success_rate is not None else []),
               f"{row.mean_return:.1f}", _figure(row.mean_steps, ".1f"),
               f"{_figure(row.action_age_p50)}/{_figure(row.action_age_p99)}",
@@ -90,9 +97,11 @@ def print_task(task: str, rows: list[Row]) -> None:
         if row.reason:
             print(f"  placed at {row.delay_ms:g} ms: {row.reason}")
         if row.loop_cpu_us_per_tick is not None:
-            print(f"  {row.mode} at {row.delay_ms:g} ms: the loop's own work "
+            print(f"  {_mode(row)} at {row.delay_ms:g} ms: the loop's own work "
                   f"{row.loop_cpu_us_per_tick:.0f} us a tick of the {row.cpu_us_per_tick:.0f} "
-                  f"us the robot side's processes took")
+                  f"us the robot side's processes took (the tick itself "
+                  f"{_figure(row.loop_tick_cpu_us)} us, a request {_figure(row.request_cpu_us)} "
+                  f"us)")
 
 
 @dataclass(frozen=True)
@@ -174,7 +183,8 @@ def cpu_goal(rows: list[Row]) -> Goal:
                 if r.mode == "realtime-edge" and r.loop_cpu_us_per_tick is not None]
     if realtime:  # measured on the loop's threads in real time: it counts too
         figures.append("in real time, the loop's own work: " + ", ".join(
-            f"{r.task} at {r.delay_ms:g} ms {r.loop_cpu_us_per_tick:.0f} us" for r in realtime))
+            f"{r.task} at {r.delay_ms:g} ms ({r.executor}) {r.loop_cpu_us_per_tick:.0f} us"
+            for r in realtime))
         worst = max(worst, *(r.loop_cpu_us_per_tick or 0.0 for r in realtime))
     return Goal(name, "met" if worst <= 500 else "not met",
                 f"worst {worst:.0f} us; " + "; ".join(figures))

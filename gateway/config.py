@@ -189,6 +189,10 @@ class PipelineConfig(Schema):
     executor_threads: int = Field(
         1, ge=1, le=64, description="ROS executor threads; callbacks only hand off to the "
                                     "routes' worker threads, so 1 suffices")
+    executor: Literal["python", "events"] = Field(
+        "python", description="python: rclpy's executors, written in Python; events: rclpy's "
+        "EventsExecutor (C++, one thread; experimental in rclpy), which takes a fraction of "
+        "the CPU per message: for a control loop ticked by its state at tens of Hz")
     endpoints: dict[str, EndpointConfig] = Field(default_factory=dict)
     channels: dict[str, ChannelConfig] = Field(
         default_factory=dict, description="text channels that inputs and outputs name")
@@ -207,6 +211,13 @@ class PipelineConfig(Schema):
                           "OTEL_EXPORTER_OTLP_ENDPOINT is set)")
 
     _origin: str = PrivateAttr("pipeline")  # the files it was read from, for errors
+
+    @model_validator(mode="after")
+    def _one_events_thread(self) -> PipelineConfig:
+        if self.executor == "events" and self.executor_threads != 1:
+            raise ValueError(f"executor_threads: {self.executor_threads}, but the events "
+                             f"executor runs on one thread")
+        return self
 
     @property
     def origin(self) -> str:

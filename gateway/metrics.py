@@ -201,7 +201,7 @@ class PipelineCollector(Collector):
             "oricf_gateway_control_cpu_seconds", "CPU time of the loop's own work on its "
             "threads: its ticks (assembling the observation, merging, publishing) and its "
             "requests (the message, the call on its thread, taking the answer); gRPC's and "
-            "ROS's own threads are not in it.", labels=ROUTE)
+            "ROS's own threads are not in it.", labels=(*ROUTE, "work"))
         jumps = SummaryMetricFamily(
             "oricf_gateway_control_switch_jump", "Where one chunk's actions give way to "
             "another's: the largest change of a value between the two actions.", labels=ROUTE)
@@ -215,7 +215,8 @@ class PipelineCollector(Collector):
             age_steps.add_metric((route,), [(str(b), float(sum(a <= b for a in kept)))
                                             for b in AGE_STEPS] + [("+Inf", float(len(kept)))],
                                  float(sum(kept)))
-            cpu.add_metric((route,), loop.counts.cpu_ns / 1e9)
+            cpu.add_metric((route, "tick"), loop.counts.tick_cpu_ns / 1e9)
+            cpu.add_metric((route, "request"), loop.counts.request_cpu_ns / 1e9)
             counts = loop.queue.counts
             jumps.add_metric((route,), counts.switches, counts.jump_sum)
         yield from (*counters.values(), age, age_steps, cpu, jumps)

@@ -69,10 +69,11 @@ class LoopCounts:
     failed: int = 0               # calls that failed (the route told the loop)
     missing_state: int = 0        # ticks without an observation (stale, missing, bad)
     late_ticks: int = 0           # ticks that started after their time (steps skipped)
-    # CPU the loop's own work took, in nanoseconds of its threads' time: the ticks
-    # (assembling the observation, merging, publishing) and the requests (the call's
-    # message, the call on its thread, taking the answer). Kept by whoever runs the loop.
-    cpu_ns: int = 0
+    # CPU the loop's own work took, in nanoseconds of its threads' time, kept by whoever
+    # runs the loop: the ticks (assembling the observation, merging, publishing) and the
+    # requests (the call's message, the call on its thread, taking the answer).
+    tick_cpu_ns: int = 0
+    request_cpu_ns: int = 0
 
 
 @dataclass

@@ -7,13 +7,27 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from oricf.errors import ConfigError
+
 STOP_CHECK_S = 0.5  # how late a stop may be noticed when rclpy does not wake the executor
 
 
-def make_executor(threads: int, context: Any = None) -> Any:
+def make_executor(threads: int, context: Any = None, kind: str = "python") -> Any:
     """Camera frames never pass through the executor (oricf.gateway.ros.camera); the text
     and audio callbacks only hand messages to their routes' worker threads and never block,
-    so one executor thread keeps up. threads > 1 selects rclpy's MultiThreadedExecutor."""
+    so one executor thread keeps up. threads > 1 selects rclpy's MultiThreadedExecutor.
+
+    kind events: rclpy's EventsExecutor, whose wait for the next callback is C++ instead of
+    the Python executors' rebuilding of a wait set per message: at a control loop's rate
+    (a state in, an action out, 80 times a second) the process's CPU per message fell to
+    under half (docs/control.md). Experimental in rclpy; not in Humble's."""
+    if kind == "events":
+        try:
+            from rclpy.experimental import EventsExecutor
+        except ImportError as exc:
+            raise ConfigError(f"executor: events needs rclpy's EventsExecutor (Jazzy's "
+                              f"rclpy 7.1.5 or later, Kilted): {exc}") from None
+        return EventsExecutor(context=context)
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
     if threads == 1:

@@ -56,7 +56,8 @@ class EmbeddedGateway:
         node = GatewayNode(self.config, context=context, audit_path=self.audit_path)
         node.configure()
         node.activate(operations=True)
-        executor = make_executor(self.config.executor_threads, context)
+        executor = make_executor(self.config.executor_threads, context,
+                                 self.config.executor)
         executor.add_node(node)
         thread = threading.Thread(target=self._spin, args=(executor, context), daemon=True,
                                   name="gateway-ros")

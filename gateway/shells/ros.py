@@ -76,7 +76,7 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
             if settings is not None:
                 declare_settings(node, settings)
             node.activate()
-            executor = make_executor(config.executor_threads)
+            executor = make_executor(config.executor_threads, kind=config.executor)
             executor.add_node(node)
             try:
                 spin_until_shutdown(executor, lambda: not stop.is_set() and rclpy.ok())

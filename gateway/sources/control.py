@@ -125,7 +125,7 @@ class Asked:
 
     def _spent(self) -> None:
         if self._started_cpu_ns:
-            self.source.loop.counts.cpu_ns += time.thread_time_ns() - self._started_cpu_ns
+            self.source.loop.counts.request_cpu_ns += time.thread_time_ns() - self._started_cpu_ns
 
     def on_drop(self, reason: str) -> None:
         self.source.failed(self.request, reason)
@@ -206,7 +206,7 @@ class ControlSource:
         while not self._stop.is_set():
             cpu = time.thread_time_ns()
             self._tick(step)
-            self.loop.counts.cpu_ns += time.thread_time_ns() - cpu
+            self.loop.counts.tick_cpu_ns += time.thread_time_ns() - cpu
             step += 1
             due = started + step * period
             wait = due - time.monotonic()
@@ -248,7 +248,7 @@ class ControlSource:
         try:
             self._step_on_state()
         finally:
-            self.loop.counts.cpu_ns += time.thread_time_ns() - cpu
+            self.loop.counts.tick_cpu_ns += time.thread_time_ns() - cpu
 
     def _step_on_state(self) -> None:
         with self._lock:

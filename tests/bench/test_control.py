@@ -194,17 +194,25 @@ def test_the_mode_acting_ahead_runs_where_a_policy_can_be_trained_for_it() -> No
 @pytest.mark.bench
 def test_realtime_rows_come_from_the_gateway_and_the_robot_over_ros(tmp_path: Path) -> None:
     """--realtime: the policy service behind the relay, the gateway's loop in its process, the
-    simulator as a ROS 2 robot; its rows beside the simulated ones."""
-    rows = bench(tmp_path, "--delays-ms", "33", "--modes", "onboard", "--realtime")
-    realtime = {row["mode"]: row for row in rows if str(row["mode"]).startswith("realtime")}
-    assert set(realtime) == {"realtime-onboard", "realtime-edge"}
-    onboard, edge = realtime["realtime-onboard"], realtime["realtime-edge"]
-    assert (onboard["delay_ms"], edge["delay_ms"], edge["delay_steps"]) == (0.0, 33.0, 2)
-    for row in (onboard, edge):
-        assert row["episodes"] == 1 and float(row["mean_steps"]) > 0  # type: ignore[arg-type]
-        assert float(row["cpu_us_per_tick"]) > 0  # type: ignore[arg-type]
-    # The loop's own work, measured on its threads, is part of the gateway process's CPU.
-    assert 0 < float(edge["loop_cpu_us_per_tick"]) < float(edge["cpu_us_per_tick"])  # type: ignore[arg-type]
+    simulator as a ROS 2 robot; its rows beside the simulated ones, the gateway on each of
+    rclpy's executors in turn."""
+    rows = bench(tmp_path, "--delays-ms", "33", "--modes", "onboard", "--realtime",
+                 "--executor", "both")
+    realtime = {(row["mode"], row["executor"]): row for row in rows
+                if str(row["mode"]).startswith("realtime")}
+    assert set(realtime) == {(mode, executor) for mode in ("realtime-onboard", "realtime-edge")
+                             for executor in ("python", "events")}
+    for executor in ("python", "events"):
+        onboard = realtime["realtime-onboard", executor]
+        edge = realtime["realtime-edge", executor]
+        assert (onboard["delay_ms"], edge["delay_ms"], edge["delay_steps"]) == (0.0, 33.0, 2)
+        for row in (onboard, edge):
+            assert row["episodes"] == 1 and float(row["mean_steps"]) > 0  # type: ignore[arg-type]
+            assert float(row["cpu_us_per_tick"]) > 0  # type: ignore[arg-type]
+        # The loop's own work, measured on its threads, is part of the gateway's CPU: the
+        # ticks' and the requests' each.
+        assert 0 < float(edge["loop_cpu_us_per_tick"]) < float(edge["cpu_us_per_tick"])  # type: ignore[arg-type]
+        assert float(edge["loop_tick_cpu_us"]) > 0 and float(edge["request_cpu_us"]) > 0  # type: ignore[arg-type]
 
 
 def test_the_policy_taking_the_committed_actions_is_cached_and_declares_them(
