@@ -66,10 +66,12 @@ from oricf.bench.control_run import (
 from oricf.bench.entry import need
 from oricf.bench.sims import Sim, open_sim, reacher_camera, sim_names
 from oricf.bench.sims.pybullet import ROBOTS
+from oricf.bench.wakeups import idle_note, idle_slowdown
 from oricf.config import REPO_ROOT
 from oricf.errors import ConfigError
 from oricf.models.declaration import load_declaration
 from oricf.models.policy import PolicyModel
+from oricf.models.policy_task import PolicyTask
 from oricf.store import ModelStore
 
 log = logging.getLogger(__name__)
@@ -128,6 +130,12 @@ def declaration_of(task: str, lead: int = 0, committed: bool = False) -> Path:
     from oricf.bench.train_chunk_policy import trained_policy
 
     return trained_policy(task, lead=lead)
+
+
+def policy_rate_hz(task: str) -> float:
+    policy = load_declaration(declaration_of(task)).task
+    assert isinstance(policy, PolicyTask), task
+    return policy.rate_hz
 
 
 def load_policy(task: str, lead: int = 0, committed: bool = False) -> PolicyModel:
@@ -289,6 +297,10 @@ def main(argv: list[str] | None = None) -> int:
             task_rows += measure_realtime(task, delays, args)
         print_task(task, task_rows)
         rows += task_rows
+    if args.realtime:  # what a tick's short bursts of work cost here, to read the CPU by
+        period_s = 1.0 / max(policy_rate_hz(task) for task in args.task)
+        print()
+        idle_note(idle_slowdown(period_s), period_s, "the loop's work per tick")
     print_goals(rows)
     if args.json is not None:
         args.json.write_text(json.dumps([row.as_dict() for row in rows], indent=1) + "\n")

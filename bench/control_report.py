@@ -177,10 +177,10 @@ def cpu_goal(rows: list[Row]) -> Goal:
         figures.append(f"{task}: {loop:.0f} us offloaded (median of the edge rows), "
                        f"{onboard.cpu_us_per_tick:.0f} us onboard "
                        f"({loop / onboard.cpu_us_per_tick:.2f}x)")
-    if not figures:
-        return Goal(name, "not measured", "no edge rows")
     realtime = [r for r in rows
                 if r.mode == "realtime-edge" and r.loop_cpu_us_per_tick is not None]
+    if not figures and not realtime:
+        return Goal(name, "not measured", "no edge rows")
     if realtime:  # measured on the loop's threads in real time: it counts too
         figures.append("in real time, the loop's own work: " + ", ".join(
             f"{r.task} at {r.delay_ms:g} ms ({r.executor}) {r.loop_cpu_us_per_tick:.0f} us"

@@ -68,14 +68,13 @@ from oricf.bench.gateway_report import (
     InputResult,
     PowerModel,
     cost_table,
-    idle_note,
     latency_table,
     wakeup_note,
 )
 from oricf.bench.gateway_tracing import TracingRun, traces_to, tracing_table
 from oricf.bench.gateway_track import post_cost, track_table, tracking_overlay
 from oricf.bench.gateway_view import view_overlay, view_table, watching
-from oricf.bench.wakeups import idle_slowdown, wakeup_cost, wakeups_by_thread
+from oricf.bench.wakeups import idle_note, idle_slowdown, wakeup_cost, wakeups_by_thread
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.config import load_pipeline
 from oricf.gateway.endpoints import EndpointConfig
@@ -441,7 +440,7 @@ def run(args: argparse.Namespace, folder: Path) -> None:
         wakeup_note(result, wakeup_s)
         track_table(result)
         view_table(result, args.fps)
-    idle_note(burst, period_s)
+    idle_note(burst, period_s, "the gateway's work per frame")
 
 
 def main(argv: list[str]) -> int:

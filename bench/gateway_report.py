@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from oricf.bench.common import print_table
-from oricf.bench.wakeups import BurstTimes
 
 
 @dataclass
@@ -102,11 +101,3 @@ def wakeup_note(result: InputResult, wakeup_s: float) -> None:
           f"frame.")
 
 
-def idle_note(burst: BurstTimes, period_s: float) -> None:
-    """How much slower this machine runs short work after a pause of the camera's period."""
-    pause, hot = f"{period_s * 1e3:.0f} ms", burst.back_to_back
-    print(f"A short burst of Python work takes {hot * 1e6:.0f} us back to back, "
-          f"{burst.after_sleep * 1e6:.0f} us after sleeping {pause} "
-          f"({burst.after_sleep / hot:.0f}x) and {burst.after_busy * 1e6:.0f} us after "
-          f"busy-waiting {pause} ({burst.after_busy / hot:.0f}x) on this machine: the "
-          f"gateway's work per frame is such bursts.")

@@ -122,3 +122,14 @@ def _busy_wait(seconds: float) -> None:
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
         pass
+
+
+def idle_note(burst: BurstTimes, period_s: float, work: str) -> None:
+    """How much slower this machine runs short work after a pause of `period_s` (a camera's
+    frame, a control loop's tick): `work` is what comes in such bursts."""
+    pause, hot = f"{period_s * 1e3:.1f} ms", burst.back_to_back
+    print(f"A short burst of Python work takes {hot * 1e6:.0f} us back to back, "
+          f"{burst.after_sleep * 1e6:.0f} us after sleeping {pause} "
+          f"({burst.after_sleep / hot:.0f}x) and {burst.after_busy * 1e6:.0f} us after "
+          f"busy-waiting {pause} ({burst.after_busy / hot:.0f}x) on this machine: {work} is "
+          f"such bursts.")

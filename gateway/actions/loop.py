@@ -70,8 +70,9 @@ class LoopCounts:
     missing_state: int = 0        # ticks without an observation (stale, missing, bad)
     late_ticks: int = 0           # ticks that started after their time (steps skipped)
     # CPU the loop's own work took, in nanoseconds of its threads' time, kept by whoever
-    # runs the loop: the ticks (assembling the observation, merging, publishing) and the
-    # requests (the call's message, the call on its thread, taking the answer).
+    # runs the loop: the ticks (taking the state and images as they come, assembling the
+    # observation, merging, publishing) and the requests (the call's message, the call on
+    # its thread, taking the answer).
     tick_cpu_ns: int = 0
     request_cpu_ns: int = 0
 

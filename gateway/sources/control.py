@@ -165,22 +165,26 @@ class ControlSource:
         ticks = index == 0 and self.settings.tick == "state"
 
         def take(msg: Any) -> None:
+            cpu = time.thread_time_ns()
             try:
                 self.observation.take(index, msg)
             except MissingState as exc:
                 self._throttle.warning(f"state:{index}", "route %s: state refused: %s",
                                        self.route, exc)
+            self.loop.counts.tick_cpu_ns += time.thread_time_ns() - cpu
             if ticks and not self._stop.is_set():
                 self._on_state()
         return take
 
     def _image_taker(self, index: int) -> Any:
         def take(msg: Any) -> None:
+            cpu = time.thread_time_ns()
             try:
                 self.observation.take_image(index, msg)
             except MissingState as exc:
                 self._throttle.warning(f"image:{index}", "route %s: image refused: %s",
                                        self.route, exc)
+            self.loop.counts.tick_cpu_ns += time.thread_time_ns() - cpu
         return take
 
     def start(self) -> None:
