@@ -222,11 +222,16 @@ def measure_task(task: str, delays_ms: list[float], args: argparse.Namespace) ->
 def measure_realtime(task: str, delays_ms: list[float], args: argparse.Namespace) -> list[Row]:
     """The task in real time, through the relay (needs ROS 2's Python packages)."""
     need("rclpy", "ros", "oricf bench control --realtime")
-    from oricf.bench.control_realtime import realtime_rows
+    from oricf.bench.control_realtime import Plan, realtime_rows
 
     executors = ("python", "events") if args.executor == "both" else (args.executor,)
-    return realtime_rows(task, declaration_of(task), delays_ms, args.episodes, args.seed,
-                         task not in ROBOTS, args.max_steps, executors)
+    rate_hz = policy_rate_hz(task)
+    plans = [Plan("edge-latest", declaration_of(task), tuple(delays_ms))]
+    for mode in [m for m in task_modes(task, args.modes) if m in TRAINED_MODES]:
+        plans += [Plan(mode, declaration_of(task, d, mode == "edge-committed"), (ms,))
+                  for ms in delays_ms if (d := delay_steps(ms, rate_hz))]
+    return realtime_rows(task, plans, args.episodes, args.seed, task not in ROBOTS,
+                         args.max_steps, executors)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -258,7 +263,9 @@ def parser() -> argparse.ArgumentParser:
                         help="also run each task in real time over ROS 2: the policy service "
                         "behind the delay relay, the gateway's control loop in its process, "
                         "the simulator as a robot (bench/control_realtime.py); rows "
-                        "realtime-onboard and realtime-edge")
+                        "realtime-onboard, realtime-edge (edge-latest's settings) and, for "
+                        "edge-ahead and edge-committed when run, realtime-edge-ahead and "
+                        "realtime-edge-committed")
     parser.add_argument("--executor", choices=("events", "python", "both"), default="events",
                         help="--realtime: the gateway's ROS executor (its `executor:` key): "
                         "rclpy's EventsExecutor, its Python executor, or each row on both, "

@@ -21,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,7 @@ import yaml
 
 from oricf.bench.common import stop
 from oricf.bench.control_report import Row
-from oricf.bench.control_run import delay_steps
+from oricf.bench.control_run import TRAINED_MODES, delay_steps
 from oricf.bench.cpusets import process_cpu_seconds
 from oricf.bench.link import oricf
 from oricf.bench.relay import DelayRelay
@@ -38,20 +39,24 @@ from oricf.models.policy_task import PolicyTask
 
 
 def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int,
-                  cameras: tuple[str, ...] = ()) -> dict[str, Any]:
+                  cameras: tuple[str, ...] = (), mode: str = "edge-latest") -> dict[str, Any]:
     """The loop's settings as `oricf bench control` runs them delay-aware, ticked by the
     robot's state (each state a step, its action out as soon as it is known): a chunk policy
     followed on time (late: skip), asked again as an answer comes in; a policy of one action
-    asked with each state. A policy's cameras: the simulator's views (bench/sim_node.py)."""
+    asked with each state. A policy's cameras: the simulator's views (bench/sim_node.py).
+    `mode`: edge-ahead and edge-committed as simulated (control_run.setting): a policy
+    trained to act ahead, whose chunk starts where it arrives, asked again as soon as it is
+    in; edge-committed sends the actions committed with each request."""
     one = chunk == 1
+    request_at = 0 if one else chunk if mode in TRAINED_MODES else chunk - 1
     return {"rate_hz": rate_hz, "tick": "state", "action_dim": action_dim, "max_age_ms": 200,
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
             "images": [{"name": name, "topic": f"/sim/{name}/image"} for name in cameras],
-            "late": "skip", "merge": "latest",
+            "late": "skip", "merge": "latest", "send_committed": mode == "edge-committed",
             # The last action held while an answer is on its way, as in simulated time,
             # for half a second at most (then the safe action, zeros).
-            "request_at": 0 if one else chunk - 1, "hold_steps": max(2, int(rate_hz / 2)),
+            "request_at": request_at, "hold_steps": max(2, int(rate_hz / 2)),
             "deadline_steps": max(8, 2 * chunk),
             "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
                        "deadman_ms": 250}}
@@ -117,19 +122,30 @@ def private_domain() -> dict[str, str]:
             "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds_profile())}
 
 
+@dataclass(frozen=True)
+class Plan:
+    """A policy run in real time in one mode (edge-latest, or a mode whose policy is
+    trained for a round trip) at some round trips; edge-latest's also onboard (0 ms)."""
+
+    mode: str
+    declaration: Path
+    delays_ms: tuple[float, ...]
+
+
 class RealtimeTask:
-    """One task's policy service, run once for all its round trips."""
+    """One policy's service, run once for all its round trips."""
 
     def __init__(self, task: str, declaration: Path, folder: Path,
-                 max_steps: int | None = None) -> None:
+                 max_steps: int | None = None, mode: str = "edge-latest") -> None:
         self.task = task
+        self.mode = mode
         self.max_steps = max_steps
         policy = load_declaration(declaration).task
         assert isinstance(policy, PolicyTask), declaration
         self.settings = (policy.rate_hz, policy.state.size, policy.action.dim, policy.chunk)
         self.cameras = tuple(camera.name for camera in policy.images)
         self.port = free_port()
-        config = folder / "policy.yaml"
+        config = folder / f"policy-{self.port}.yaml"
         config.write_text(yaml.safe_dump({"server": {"listen": f"127.0.0.1:{self.port}"},
                                           "model": str(declaration)}))
         self.service = subprocess.Popen(oricf("serve", "policy", "--config", str(config)),
@@ -145,13 +161,13 @@ class RealtimeTask:
         relay = DelayRelay(("127.0.0.1", self.port), delay_ms / 2000) if delay_ms else None
         address = relay.address if relay else f"127.0.0.1:{self.port}"
         metrics = free_port()
-        pipeline = self.folder / f"control-{delay_ms:g}.yaml"
+        pipeline = self.folder / f"control-{self.port}-{delay_ms:g}.yaml"
         pipeline.write_text(yaml.safe_dump({
             "metrics": {"listen": f"127.0.0.1:{metrics}"},
             "executor": executor,
             "endpoints": {"policy": {"address": address, "deadline_ms": 2000}},
-            "routes": {"policy": {"input": {"control": control_input(*self.settings,
-                                                                     self.cameras)},
+            "routes": {"policy": {"input": {"control": control_input(
+                *self.settings, self.cameras, self.mode)},
                                   "call": {"method": "Act", "service": "policy"}}}}))
         env = private_domain()
         gateway = subprocess.Popen(oricf("gateway", "--config", str(pipeline)), env=env,
@@ -204,7 +220,7 @@ class RealtimeTask:
         switches = samples.get("oricf_gateway_control_switch_jump_count", 0.0)
         jump_sum = samples.get("oricf_gateway_control_switch_jump_sum", 0.0)
         return Row(
-            self.task, "realtime-onboard" if delay_ms == 0 else "realtime-edge", delay_ms,
+            self.task, realtime_mode(self.mode, delay_ms), delay_ms,
             delay_steps(delay_ms, self.settings[0]), count,
             len(successes) / count if metaworld else None,
             statistics.fmean(r["return"] for r in results),
@@ -226,16 +242,30 @@ def _sum(*values: float | None) -> float | None:
     return None if None in values else sum(v or 0.0 for v in values)
 
 
-def realtime_rows(task: str, declaration: Path, delays_ms: list[float], episodes: int,
-                  seed: int, metaworld: bool, max_steps: int | None = None,
+def realtime_mode(mode: str, delay_ms: float) -> str:
+    """A real-time row's mode: realtime-onboard at no delay, realtime-edge for edge-latest
+    (the loop's defaults), else realtime-<mode>."""
+    if delay_ms == 0:
+        return "realtime-onboard"
+    return "realtime-edge" if mode == "edge-latest" else f"realtime-{mode}"
+
+
+def realtime_rows(task: str, plans: list[Plan], episodes: int, seed: int, metaworld: bool,
+                  max_steps: int | None = None,
                   executors: tuple[str, ...] = ("events",)) -> list[Row]:
-    """The task's rows in real time: the onboard reference (0 ms) and each round trip, with
-    the gateway on each ROS executor (PipelineConfig.executor) in turn."""
+    """The task's rows in real time, each plan's policy served once: the onboard reference
+    (0 ms, edge-latest's policy) and each round trip, with the gateway on each ROS executor
+    (PipelineConfig.executor) in turn."""
+    seeds = [seed + i for i in range(episodes)]
+    rows = []
     with tempfile.TemporaryDirectory(prefix="oricf-bench-control-") as folder:
-        runner = RealtimeTask(task, declaration, Path(folder), max_steps)
-        try:
-            seeds = [seed + i for i in range(episodes)]
-            return [runner.row(ms, seeds, metaworld, executor)
-                    for ms in sorted({0.0, *delays_ms}) for executor in executors]
-        finally:
-            runner.close()
+        for plan in plans:
+            runner = RealtimeTask(task, plan.declaration, Path(folder), max_steps, plan.mode)
+            delays = sorted({0.0, *plan.delays_ms} if plan.mode == "edge-latest"
+                            else set(plan.delays_ms))
+            try:
+                rows += [runner.row(ms, seeds, metaworld, executor)
+                         for ms in delays for executor in executors]
+            finally:
+                runner.close()
+    return rows

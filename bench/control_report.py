@@ -178,7 +178,7 @@ def cpu_goal(rows: list[Row]) -> Goal:
                        f"{onboard.cpu_us_per_tick:.0f} us onboard "
                        f"({loop / onboard.cpu_us_per_tick:.2f}x)")
     realtime = [r for r in rows
-                if r.mode == "realtime-edge" and r.loop_cpu_us_per_tick is not None]
+                if r.mode.startswith("realtime-edge") and r.loop_cpu_us_per_tick is not None]
     if not figures and not realtime:
         return Goal(name, "not measured", "no edge rows")
     if realtime:  # measured on the loop's threads in real time: it counts too

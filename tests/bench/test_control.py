@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from oricf.bench import control
+from oricf.bench import control, control_realtime
 from oricf.bench.control_report import Row, summarise
 from oricf.bench.control_run import MODES, delay_steps, placement, run_episode, setting
 from oricf.bench.sims import Sim, open_sim
@@ -227,3 +227,34 @@ def test_the_policy_taking_the_committed_actions_is_cached_and_declares_them(
     assert task.lead_steps == 4  # type: ignore[union-attr]
     training = json.loads((declaration.parent / "training.json").read_text())
     assert training["rounds"] == 1 and training["dagger_pairs"] > 0  # the rollouts' joined
+
+
+def test_in_real_time_the_trained_modes_ask_as_their_chunk_arrives_and_committed_sends_them(
+        ) -> None:
+    """The loop's settings in real time are the simulated loop's (control_run.setting): a
+    policy trained to act ahead is asked again as soon as its chunk is in; edge-committed
+    sends the actions committed with each request, the others do not."""
+    chunk = 16
+    for mode in ("edge-latest", "edge-ahead", "edge-committed"):
+        simulated = setting(mode, 4, chunk)
+        loop = control_realtime.control_input(80.0, 39, 4, chunk, (), mode)
+        assert loop["request_at"] == simulated.request_at
+        assert loop["send_committed"] is simulated.send_committed is (mode == "edge-committed")
+    assert [control_realtime.realtime_mode(m, ms) for m, ms in [
+        ("edge-latest", 0.0), ("edge-latest", 50.0), ("edge-committed", 50.0)]] == [
+        "realtime-onboard", "realtime-edge", "realtime-edge-committed"]
+
+
+@pytest.mark.bench
+def test_realtime_edge_committed_runs_its_trained_policy_over_ros(drawer_root: Path) -> None:
+    """--realtime --modes edge-committed: the policy trained for the round trip (the
+    drawer fixture's, behind 4 steps) served behind the relay, the gateway sending the
+    actions committed with each request, the simulator as a ROS 2 robot."""
+    declaration = committed_policy(TASK, root=drawer_root, lead=4, rounds=1, rollouts=3,
+                                   rollout_steps=120, **SMALL)  # the drawer fixture's
+    rows = control_realtime.realtime_rows(
+        TASK, [control_realtime.Plan("edge-committed", declaration, (50.0,))], episodes=1,
+        seed=0, metaworld=True, max_steps=120)
+    assert [(r.mode, r.delay_ms, r.delay_steps, r.executor) for r in rows] == [
+        ("realtime-edge-committed", 50.0, 4, "events")]
+    assert rows[0].mean_steps is not None and rows[0].switches > 0  # chunks came and played
