@@ -26,7 +26,7 @@ def make_executor(threads: int, context: Any = None, kind: str = "python") -> An
             from rclpy.experimental import EventsExecutor
         except ImportError as exc:
             raise ConfigError(f"executor: events needs rclpy's EventsExecutor (Jazzy's "
-                              f"rclpy 7.1.5 or later, Kilted): {exc}") from None
+                              f"rclpy 7.1.4 or later, Kilted): {exc}") from None
         return EventsExecutor(context=context)
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
