@@ -22,17 +22,25 @@ def make_executor(threads: int, context: Any = None, kind: str = "python") -> An
     (a state in, an action out, 80 times a second) the process's CPU per message fell to
     under half (docs/control.md). Experimental in rclpy; not in Humble's."""
     if kind == "events":
-        try:
-            from rclpy.experimental import EventsExecutor
-        except ImportError as exc:
-            raise ConfigError(f"executor: events needs rclpy's EventsExecutor (Jazzy's "
-                              f"rclpy 7.1.4 or later, Kilted): {exc}") from None
-        return EventsExecutor(context=context)
+        return require_executor(kind)(context=context)
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
     if threads == 1:
         return SingleThreadedExecutor(context=context)
     return MultiThreadedExecutor(num_threads=threads, context=context)
+
+
+def require_executor(kind: str) -> Any:
+    """The events executor's class (None for the Python executors), or a ConfigError where
+    this rclpy lacks it."""
+    if kind != "events":
+        return None
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError as exc:
+        raise ConfigError(f"executor: events needs rclpy's EventsExecutor (Jazzy's rclpy "
+                          f"7.1.4 or later, Kilted): {exc}") from None
+    return EventsExecutor
 
 
 def spin_until_shutdown(executor: Any, ok: Callable[[], bool]) -> None:

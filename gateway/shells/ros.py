@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros.dds import use_dds_profile
-from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
+from oricf.gateway.ros.executor import make_executor, require_executor, spin_until_shutdown
 from oricf.gateway.ros.params import Settings, declare_settings
 from oricf.gateway.ros.process import keep_freed_memory
 from oricf.signals import stop_on_signals
@@ -64,9 +64,11 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
                   "or pip install 'oricf[ros]' on x86-64", exc)
         return 2
     prepare_process()
-    recorder = Recorder(record) if record is not None else None  # before ROS: fail at once
+    require_executor(config.executor)  # before ROS: fail at once
+    recorder = Recorder(record) if record is not None else None
     with stop_on_signals() as stop:
         rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
+        executor = make_executor(config.executor_threads, kind=config.executor)
         node = gateway_ros_node(config, recorder)
         try:
             node.configure()
@@ -76,7 +78,6 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
             if settings is not None:
                 declare_settings(node, settings)
             node.activate()
-            executor = make_executor(config.executor_threads, kind=config.executor)
             executor.add_node(node)
             try:
                 spin_until_shutdown(executor, lambda: not stop.is_set() and rclpy.ok())

@@ -173,3 +173,20 @@ def test_a_stopped_gateway_sends_the_zero_command_before_ros_goes(
     assert "Traceback" not in log, log
     assert moving.linear.x == 0.2
     assert (stopped.linear.x, stopped.angular.z) == (0.0, 0.0)
+
+
+def test_the_events_executor_on_an_rclpy_without_it_is_refused_before_ros_starts(
+        tmp_path: Path) -> None:
+    """executor: events on an rclpy that lacks the EventsExecutor (Humble's: its import
+    fails, as here) stops the gateway at once, saying what it needs."""
+    overlay = tmp_path / "events.yaml"
+    overlay.write_text("executor: events\n")
+    humble_like = ("import sys; sys.modules['rclpy.experimental'] = None; "
+                   "from oricf.cli import main; sys.exit(main())")
+    done = subprocess.run(
+        [sys.executable, "-c", humble_like, "gateway", "--config", str(PEOPLE_QA),
+         "--overlay", str(overlay)], capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "executor: events needs rclpy's EventsExecutor (Jazzy's rclpy 7.1.4 or later" in \
+        done.stdout + done.stderr
+    assert "gateway stopping" not in done.stdout + done.stderr  # ROS never started
