@@ -44,11 +44,15 @@ def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int,
     robot's state (each state a step, its action out as soon as it is known): a chunk policy
     followed on time (late: skip), asked again as an answer comes in; a policy of one action
     asked with each state. A policy's cameras: the simulator's views (bench/sim_node.py).
-    `mode`: edge-ahead and edge-committed as simulated (control_run.setting): a policy
-    trained to act ahead, whose chunk starts where it arrives, asked again as soon as it is
-    in; edge-committed sends the actions committed with each request."""
+    `mode` as simulated (control_run.setting): onboard plays each chunk through, then asks
+    for the next (asking again at once would play each chunk's first action a step late:
+    the answer to a state comes after that state's action went out from the chunk before);
+    edge-ahead and edge-committed, a policy trained to act ahead, whose chunk starts where
+    it arrives, asked again as soon as it is in; edge-committed sends the actions
+    committed with each request."""
     one = chunk == 1
-    request_at = 0 if one else chunk if mode in TRAINED_MODES else chunk - 1
+    request_at = (0 if one or mode == "onboard" else chunk if mode in TRAINED_MODES
+                  else chunk - 1)
     return {"rate_hz": rate_hz, "tick": "state", "action_dim": action_dim, "max_age_ms": 200,
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
@@ -167,7 +171,7 @@ class RealtimeTask:
             "executor": executor,
             "endpoints": {"policy": {"address": address, "deadline_ms": 2000}},
             "routes": {"policy": {"input": {"control": control_input(
-                *self.settings, self.cameras, self.mode)},
+                *self.settings, self.cameras, self.mode if delay_ms else "onboard")},
                                   "call": {"method": "Act", "service": "policy"}}}}))
         env = private_domain()
         gateway = subprocess.Popen(oricf("gateway", "--config", str(pipeline)), env=env,

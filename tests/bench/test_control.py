@@ -235,7 +235,7 @@ def test_in_real_time_the_trained_modes_ask_as_their_chunk_arrives_and_committed
     policy trained to act ahead is asked again as soon as its chunk is in; edge-committed
     sends the actions committed with each request, the others do not."""
     chunk = 16
-    for mode in ("edge-latest", "edge-ahead", "edge-committed"):
+    for mode in ("onboard", "edge-latest", "edge-ahead", "edge-committed"):
         simulated = setting(mode, 4, chunk)
         loop = control_realtime.control_input(80.0, 39, 4, chunk, (), mode)
         assert loop["request_at"] == simulated.request_at
