@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 import yaml
 from rclpy.context import Context
 
@@ -127,17 +128,20 @@ def test_gateway_process_refuses_a_bad_config(tmp_path: Path) -> None:
             gateway.stdout.read()
 
 
+@pytest.mark.parametrize("executor", ["python", "events"])
 def test_a_stopped_gateway_sends_the_zero_command_before_ros_goes(
-        ros_env: dict[str, str], tmp_path: Path) -> None:
+        ros_env: dict[str, str], tmp_path: Path, executor: str) -> None:
     """A command of 0.2 m/s through the control API, then SIGTERM 100 ms later: the robot's
     driver (a plain rclpy subscriber) hears the command, then the zero command, and the
-    gateway exits 0. The deadman (10 s) is far off: only the stop can send that zero."""
+    gateway exits 0. The deadman (10 s) is far off: only the stop can send that zero. On
+    either ROS executor."""
     from tests.gateway.agents.scene import TWIST_TOPIC, ros_listener
 
     port = free_port()
     (tmp_path / "tokens").write_text("stop-test-token\n")
     overlay = tmp_path / "agent.yaml"
     overlay.write_text(yaml.safe_dump({
+        "executor": executor,
         "endpoints": {"detector": {"address": "127.0.0.1:1"}},
         "control": {"listen": f"127.0.0.1:{port}", "auth": {"file": str(tmp_path / "tokens")}},
         "agent": {"audit": str(tmp_path / "audit.jsonl"), "targets": {"cmd_vel": {
