@@ -58,6 +58,8 @@ LOOP_COUNTS = (
      "loop", "missing_state"),
     ("late_ticks", "Ticks that started after their time; the steps passed are skipped.",
      "loop", "late_ticks"),
+    ("restarts", "Times the robot's state came back after a silence longer than max_age_ms "
+     "(tick: state): what was queued before it was dropped.", "loop", "restarts"),
     ("requests", "Observations sent to the policy.", "loop", "requests"),
     ("chunks", "Chunks taken into the queue.", "loop", "answers"),
     ("expired", "Requests left unanswered past deadline_steps.", "loop", "expired"),

@@ -69,6 +69,7 @@ class LoopCounts:
     failed: int = 0               # calls that failed (the route told the loop)
     missing_state: int = 0        # ticks without an observation (stale, missing, bad)
     late_ticks: int = 0           # ticks that started after their time (steps skipped)
+    restarts: int = 0             # times the queue was dropped as stale (restart)
     # CPU the loop's own work took, in nanoseconds of its threads' time, kept by whoever
     # runs the loop: the ticks (taking the state and images as they come, assembling the
     # observation, merging, publishing) and the requests (the call's message, the call on
@@ -179,3 +180,12 @@ class ControlLoop:
         with self._lock:
             self._last = None
             self._in_flight.clear()
+
+    def restart(self, step: int) -> None:
+        """What was queued, held or asked before `step` is stale (the robot was silent and
+        the loop did not tick): all of it dropped, and an answer to an observation before
+        `step` that still comes is refused."""
+        self.stop()
+        with self._lock:
+            self._answered = max(self._answered, step - 1)
+            self.counts.restarts += 1

@@ -157,6 +157,7 @@ class ControlSource:
         self._acted = -1
         self._step = -1                     # tick: state: the newest state's step
         self._pending: int | None = None    # tick: state: a step whose action awaits its answer
+        self._last_state_ns = 0             # tick: state: when the newest state came
         self._lock = threading.Lock()       # tick: state: states and answers, one at a time
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"control-{route}")
@@ -255,9 +256,20 @@ class ControlSource:
             self.loop.counts.tick_cpu_ns += time.thread_time_ns() - cpu
 
     def _step_on_state(self) -> None:
+        now = time.monotonic_ns()
         with self._lock:
             if self._stop.is_set():
                 return
+            silent_ns = now - self._last_state_ns
+            self._last_state_ns = now
+            if self._step >= 0 and silent_ns > self.observation.max_age_ns:
+                # The loop did not tick while the robot was silent: what it queued, held or
+                # asked before was planned for a robot that has moved on since.
+                self._pending = None
+                self.loop.restart(self._step + 1)
+                self._throttle.warning("restart", "route %s: the robot's state came back after "
+                                       "%.0f ms: the actions queued before it dropped",
+                                       self.route, silent_ns / 1e6)
             if self._pending is not None:
                 self._act(self._pending)
                 self._pending = None

@@ -107,3 +107,21 @@ def test_stop_drops_what_is_queued() -> None:
     control.deliver(chunk(5, 4), 0, Origin(0), now=-1)
     control.stop()
     assert control.act(0).safe
+
+
+def test_a_restart_drops_what_was_queued_and_refuses_answers_from_before_it() -> None:
+    control = loop(hold_steps=3)
+    control.deliver(chunk(5, 8), 0, Origin(0), now=-1)
+    assert control.act(0).action[0] == 5
+    assert control.ask(1, np.ones(3)) is None  # enough queued: nothing asked
+    control.ask(2, np.ones(3))                 # asked for the observation of step 2
+    control.restart(4)
+    tick = control.act(4)
+    assert tick.safe  # neither the queued action for step 4 nor the last one, held
+    # The answer to step 2's observation comes after the restart: refused, nothing queued.
+    assert control.deliver(chunk(50, 8), 2, Origin(2), now=4) == 0
+    assert control.counts.refused_chunks == 1 and control.counts.restarts == 1
+    # A request for the observation after it is answered and played.
+    assert control.ask(5, np.ones(3)) is not None
+    control.deliver(chunk(70, 4), 5, Origin(5), now=4)
+    assert control.act(5).action[0] == 70

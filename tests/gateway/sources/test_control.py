@@ -28,6 +28,7 @@ from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.shells.ros_node import GatewayNode
 from oricf.gateway.sources.control import ControlSource
 from tests.gateway.ros.gateway_node import spinning, wait_for
+from tests.support.chunk_policy import chunk_policy
 from tests.support.metrics import scrape
 from tests.support.pybullet_sim import forward, hopper, reference_arrays
 from tests.support.services import RunningService, running_service
@@ -254,6 +255,36 @@ def test_the_safe_action_goes_out_while_the_policy_is_gone(
         wait_for(lambda: source.loop.counts.failed >= 2)
         robot.wait_steady([0.1, 0.2, 0.3])
         assert source.loop.counts.safe_ticks > 0
+
+
+def test_a_robot_back_from_silence_gets_no_action_queued_before_it(
+        ros_context: Context) -> None:
+    """tick: state: the loop does not tick while the robot is silent, so the chunk it had
+    queued was planned for a robot that has moved on: past max_age_ms of silence it is
+    dropped, and the first action after it answers the robot's new state."""
+    stack = ExitStack()
+    policy = stack.enter_context(running_service("policy", {"model": str(chunk_policy())}))
+    robot = Robot(ros_context)
+    target = {"topic": "/hopper/action", "bounds": [[-1, 1]] * 4}  # no deadman: the test's pace
+    config = control_config(
+        policy.address, target, tick="state", late="skip", request_at=0, max_age_ms=200,
+        action_dim=4, state=[{"topic": "/hopper/state", "type": "std_msgs/Float64MultiArray",
+                              "size": 39}])
+    state = Float64MultiArray(data=[0.1] * 39)
+    with stack, running(config, ros_context, robot) as run:
+        source = run.source
+        wait_for(lambda: robot.state.get_subscription_count() > 0)
+        for _ in range(4):  # a chunk of 16 asked for the first state, then played
+            robot.state.publish(state)
+            robot.next_actions(1)
+        assert list(source.loop.ages.steps) == [0, 1, 2, 3]
+        assert source.loop.counts.requests == 1
+        time.sleep(0.4)  # silent past max_age_ms, 12 actions still queued
+        robot.state.publish(state)
+        robot.next_actions(1)
+        assert source.loop.counts.restarts == 1
+        assert source.loop.counts.requests == 2
+        assert list(source.loop.ages.steps)[-1] == 0  # from the new state, not the old chunk
 
 
 def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
