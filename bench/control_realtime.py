@@ -29,7 +29,7 @@ import yaml
 
 from oricf.bench.common import stop
 from oricf.bench.control_report import Row
-from oricf.bench.control_run import TRAINED_MODES, delay_steps
+from oricf.bench.control_run import delay_steps, setting
 from oricf.bench.cpusets import process_cpu_seconds
 from oricf.bench.link import oricf
 from oricf.bench.relay import DelayRelay
@@ -41,26 +41,19 @@ from oricf.models.policy_task import PolicyTask
 def control_input(rate_hz: float, state_size: int, action_dim: int, chunk: int,
                   cameras: tuple[str, ...] = (), mode: str = "edge-latest") -> dict[str, Any]:
     """The loop's settings as `oricf bench control` runs them delay-aware, ticked by the
-    robot's state (each state a step, its action out as soon as it is known): a chunk policy
-    followed on time (late: skip), asked again as an answer comes in; a policy of one action
-    asked with each state. A policy's cameras: the simulator's views (bench/sim_node.py).
-    `mode` as simulated (control_run.setting): onboard plays each chunk through, then asks
-    for the next (asking again at once would play each chunk's first action a step late:
-    the answer to a state comes after that state's action went out from the chunk before);
-    edge-ahead and edge-committed, a policy trained to act ahead, whose chunk starts where
-    it arrives, asked again as soon as it is in; edge-committed sends the actions
-    committed with each request."""
-    one = chunk == 1
-    request_at = (0 if one or mode == "onboard" else chunk if mode in TRAINED_MODES
-                  else chunk - 1)
+    robot's state (each state a step, its action out as soon as it is known), set for `mode`
+    as the simulated loop is (control_run.setting: when the next chunk is asked for, how
+    late actions and chunks are merged, whether the actions committed go with a request).
+    A policy's cameras: the simulator's views (bench/sim_node.py)."""
+    loop = setting(mode, 0, chunk)
     return {"rate_hz": rate_hz, "tick": "state", "action_dim": action_dim, "max_age_ms": 200,
             "state": [{"topic": "/sim/state", "type": "std_msgs/Float64MultiArray",
                        "size": state_size}],
             "images": [{"name": name, "topic": f"/sim/{name}/image"} for name in cameras],
-            "late": "skip", "merge": "latest", "send_committed": mode == "edge-committed",
+            "late": loop.late, "merge": loop.merge, "send_committed": loop.send_committed,
             # The last action held while an answer is on its way, as in simulated time,
             # for half a second at most (then the safe action, zeros).
-            "request_at": request_at, "hold_steps": max(2, int(rate_hz / 2)),
+            "request_at": loop.request_at, "hold_steps": max(2, int(rate_hz / 2)),
             "deadline_steps": max(8, 2 * chunk),
             "target": {"topic": "/sim/action", "bounds": [[-1, 1]] * action_dim,
                        "deadman_ms": 250}}

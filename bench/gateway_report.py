@@ -99,5 +99,3 @@ def wakeup_note(result: InputResult, wakeup_s: float) -> None:
           f"({threads}); one costs {wakeup_s * 1e6:.0f} us of CPU on this machine (a thread "
           f"blocked on a socket, woken at the camera rate), about {share:.0%} of its CPU per "
           f"frame.")
-
-

@@ -201,9 +201,10 @@ class PipelineCollector(Collector):
             "observation behind each action sent (the last 10000).", labels=ROUTE)
         cpu = CounterMetricFamily(
             "oricf_gateway_control_cpu_seconds", "CPU time of the loop's own work on its "
-            "threads: its ticks (assembling the observation, merging, publishing) and its "
-            "requests (the message, the call on its thread, taking the answer); gRPC's and "
-            "ROS's own threads are not in it.", labels=(*ROUTE, "work"))
+            "threads, by work: tick (taking the state and images, assembling the "
+            "observation, merging, publishing) and request (the message, the call on its "
+            "thread, taking the answer); gRPC's and ROS's own threads are not in it.",
+            labels=(*ROUTE, "work"))
         jumps = SummaryMetricFamily(
             "oricf_gateway_control_switch_jump", "Where one chunk's actions give way to "
             "another's: the largest change of a value between the two actions.", labels=ROUTE)
