@@ -4,10 +4,13 @@ of its own until its context is shut down)."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import Any
 
 from oricf.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 STOP_CHECK_S = 0.5  # how late a stop may be noticed when rclpy does not wake the executor
 
@@ -21,13 +24,16 @@ def make_executor(threads: int, context: Any = None, kind: str = "python") -> An
     the Python executors' rebuilding of a wait set per message: at a control loop's rate
     (a state in, an action out, 80 times a second) the process's CPU per message fell to
     under half (docs/control.md). Experimental in rclpy; not in Humble's."""
-    if kind == "events":
-        return require_executor(kind)(context=context)
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
-    if threads == 1:
-        return SingleThreadedExecutor(context=context)
-    return MultiThreadedExecutor(num_threads=threads, context=context)
+    if kind == "events":
+        executor = require_executor(kind)(context=context)
+    elif threads == 1:
+        executor = SingleThreadedExecutor(context=context)
+    else:
+        executor = MultiThreadedExecutor(num_threads=threads, context=context)
+    log.info("ROS executor: %s", type(executor).__name__)
+    return executor
 
 
 def require_executor(kind: str) -> Any:

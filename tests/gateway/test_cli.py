@@ -175,6 +175,8 @@ def test_a_stopped_gateway_sends_the_zero_command_before_ros_goes(
         stopped = driver.twists.get(timeout=10)
     assert code == 0, log
     assert "Traceback" not in log, log
+    expected = {"python": "SingleThreadedExecutor", "events": "EventsExecutor"}[executor]
+    assert f"ROS executor: {expected}" in log, log
     assert moving.linear.x == 0.2
     assert (stopped.linear.x, stopped.angular.z) == (0.0, 0.0)
 
