@@ -37,7 +37,8 @@ from oricf.bench.chunk_demos import MIN_STD, chunks, successful
 from oricf.bench.chunk_mlp import Fit
 from oricf.bench.entry import need
 from oricf.bench.sims.reacher_camera import CAMERA, CAMERA_SIZE, NAME, ReacherCameraSim, expert
-from oricf.bench.train_chunk_policy import Trained, staging, yaml_list
+from oricf.bench.train_chunk_policy import Trained, yaml_list
+from oricf.files import staged_folder
 from oricf.models.image import to_tensor
 from oricf.models.policy_task import CameraInput
 from oricf.store import default_root, sha256_of
@@ -145,7 +146,7 @@ def train_or_find(settings: Settings, root: Path | None = None) -> Trained:
     done = time.monotonic()
     log.info("%s: %d demonstrations (%d steps) in %.1f s, trained in %.1f s", NAME,
              settings.demos, len(demos.states), collected - started, done - collected)
-    with staging(folder) as staged:
+    with staged_folder(folder) as staged:
         model = staged / "policy.onnx"
         model.write_bytes(camera_net.to_onnx(net, demos.states.shape[1],
                                              (CAMERA_SIZE, CAMERA_SIZE), f"bc-{NAME}"))

@@ -31,12 +31,7 @@ import hashlib
 import importlib.metadata
 import json
 import logging
-import os
-import shutil
-import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -44,6 +39,7 @@ import numpy as np
 
 from oricf.bench.chunk_demos import Demos, collect
 from oricf.bench.chunk_mlp import Fit, Layers, train
+from oricf.files import staged_folder
 from oricf.models.mlp_source import LAYERS, to_onnx
 from oricf.store import default_root, sha256_of
 
@@ -110,19 +106,6 @@ def train_or_find(settings: Settings, root: Path | None = None) -> Trained:
     return Trained(declaration, trained=True)
 
 
-@contextmanager
-def staging(folder: Path) -> Iterator[Path]:
-    """A temporary folder beside `folder`, moved into its place whole once the block has
-    written it (so a reader never sees half of a policy), and removed if the block fails."""
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staged = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
-        yield staged
-        os.replace(staged, folder)
-    finally:
-        shutil.rmtree(staged, ignore_errors=True)
-
-
 def yaml_list(array: np.ndarray) -> str:
     """`[v, ...]`: the values of a 1-D array in a YAML flow list, 9 significant digits."""
     return "[" + ", ".join(f"{float(v):.9g}" for v in array) + "]"
@@ -132,7 +115,7 @@ def write(folder: Path, settings: Settings, demos: Demos, layers: Layers,
           timings: dict[str, float]) -> None:
     """policy.onnx, policy.yaml and training.json, made in a temporary folder and moved
     into place whole, so a reader never sees half of them."""
-    with staging(folder) as staged:
+    with staged_folder(folder) as staged:
         arrays = {name: array for (w_name, b_name), (w, b) in zip(LAYERS, layers, strict=True)
                   for name, array in ((w_name, w), (b_name, b))}
         model = staged / "policy.onnx"

@@ -43,7 +43,8 @@ from oricf.bench.chunk_mlp import Fit, Layers, forward, train
 from oricf.bench.control_run import Wire, control_loop, setting
 from oricf.bench.sims.metaworld import MetaworldSim, expert
 from oricf.bench.train_chunk_policy import Settings as ChunkSettings
-from oricf.bench.train_chunk_policy import cache_key, staging, yaml_list
+from oricf.bench.train_chunk_policy import cache_key, yaml_list
+from oricf.files import staged_folder
 from oricf.gateway.actions.queue import Origin
 from oricf.models.mlp_source import dense_layers, model_bytes
 from oricf.models.policy import committed_window
@@ -191,7 +192,7 @@ def train_and_write(settings: Settings, folder: Path) -> None:
 
 
 def write(folder: Path, settings: Settings, policy: Fitted, counts: dict[str, float]) -> None:
-    with staging(folder) as staged:
+    with staged_folder(folder) as staged:
         model = staged / "policy.onnx"
         model.write_bytes(to_onnx(policy.layers, settings))
         (staged / "policy.yaml").write_text(

@@ -16,17 +16,16 @@ CA is refused without --force: a new CA would invalidate every certificate it si
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime
 import ipaddress
 import os
 import secrets
 import sys
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from oricf.errors import ConfigError
+from oricf.files import write_atomically
 
 if TYPE_CHECKING:
     from cryptography import x509
@@ -56,19 +55,9 @@ def _san(hosts: list[str]) -> x509.SubjectAlternativeName:
 
 
 def write_file(path: Path, data: bytes, private: bool = False) -> None:
-    """A new file at path (0600 if private, else 0644): written beside it, then renamed."""
-    fd, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        os.fchmod(fd, 0o600 if private else 0o644)
-        with os.fdopen(fd, "wb") as out:
-            out.write(data)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(temporary, path)  # replaces a link at path, never writes through it
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(temporary)
-        raise
+    """A new file at path (0600 if private, else 0644): written beside it, then renamed
+    (a link at path is replaced, never written through)."""
+    write_atomically(path, data, 0o600 if private else 0o644)
 
 
 def _key_bytes(key: EllipticCurvePrivateKey) -> bytes:

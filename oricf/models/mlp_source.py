@@ -6,14 +6,14 @@ obs -> 128 -> 64 -> action with ReLU). The file is parsed, never run: `ast` find
 module-level assignments of the six arrays and `ast.literal_eval` reads each literal, so
 nothing in the file is executed, imported or evaluated beyond numbers and lists. The graph
 is MatMul/Add/Relu with a free batch dimension; the result is cached beside the verified
-source, named by the source's sha256, so it is made once.
+source, named by the source's sha256, so it is made once (each process under a
+temporary name of its own: two services converting the same file at once both succeed).
 """
 
 from __future__ import annotations
 
 import ast
 import logging
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from oricf.errors import ConfigError
+from oricf.files import write_atomically
 
 log = logging.getLogger(__name__)
 
@@ -148,10 +149,8 @@ def converted(source: Path, sha256: str, key: str) -> Path:
         sizes = check_chain(source, arrays)
     except ConfigError as exc:
         raise ConfigError(f"weights {key}: {exc}") from None
-    partial = target.with_name(f".{target.name}.partial")
     try:
-        partial.write_bytes(to_onnx(arrays, sizes, key))
-        os.replace(partial, target)
+        write_atomically(target, to_onnx(arrays, sizes, key))
     except OSError as exc:
         raise ConfigError(f"weights {key}: cannot write {target}: {exc.strerror}") from None
     log.info("%s: converted to %s (observation %d, action %d)", key, target.name, *sizes)

