@@ -11,12 +11,17 @@ The SDK and the exporters are the `tracing` extra: opentelemetry-api alone (inst
 ORICF's dependencies) gives the API's no-op tracer, which is what every span site uses while
 tracing is off. The W3C trace context (`traceparent`) travels in gRPC metadata, through the
 propagators that OTEL_PROPAGATORS names (tracecontext and baggage unless it says otherwise).
+
+At exit, the spans not yet exported get SHUTDOWN_S: a backend that refuses or never answers
+delays a stop by no more than that (the SDK alone would wait up to 30 s).
 """
 
 from __future__ import annotations
 
+import atexit
 import logging
 import os
+import threading
 from collections.abc import Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from typing import TYPE_CHECKING, Any
@@ -39,6 +44,9 @@ PROTOCOL_VARIABLES = ("OTEL_EXPORTER_OTLP_TRACES_PROTOCOL", "OTEL_EXPORTER_OTLP_
 DEFAULT_PROTOCOL = "http/protobuf"
 SCOPE = "oricf"
 INSTALL_HINT = "pip install 'oricf[tracing]' (scripts/setup.sh --dev installs it)"
+
+# The longest a stopping process waits for its last spans to be exported.
+SHUTDOWN_S = 2.0
 
 _NO_OP = trace.NoOpTracer()
 # The tracer every span site asks for: the no-op one until traces are turned on.
@@ -130,9 +138,27 @@ def _provider(service_name: str, chosen: str) -> TracerProvider:
             OTLPSpanExporter,
         )
     attributes = {} if os.environ.get("OTEL_SERVICE_NAME") else {SERVICE_NAME: service_name}
-    provider = TracerProvider(resource=Resource.create(attributes))
+    # The SDK's own exit handler would wait up to 30 s for a backend that does not answer.
+    provider = TracerProvider(resource=Resource.create(attributes), shutdown_on_exit=False)
     provider.add_span_processor(BatchSpanProcessor(OTLPSpanExporter()))
+    atexit.register(shutdown_within, provider, SHUTDOWN_S)
     return provider
+
+
+def shutdown_within(provider: TracerProvider, timeout_s: float) -> bool:
+    """Shuts the provider down (its last spans exported), waiting for that at most
+    timeout_s: a process that stops never waits longer on its traces' backend (the spans
+    left are dropped). Runs at exit, after the process' own stop (a control loop's safe
+    action, an agent's zero command) is done. Returns whether it finished in time."""
+    done = threading.Thread(target=provider.shutdown, name="oricf-tracing-shutdown",
+                            daemon=True)
+    done.start()
+    done.join(timeout_s)
+    if done.is_alive():
+        log.warning("traces not exported within %g s of stopping (the OTLP endpoint does "
+                    "not answer): the rest are dropped", timeout_s)
+        return False
+    return True
 
 
 def use_provider(provider: Any | None) -> None:
