@@ -10,12 +10,14 @@ and the newest image of each of the policy's cameras, as old at most.
       - {name: wrist, topic: /arm/wrist/image_raw, type: sensor_msgs/Image}
 
 A JointState part takes the named joints' values (by name, so a driver that orders them
-otherwise is read right), each field in turn; without `joints`, the message's own order. A
+otherwise is read right; a message that names a joint twice is refused: which of its values
+would be the joint's?), each field in turn; without `joints`, the message's own order. A
 part that has not arrived, is too old, has the wrong length or a value that is not finite
-makes the observation missing: the loop then asks nothing and runs out what it has queued.
-So does a camera whose newest image is missing, too old, or not an image. The images are
-kept as the transport made them (the gateway: frames as they came, decoded only by the
-policy), by the name of the policy's camera each feeds.
+as the policy is sent it (float32: 1e300 is finite as float64, infinite there; such a
+message is refused as it arrives) makes the observation missing: the loop then asks nothing
+and runs out what it has queued. So does a camera whose newest image is missing, too old, or
+not an image. The images are kept as the transport made them (the gateway: frames as they
+came, decoded only by the policy), by the name of the policy's camera each feeds.
 """
 
 from __future__ import annotations
@@ -84,6 +86,17 @@ class Observed:
     received_ns: int
 
 
+def as_sent(values: np.ndarray, what: str = "state") -> np.ndarray:
+    """State values as the policy is sent them (float32), or ValueError naming the first
+    that is not finite there: a float64 beyond float32's range is infinity after the cast."""
+    with np.errstate(over="ignore"):
+        sent = np.asarray(values).astype(np.float32)
+    bad = np.flatnonzero(~np.isfinite(sent))
+    if bad.size:
+        raise ValueError(f"{what}[{bad[0]}] is {values[bad[0]]}: not finite as float32")
+    return sent
+
+
 def values_of(part: StatePart, msg: Any) -> np.ndarray:
     """The part's values from one message (ValueError naming what is wrong)."""
     if part.type == "std_msgs/Float64MultiArray":
@@ -92,21 +105,31 @@ def values_of(part: StatePart, msg: Any) -> np.ndarray:
             raise ValueError(f"{values.size} values, not {part.size}")
         return values
     names = list(msg.name)
+    taken = None if part.joints is None else joint_positions(part.joints, names)
     rows = []
     for name in part.fields:
         column = np.asarray(getattr(msg, name), np.float64)
-        if part.joints is None:
-            rows.append(column)
-            continue
-        if column.size != len(names):
-            raise ValueError(f"{name} has {column.size} values for {len(names)} joints")
-        index = {joint: i for i, joint in enumerate(names)}
-        absent = [joint for joint in part.joints if joint not in index]
-        if absent:
-            raise ValueError(f"no joint {', '.join(absent)[:200]} (joints: "
-                             f"{', '.join(names)[:200]})")
-        rows.append(column[[index[joint] for joint in part.joints]])
+        if taken is not None:
+            if column.size != len(names):
+                raise ValueError(f"{name} has {column.size} values for {len(names)} joints")
+            column = column[taken]
+        rows.append(column)
     return np.concatenate(rows)
+
+
+def joint_positions(joints: list[str], names: list[str]) -> list[int]:
+    """Where each of `joints` is among a JointState's names, or ValueError: one is absent,
+    or a name is given twice (which of its values would be the joint's?)."""
+    index: dict[str, int] = {}
+    for i, joint in enumerate(names):
+        if index.setdefault(joint, i) != i:
+            raise ValueError(f"joint {joint[:100]!r} is named twice (joints: "
+                             f"{', '.join(names)[:200]})")
+    absent = [joint for joint in joints if joint not in index]
+    if absent:
+        raise ValueError(f"no joint {', '.join(absent)[:200]} (joints: "
+                         f"{', '.join(names)[:200]})")
+    return [index[joint] for joint in joints]
 
 
 class Observation:
@@ -151,6 +174,7 @@ class Observation:
         part = self.parts[index]
         try:
             values = values_of(part, msg)
+            as_sent(values, "value")  # refused here, naming the topic, not sent as infinity
         except (TypeError, ValueError, AttributeError) as exc:  # not what its type says
             with self._lock:
                 self.refused += 1
@@ -172,9 +196,6 @@ class Observation:
         if self.size >= 0 and state.size != self.size:
             raise MissingState(f"the state parts give {state.size} values, the policy takes "
                                f"{self.size}")
-        bad = np.flatnonzero(~np.isfinite(state))
-        if bad.size:
-            raise MissingState(f"state[{bad[0]}] is {state[bad[0]]}: not finite")
         oldest = min(got.received_ns for got in latest + images if got is not None)
         return Observed(state, {camera.name: got.values for camera, got
                                 in zip(self.cameras, images, strict=True) if got is not None},

@@ -3,7 +3,8 @@ edge can send: state messages of any length with NaN, infinity and huge values; 
 messages whose sizes, steps and encodings lie; chunks of
 any shape and values, for any step, late, early, repeated; and the loop's own ticks in any
 order. Whatever arrives, every action that goes out is finite, the right length and within
-the target's bounds, the queue stays bounded, and only the typed refusals are raised."""
+the target's bounds, every state the policy is sent is finite as sent (float32: 1e300 is
+finite as float64 only), the queue stays bounded, and only the typed refusals are raised."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
 from oricf.gateway.actions.queue import MAX_AHEAD, MAX_CHUNK, ActionQueue, BadChunk, Origin
 from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
+from oricf.gateway.methods.act import observation as observation_sent
 from oricf.gateway.sources.control import camera_frame
 from oricf.gateway.values import Frame
 
@@ -27,6 +29,8 @@ BOUNDS = [(-1.0, 1.0)] * DIM
 SAFE = np.zeros(DIM)
 hostile = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                     st.sampled_from([1e308, -1e308, 0.0, float("nan"), float("inf")]))
+# Finite as float64, infinite as the float32 a policy is sent (float32's largest: 3.4e38).
+beyond_float32 = st.sampled_from([1e300, -1e300, 3.5e38, -1e39])
 
 
 def state_message() -> st.SearchStrategy[Any]:
@@ -34,6 +38,10 @@ def state_message() -> st.SearchStrategy[Any]:
         st.builds(lambda data: SimpleNamespace(data=data), st.lists(hostile, max_size=40)),
         st.builds(lambda data: SimpleNamespace(data=data),
                   st.lists(st.floats(-10, 10), min_size=DIM * 2, max_size=DIM * 2)),
+        # the right length, so that its values, not its length, are what is refused
+        st.builds(lambda data: SimpleNamespace(data=data),
+                  st.lists(st.one_of(st.floats(-10, 10), beyond_float32),
+                           min_size=DIM * 2, max_size=DIM * 2)),
         st.just(SimpleNamespace(data="not numbers")),
         st.just(SimpleNamespace()))
 
@@ -106,7 +114,9 @@ def test_whatever_arrives_only_finite_bounded_actions_go_out(
                 else:
                     request = loop.ask(step, observed.state, observed.received_ns,
                                        observed.images)
-                    assert request is None or np.isfinite(request.state).all()
+                    if request is not None:  # what the policy would be sent
+                        wire = observation_sent({"state": request.state, "step": step})
+                        assert np.isfinite(np.asarray(wire.state)).all()
                     for image in (request.images or {}).values() if request else ():
                         assert isinstance(image, Frame) and image.data
                 target._last_sent = -np.inf  # every tick's action is looked at, not rated
