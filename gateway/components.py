@@ -235,6 +235,9 @@ class Method:
     reads: Callable[[Any], dict[str, set[str]]] = lambda call: {}
     # The data products the call reads as context, by the key that names them.
     products: Callable[[Any], dict[str, list[str]]] = lambda call: {}
+    # The most bytes one answer may take, from the route's input (None: the channel's own
+    # limit): the endpoint's gRPC channel refuses a larger answer before reading it.
+    reply_bytes: Callable[[Any], int | None] = lambda input_config: None
     rank: int = 100                            # where it is listed (schema, messages, docs)
 
     @property

@@ -241,6 +241,14 @@ class PipelineConfig(Schema):
                 return 1.0 / rate
         return None
 
+    def reply_bytes_of(self, endpoint: str) -> int | None:
+        """The most bytes one answer of an endpoint may take: the largest its routes'
+        methods take, None when one of them does not bound it."""
+        sizes = [METHODS[route.call.method].reply_bytes(route.input)
+                 for route in self.routes.values() if route.call.service == endpoint]
+        bounded = [size for size in sizes if size is not None]
+        return max(bounded) if bounded and len(bounded) == len(sizes) else None
+
     def method_of(self, endpoint: str) -> str:
         """The method the routes call on an endpoint (one gRPC service per endpoint)."""
         for route in self.routes.values():

@@ -41,7 +41,7 @@ class Pipeline:
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
         self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)],
-                                         config.step_of(name))
+                                         config.step_of(name), config.reply_bytes_of(name))
                           for name, cfg in config.endpoints.items() if name in used}
         for route_config in config.routes.values():
             for output in route_config.outputs:

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 import grpc
 
 from oricf.gateway.endpoints.config import EndpointConfig, TargetConfig
-from oricf.gateway.endpoints.grpc import GrpcTarget, Service
+from oricf.gateway.endpoints.grpc import GrpcTarget, Service, refused_as_too_large
 from oricf.gateway.endpoints.placement import Placement, RobotCpu
 
 log = logging.getLogger(__name__)
@@ -37,12 +37,13 @@ def _pushback_ms(exc: grpc.RpcError) -> float:
         return 0.0
 
 
-def open_target(config: TargetConfig, service: Service) -> Any:
+def open_target(config: TargetConfig, service: Service, reply_bytes: int | None = None
+                ) -> Any:
     if config.protocol == "openai":
         from oricf.gateway.endpoints.openai import OpenAITarget  # the openai client, if used
 
         return OpenAITarget(config)
-    return GrpcTarget(config, service)
+    return GrpcTarget(config, service, reply_bytes)
 
 
 class Endpoint:
@@ -51,13 +52,15 @@ class Endpoint:
     failover); an OpenAI-compatible target has its own client and probe."""
 
     def __init__(self, name: str, config: EndpointConfig, service: Service,
-                 step_s: float | None = None) -> None:
-        """`step_s`: the control period of the loop that calls it (a budget in steps)."""
+                 step_s: float | None = None, reply_bytes: int | None = None) -> None:
+        """`step_s`: the control period of the loop that calls it (a budget in steps);
+        `reply_bytes`: the largest answer its gRPC targets take (a larger one is refused as
+        it arrives, before it is read into memory)."""
         self.name = name
         self.config = config
         targets = config.targets
-        self.primary = open_target(targets["address"], service)
-        self.fallback = (open_target(targets["fallback"], service)
+        self.primary = open_target(targets["address"], service, reply_bytes)
+        self.fallback = (open_target(targets["fallback"], service, reply_bytes)
                          if "fallback" in targets else None)
         self.failovers = 0
         self.recoveries = 0
@@ -171,7 +174,7 @@ class Endpoint:
         retried; unavailable only when the server said for how long (HTTP 503 with
         Retry-After), else the endpoint fails over at once."""
         retry, pushback = self.config.retry, _pushback_ms(exc)
-        busy = exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+        busy = exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED and not refused_as_too_large(exc)
         paused = exc.code() == grpc.StatusCode.UNAVAILABLE and pushback > 0
         if not (busy or paused) or attempt > retry.attempts:
             return None

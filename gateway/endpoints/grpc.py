@@ -3,7 +3,7 @@ by gRPC itself), the service's stub, the call metadata and the readiness probe."
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import grpc
@@ -34,10 +34,32 @@ CHANNEL_OPTIONS = [
     ("grpc.http2.lookahead_bytes", 8 * 1024 * 1024),
 ]
 
+RECEIVE_LIMIT = "grpc.max_receive_message_length"
+
 Metadata = tuple[tuple[str, str], ...]
 Stub = Callable[[grpc.Channel], Any]
 # Whether the server behind a channel is ready for calls (timeout, call metadata).
 Ready = Callable[[grpc.Channel, float, Metadata], bool]
+
+
+def receiving(options: Sequence[tuple[str, object]], reply_bytes: int | None
+              ) -> list[tuple[str, object]]:
+    """options, with answers larger than reply_bytes refused: gRPC reads a message's length
+    first and ends the call with RESOURCE_EXHAUSTED before it holds the message."""
+    if reply_bytes is None:
+        return list(options)
+    limit = dict(options).get(RECEIVE_LIMIT)
+    if isinstance(limit, int):
+        reply_bytes = min(limit, reply_bytes)
+    return [*(option for option in options if option[0] != RECEIVE_LIMIT),
+            (RECEIVE_LIMIT, reply_bytes)]
+
+
+def refused_as_too_large(exc: grpc.RpcError) -> bool:
+    """Whether gRPC itself ended a call for an answer over the channel's limit: told as
+    RESOURCE_EXHAUSTED, as a busy server is, but no retry would be answered otherwise."""
+    return (exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+            and "larger than max" in (exc.details() or ""))
 
 
 class Service(Protocol):
@@ -53,10 +75,13 @@ class Service(Protocol):
 class GrpcTarget:
     protocol = "grpc"
 
-    def __init__(self, config: TargetConfig, service: Service) -> None:
+    def __init__(self, config: TargetConfig, service: Service,
+                 reply_bytes: int | None = None) -> None:
+        """`reply_bytes`: the largest answer taken (within the channel's own limit)."""
         self.address = config.address
         self.channel = open_channel(config.address, config.tls,
-                                    channel_options(config.address, CHANNEL_OPTIONS))
+                                    channel_options(config.address,
+                                                    receiving(CHANNEL_OPTIONS, reply_bytes)))
         self.stub = service.stub(self.channel)
         token = config.token.tokens()[0] if config.token else None
         self.metadata: Metadata = (

@@ -6,6 +6,11 @@ real-time chunking, `committed` (the actions already queued, from which step), a
 (each camera's newest frame, by the policy's camera name; sent as the endpoint's `image`
 settings say: raw as they came, or JPEG for a link that is short of bandwidth). The result's
 `actions` are row-major `[chunk, action_dim]`, the first for `start_step`.
+
+An answer is bounded before it is read: the channel of an endpoint a control input calls
+takes no message larger than a chunk of MAX_CHUNK actions of its `action_dim` (gRPC refuses
+a larger one as RESOURCE_EXHAUSTED as it arrives), and no answer of more actions than that
+is made into an array.
 """
 
 from __future__ import annotations
@@ -16,12 +21,16 @@ from typing import Any, Literal
 import numpy as np
 
 from oricf.errors import InvalidInput
+from oricf.gateway.actions.queue import MAX_CHUNK
 from oricf.gateway.components import CallBase, Invoke, Method
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.methods.base import health_check
 from oricf.gateway.products import ProductStore
 from oricf.gateway.values import Frame, Record
 from oricf.v1 import policy_pb2, policy_pb2_grpc
+
+# An answer's fields beside its actions (steps, times, the model's name, timings): generous.
+REPLY_FIELDS_BYTES = 64 * 1024
 
 
 class ActCall(CallBase):
@@ -61,12 +70,24 @@ def observation(record: Record, transport: str = "raw",
 def actions(reply: policy_pb2.ActionChunk) -> Actions:
     if reply.error.message:
         raise InvalidInput(f"the policy refused the observation: {reply.error.message}")
-    values = np.asarray(reply.actions, np.float64)
-    if reply.action_dim == 0 or values.size % reply.action_dim:
-        raise InvalidInput(f"the policy answered {values.size} values, not whole actions of "
-                           f"{reply.action_dim}")
-    return Actions(values.reshape(-1, reply.action_dim), int(reply.start_step),
-                   int(reply.observation_step))
+    count, dim = len(reply.actions), reply.action_dim
+    if dim == 0 or count % dim:
+        raise InvalidInput(f"the policy answered {count} values, not whole actions of {dim}")
+    if count // dim > MAX_CHUNK:
+        raise InvalidInput(f"the policy answered a chunk of {count // dim} actions (at most "
+                           f"{MAX_CHUNK})")
+    # One value at a time into the array: np.asarray would make a Python float of each first.
+    values = np.fromiter(reply.actions, np.float64, count=count)
+    return Actions(values.reshape(-1, dim), int(reply.start_step), int(reply.observation_step))
+
+
+def reply_bytes(input_config: Any) -> int | None:
+    """The largest answer a control input takes: a chunk of MAX_CHUNK actions of its
+    action_dim (float32 values) and the answer's other fields. None for any other input."""
+    control = getattr(input_config, "control", None)
+    if control is None:
+        return None
+    return MAX_CHUNK * int(control.action_dim) * 4 + REPLY_FIELDS_BYTES
 
 
 def bind(call: ActCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
@@ -87,4 +108,4 @@ def result(call: Any) -> type:
 
 
 METHOD = Method("Act", ActCall, "oricf.v1.Policy", policy_pb2_grpc.PolicyStub,
-                health_check("oricf.v1.Policy"), result, bind, rank=5)
+                health_check("oricf.v1.Policy"), result, bind, reply_bytes=reply_bytes, rank=5)
