@@ -63,12 +63,15 @@ LOOP_COUNTS = (
     ("requests", "Observations sent to the policy.", "loop", "requests"),
     ("chunks", "Chunks taken into the queue.", "loop", "answers"),
     ("expired", "Requests left unanswered past deadline_steps.", "loop", "expired"),
-    ("refused_chunks", "Chunks for an observation older than, or as old as, one answered.",
-     "loop", "refused_chunks"),
+    ("refused_chunks", "Chunks refused: for an observation not asked, older than or as old "
+     "as one answered, or another than the request's; or malformed.", "loop",
+     "refused_chunks"),
     ("failed", "Requests whose call failed.", "loop", "failed"),
     ("late_actions", "Actions dropped because their step had passed (late: skip).", "queue",
      "late_actions"),
     ("stale_chunks", "Chunks all of whose actions came too late.", "queue", "stale_chunks"),
+    ("ahead_actions", "Actions dropped because their step was further after their "
+     "observation than max_ahead_ms.", "queue", "ahead_actions"),
 )
 
 

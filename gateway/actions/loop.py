@@ -16,8 +16,12 @@ on the robot's clock; `oricf bench control` runs it on a simulator's steps.
     hold_steps   ticks the last action is repeated when nothing is queued, before the safe
                  action (0: the safe action at once)
 
-A chunk is refused when it answers an observation older than one already answered, or one
-answered already (an answer that arrives late, or twice, moves nothing).
+A chunk is refused when it answers an observation the loop did not ask for (or asked before
+a restart), one older than one already answered, or one answered already (an answer that
+arrives late, or twice, moves nothing). The observation an answer is for is the one its
+request sent, which the caller knows: a step the answer names for itself is only checked
+against it. An asked observation is kept for a late answer as long as an action answering it
+could still be within the queue's horizon.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from oricf.gateway.actions.queue import ActionQueue, Origin
+from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
 from oricf.metrics import LatencyHistogram
 from oricf.stats import percentile
 
@@ -65,7 +69,8 @@ class LoopCounts:
     requests: int = 0
     answers: int = 0
     expired: int = 0              # requests left unanswered past the deadline
-    refused_chunks: int = 0       # answers to an observation older than one answered
+    refused_chunks: int = 0       # answers to an observation not asked, or older than one
+                                  # answered, or a chunk the queue refused
     failed: int = 0               # calls that failed (the route told the loop)
     missing_state: int = 0        # ticks without an observation (stale, missing, bad)
     late_ticks: int = 0           # ticks that started after their time (steps skipped)
@@ -107,7 +112,9 @@ class ControlLoop:
         self.ages = Ages()
         self._lock = threading.Lock()
         self._in_flight: set[int] = set()        # the observation steps asked, unanswered
-        self._answered = -1                       # the newest observation step answered
+        # ... and those given up past the deadline, whose answer may still come; none older
+        # than the newest answered
+        self._asked: set[int] = set()
         self._last: np.ndarray | None = None
         self._dry = 0                             # ticks since the queue gave an action
 
@@ -123,7 +130,11 @@ class ControlLoop:
             if (len(self._in_flight) >= self.max_in_flight
                     or self.queue.remaining(step) > self.request_at):
                 return None
+            # An answer to an observation past the horizon has no action left to play.
+            self._asked = {asked for asked in self._asked
+                           if step - asked <= self.queue.horizon}
             self._in_flight.add(step)
+            self._asked.add(step)
             self.counts.requests += 1
         committed = self.queue.committed(step) if self.send_committed else None
         return Request(step, state, now_ns, committed, images)
@@ -153,39 +164,53 @@ class ControlLoop:
         return Tick(step, action, safe, origin)
 
     def deliver(self, actions: np.ndarray, start_step: int, origin: Origin, now: int) -> int:
-        """A chunk answering the observation of `origin`, arriving after the action for
-        `now` was taken (`step - 1` when it arrives before the action for `step`);
-        returns how many of its actions were queued (0 if refused).
-        Raises queue.BadChunk for a malformed chunk."""
+        """A chunk answering the observation of `origin` (the step of the request it
+        answers), arriving after the action for `now` was taken (`step - 1` when it arrives
+        before the action for `step`); returns how many of its actions were queued (0 if
+        refused). Raises queue.BadChunk for a malformed chunk."""
         with self._lock:
             self._in_flight.discard(origin.step)
-            if origin.step <= self._answered:
+            if origin.step not in self._asked:  # not asked, answered, or older than answered
                 self.counts.refused_chunks += 1
                 return 0
-        queued = self.queue.put(actions, start_step, now, origin)
+        try:
+            queued = self.queue.put(actions, start_step, now, origin)
+        except BadChunk:
+            self.refuse(origin.step)
+            raise
         with self._lock:
-            self._answered = max(self._answered, origin.step)
+            self._asked = {asked for asked in self._asked if asked > origin.step}
             self.counts.answers += 1
         return queued
+
+    def refuse(self, observation_step: int) -> None:
+        """The answer to this observation's request is refused (a malformed chunk, or one
+        that says it answers another observation): the next tick may ask again."""
+        with self._lock:
+            self._in_flight.discard(observation_step)
+            self._asked.discard(observation_step)
+            self.counts.refused_chunks += 1
 
     def failed(self, observation_step: int) -> None:
         """The request for this observation failed: the next tick may ask again."""
         with self._lock:
             self._in_flight.discard(observation_step)
+            self._asked.discard(observation_step)
             self.counts.failed += 1
 
     def stop(self) -> None:
-        """Nothing queued is played any more; the next tick sends the safe action."""
+        """Nothing queued is played any more, and no answer still on its way is taken; the
+        next tick sends the safe action."""
         self.queue.clear()
         with self._lock:
             self._last = None
             self._in_flight.clear()
+            self._asked.clear()
 
-    def restart(self, step: int) -> None:
-        """What was queued, held or asked before `step` is stale (the robot was silent and
-        the loop did not tick): all of it dropped, and an answer to an observation before
-        `step` that still comes is refused."""
+    def restart(self) -> None:
+        """What was queued, held or asked until now is stale (the robot was silent and the
+        loop did not tick): all of it dropped, and an answer to an observation asked before
+        that still comes is refused."""
         self.stop()
         with self._lock:
-            self._answered = max(self._answered, step - 1)
             self.counts.restarts += 1

@@ -17,9 +17,16 @@ settings:
     merge: ensemble  every chunk that predicted the step, weighted exp(-k * i) with i = 0
                      for the oldest (ACT's temporal ensembling, k = 0.01)
 
+A chunk is planned from its observation, and the policy plans so far ahead (its horizon:
+its lead and chunk length): an action for a step further than `horizon` steps after the
+observation it answers, wherever `late` places it, is dropped, and a chunk whose first
+action is that far is refused. So an action planted far ahead is not played seconds later
+by a loop the policy has stopped answering: the queue runs out, and the loop holds, then
+sends the safe action.
+
 The counts a bench and /metrics report are kept here: ticks with nothing queued, chunks
-taken, actions dropped as late, and the jump between consecutive actions where one chunk's
-actions give way to another's.
+taken, actions dropped as late or as beyond the horizon, and the jump between consecutive
+actions where one chunk's actions give way to another's.
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ Merge = Literal["latest", "weighted", "ensemble"]
 
 JUMPS_KEPT = 10_000
 MAX_CHUNK = 4096     # actions in one chunk
-MAX_AHEAD = 4096     # steps a chunk may start after the current one
+MAX_AHEAD = 4096     # steps a chunk may start after the current one, and the largest horizon
 
 
 class BadChunk(ValueError):
@@ -52,6 +59,7 @@ class Counts:
     chunks: int = 0             # chunks taken into the queue
     stale_chunks: int = 0       # chunks all of whose actions were late
     late_actions: int = 0       # actions dropped because their step had passed
+    ahead_actions: int = 0      # actions dropped as beyond the horizon of their observation
     switches: int = 0           # ticks whose action came from another chunk than the last
     # |a_t - a_t-1| (largest value) at the last JUMPS_KEPT of those switches
     jumps: deque[float] = field(default_factory=lambda: deque(maxlen=JUMPS_KEPT))
@@ -78,8 +86,12 @@ class ActionQueue:
     """Thread-safe: the loop's tick thread takes, the thread that receives chunks puts."""
 
     def __init__(self, action_dim: int, late: Late = "skip", merge: Merge = "latest",
-                 weight: float = 0.7, ensemble_k: float = 0.01) -> None:
+                 weight: float = 0.7, ensemble_k: float = 0.01,
+                 horizon: int = MAX_AHEAD) -> None:
+        if not 0 <= horizon <= MAX_AHEAD:
+            raise ValueError(f"a horizon of {horizon} steps (0 to {MAX_AHEAD})")
         self.action_dim = action_dim
+        self.horizon = horizon      # steps after its observation an action may be for
         self.late = late
         self.merge = merge
         self.weight = weight
@@ -100,24 +112,24 @@ class ActionQueue:
         at step `now` (its action for `now` already played); returns how many of its actions
         were queued. `origin`: the observation it answers (the observation step is
         `start_step` when not given)."""
-        chunk = np.asarray(actions, dtype=np.float64)
-        if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
-            raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
-                           f"{self.action_dim}]")
-        if len(chunk) > MAX_CHUNK:
-            raise BadChunk(f"a chunk of {len(chunk)} actions (at most {MAX_CHUNK})")
-        if not np.isfinite(chunk).all():
-            raise BadChunk("a chunk with values that are not finite")
-        if not -MAX_CHUNK <= start_step - now <= MAX_AHEAD:
-            raise BadChunk(f"a chunk for step {start_step} at step {now}: not near now")
+        chunk = self._checked(actions, start_step, now)
+        origin = origin or Origin(start_step)
         first = start_step if self.late == "skip" else now + 1
+        beyond = origin.step + self.horizon   # the first step past the policy's horizon
+        if first > beyond:
+            raise BadChunk(f"a chunk for step {first}, {first - origin.step} steps after the "
+                           f"observation it answers (step {origin.step}): beyond the horizon "
+                           f"of {self.horizon} steps")
         with self._lock:
             self._chunk_ids += 1
             self.counts.chunks += 1
-            self._origins[self._chunk_ids] = origin or Origin(start_step)
+            self._origins[self._chunk_ids] = origin
             queued = 0
             for i, action in enumerate(chunk):
                 step = first + i
+                if step > beyond:
+                    self.counts.ahead_actions += len(chunk) - i
+                    break
                 if step <= now:
                     self.counts.late_actions += 1
                     continue
@@ -128,6 +140,20 @@ class ActionQueue:
             if queued == 0:
                 self.counts.stale_chunks += 1
             return queued
+
+    def _checked(self, actions: np.ndarray, start_step: int, now: int) -> np.ndarray:
+        """The chunk as float64 rows of the action's size, else BadChunk."""
+        chunk = np.asarray(actions, dtype=np.float64)
+        if chunk.ndim != 2 or chunk.shape[1] != self.action_dim or len(chunk) == 0:
+            raise BadChunk(f"a chunk of shape {list(chunk.shape)}; expected [n, "
+                           f"{self.action_dim}]")
+        if len(chunk) > MAX_CHUNK:
+            raise BadChunk(f"a chunk of {len(chunk)} actions (at most {MAX_CHUNK})")
+        if not np.isfinite(chunk).all():
+            raise BadChunk("a chunk with values that are not finite")
+        if not -MAX_CHUNK <= start_step - now <= MAX_AHEAD:
+            raise BadChunk(f"a chunk for step {start_step} at step {now}: not near now")
+        return chunk
 
     def take(self, step: int) -> np.ndarray | None:
         """The action for `step` (None when nothing is queued for it); steps before it are

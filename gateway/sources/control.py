@@ -16,6 +16,7 @@ policy (bounds, rate, deadman), the safe action when nothing is queued.
             safe_action: [0, 0, 0, 0]
             request_at: 6           # ask when this many actions are left queued
             deadline_steps: 12      # ask again when an answer is this late
+            max_ahead_ms: 500       # the policy's horizon: no action planned further ahead
             late: skip              # or shift (oricf.gateway.actions.queue)
             merge: ensemble         # latest, weighted or ensemble
             target: {topic: /arm/command, type: std_msgs/Float64MultiArray,
@@ -30,6 +31,7 @@ are time) and hands its requests to the route, whose answer comes back through `
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from typing import Any, Literal
@@ -41,7 +43,7 @@ from oricf.config import Schema
 from oricf.errors import ConfigError
 from oricf.gateway.actions.loop import ControlLoop, Request
 from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
-from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
+from oricf.gateway.actions.queue import MAX_AHEAD, ActionQueue, BadChunk, Origin
 from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
 from oricf.gateway.components import ComponentContext, OnEnd, Source, SourceKind, Submit
 from oricf.gateway.throttle import ThrottledLog
@@ -70,6 +72,10 @@ class ControlSettings(Schema):
     request_at: int = Field(0, ge=0, le=10_000)
     deadline_steps: int = Field(10, ge=1, le=100_000)
     max_in_flight: int = Field(1, ge=1, le=64)
+    max_ahead_ms: float | None = Field(
+        None, gt=0, le=600_000, description="the policy's horizon: an action for a step "
+        "further than this after the observation it answers is dropped, and a chunk that "
+        "starts there refused (default: one second, or one step where a step is longer)")
     late: Literal["skip", "shift"] = "skip"
     merge: Literal["latest", "weighted", "ensemble"] = "latest"
     send_committed: bool = False
@@ -83,6 +89,10 @@ class ControlSettings(Schema):
         names = [camera.name for camera in self.images]
         if len(set(names)) != len(names):
             raise ValueError(f"images: a camera is named twice ({', '.join(names)})")
+        if not 1 <= self.ahead_steps() <= MAX_AHEAD:
+            raise ValueError(f"max_ahead_ms: {self.max_ahead_ms:g} ms is "
+                             f"{self.ahead_steps()} steps at {self.rate_hz:g} Hz: from one "
+                             f"step to {MAX_AHEAD}")
         size = self.target.size()
         if size is not None and size != self.action_dim:
             raise ValueError(f"target: its joints, fields or bounds give {size} values for "
@@ -91,6 +101,14 @@ class ControlSettings(Schema):
 
     def safe(self) -> np.ndarray:
         return np.asarray(self.safe_action or [0.0] * self.action_dim, np.float64)
+
+    def ahead_steps(self) -> int:
+        """The policy's horizon in whole steps at `rate_hz` (the queue's `horizon`): by
+        default one second, or one step where a step is longer."""
+        if self.max_ahead_ms is None:
+            return max(1, math.floor(self.rate_hz + 1e-6))
+        # The tolerance keeps 1000 ms at 60.606 Hz 60 steps, not 59.
+        return math.floor(self.max_ahead_ms * self.rate_hz / 1000 + 1e-6)
 
 
 class ControlInput(Schema):
@@ -139,7 +157,8 @@ class ControlSource:
                               f"run the gateway with ROS")
         self.route = route
         self.settings = settings
-        queue = ActionQueue(settings.action_dim, settings.late, settings.merge)
+        queue = ActionQueue(settings.action_dim, settings.late, settings.merge,
+                            horizon=settings.ahead_steps())
         self.loop = ControlLoop(queue, settings.safe(), settings.request_at,
                                 settings.deadline_steps, settings.hold_steps,
                                 settings.send_committed, settings.max_in_flight)
@@ -266,7 +285,7 @@ class ControlSource:
                 # The loop did not tick while the robot was silent: what it queued, held or
                 # asked before was planned for a robot that has moved on since.
                 self._pending = None
-                self.loop.restart(self._step + 1)
+                self.loop.restart()
                 self._throttle.warning("restart", "route %s: the robot's state came back after "
                                        "%.0f ms: the actions queued before it dropped",
                                        self.route, silent_ns / 1e6)
@@ -281,22 +300,36 @@ class ControlSource:
                 self._act(self._step)
 
     def answered(self, request: Request, record: Record) -> None:
-        origin = Origin(int(record["observation_step"]), request.capture_time_ns)
-        try:
-            queued = self.loop.deliver(record["actions"], int(record["start_step"]), origin,
-                                       now=self._acted)
-        except BadChunk as exc:
-            self._throttle.warning("bad_chunk", "route %s: chunk refused: %s", self.route, exc)
-            return
+        queued = self._queue_answer(request, record)
         with self._lock:
-            if self._pending == origin.step and not self._stop.is_set():
-                self._act(origin.step)  # the action of the state this answers, at once
+            if self._pending == request.step and not self._stop.is_set():
+                self._act(request.step)  # the action of the state this answers, at once
                 self._pending = None
         if queued == 0 and self.settings.late == "skip":
             self._throttle.warning(
                 "stale", "route %s: a chunk for step %d came at step %d, after all its "
                 "actions' steps (late: shift plays a chunk from its arrival; a longer chunk "
-                "or a policy placed nearer keeps to time)", self.route, origin.step, self._acted)
+                "or a policy placed nearer keeps to time)", self.route, request.step,
+                self._acted)
+
+    def _queue_answer(self, request: Request, record: Record) -> int | None:
+        """The answer's actions queued as the answer to `request`, the observation this
+        call sent: how many (None: refused). An answer that names another observation is
+        not trusted with this one's."""
+        said = int(record["observation_step"])
+        if said != request.step:
+            self.loop.refuse(request.step)
+            self._throttle.warning("mismatch", "route %s: the answer to the observation of "
+                                   "step %d says it answers step %d: refused", self.route,
+                                   request.step, said)
+            return None
+        origin = Origin(request.step, request.capture_time_ns)
+        try:
+            return self.loop.deliver(record["actions"], int(record["start_step"]), origin,
+                                     now=self._acted)
+        except BadChunk as exc:
+            self._throttle.warning("bad_chunk", "route %s: chunk refused: %s", self.route, exc)
+            return None
 
     def failed(self, request: Request, message: str) -> None:
         self.loop.failed(request.step)

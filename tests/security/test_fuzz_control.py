@@ -1,10 +1,13 @@
 """Property-based fuzzing of a control loop's parts with what a hostile or broken robot and
 edge can send: state messages of any length with NaN, infinity and huge values; camera
 messages whose sizes, steps and encodings lie; chunks of
-any shape and values, for any step, late, early, repeated; and the loop's own ticks in any
+any shape and values, for any step, late, early, repeated, answering steps asked or never
+asked (far ahead: 10**6, 2**40), refused by their caller; and the loop's own ticks in any
 order. Whatever arrives, every action that goes out is finite, the right length and within
-the target's bounds, every state the policy is sent is finite as sent (float32: 1e300 is
-finite as float64 only), the queue stays bounded, and only the typed refusals are raised."""
+the target's bounds, none is played further after its observation than the horizon, every
+state the policy is sent is finite as sent (float32: 1e300 is finite as float64 only), the
+queue stays bounded, only the typed refusals are raised, and afterwards the loop asks again
+and plays an honest answer."""
 
 from __future__ import annotations
 
@@ -27,6 +30,8 @@ from oricf.gateway.values import Frame
 DIM = 3
 BOUNDS = [(-1.0, 1.0)] * DIM
 SAFE = np.zeros(DIM)
+HORIZON = 12
+DEADLINE = 5
 hostile = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                     st.sampled_from([1e308, -1e308, 0.0, float("nan"), float("inf")]))
 # Finite as float64, infinite as the float32 a policy is sent (float32's largest: 3.4e38).
@@ -75,10 +80,12 @@ event = st.one_of(
     st.tuples(st.just("state"), state_message()),
     st.tuples(st.just("image"), camera_message()),
     st.tuples(st.just("tick"), st.integers(0, 3)),
+    # the observation answered: any step, one never asked far ahead, or the last asked (None)
     st.tuples(st.just("answer"), chunk(),
               st.one_of(st.integers(-5, 50), st.integers(-MAX_AHEAD * 2, MAX_AHEAD * 2)),
-              st.integers(-5, 50)),
+              st.one_of(st.integers(-5, 50), st.sampled_from([10**6, 2**40]), st.none())),
     st.tuples(st.just("fail"), st.integers(-5, 50)),
+    st.tuples(st.just("refuse"), st.integers(-5, 50)),
 )
 
 
@@ -90,14 +97,16 @@ def test_whatever_arrives_only_finite_bounded_actions_go_out(
         events: list[Any], late: str, merge: str) -> None:
     sent: list[dict[str, Any]] = []
     target = ActionTarget(ActionTargetConfig(topic="/a", bounds=BOUNDS), sent.append, SAFE)
-    loop = ControlLoop(ActionQueue(DIM, late, merge), SAFE, request_at=2,  # type: ignore[arg-type]
-                       deadline=5, hold_steps=1, send_committed=True, max_in_flight=2)
+    queue = ActionQueue(DIM, late, merge, horizon=HORIZON)  # type: ignore[arg-type]
+    loop = ControlLoop(queue, SAFE, request_at=2, deadline=DEADLINE, hold_steps=1,
+                       send_committed=True, max_in_flight=2)
     observation = Observation([StatePart(topic="/s", type="std_msgs/Float64MultiArray",
                                          size=DIM * 2)], DIM * 2, max_age_ms=1e6,
                               cameras=[CameraPart(name="top", topic="/c")],
                               # either type of message on the one camera, as it names it
                               image_of=lambda _, typed: camera_frame(*typed))
     step = 0
+    asked = 0
     for kind, *args in events:
         if kind == "state":
             with contextlib.suppress(MissingState):
@@ -119,18 +128,39 @@ def test_whatever_arrives_only_finite_bounded_actions_go_out(
                         assert np.isfinite(np.asarray(wire.state)).all()
                     for image in (request.images or {}).values() if request else ():
                         assert isinstance(image, Frame) and image.data
+                    if request is not None:
+                        asked = request.step
                 target._last_sent = -np.inf  # every tick's action is looked at, not rated
-                target.send(loop.act(step).action)
+                tick = loop.act(step)
+                assert tick.origin is None or tick.step - tick.origin.step <= HORIZON
+                target.send(tick.action)
                 step += 1
         elif kind == "answer":
             with contextlib.suppress(BadChunk):
-                loop.deliver(args[0], args[1], Origin(args[2]), now=step - 1)
-        else:
+                loop.deliver(args[0], args[1], Origin(asked if args[2] is None else args[2]),
+                             now=step - 1)
+        elif kind == "fail":
             loop.failed(args[0])
-        assert loop.queue.remaining(step) <= MAX_CHUNK
+        else:
+            loop.refuse(args[0])
+        assert loop.queue.remaining(step) <= HORIZON
     assert loop.queue.counts.ticks == step
+    answered_after(loop, step)
     for message in sent:
         values = np.asarray(message["data"])
         assert values.shape == (DIM,) and np.isfinite(values).all()
         assert (np.abs(values) <= 1.0).all()
     target.close()
+
+
+def answered_after(loop: ControlLoop, step: int) -> None:
+    """Once what was queued and asked has run out (the horizon and the deadline passed), the
+    loop asks, and plays the answer to what it asked: nothing that came before silences it."""
+    for _ in range(HORIZON + DEADLINE + 2):
+        loop.act(step)
+        step += 1
+    request = loop.ask(step, np.zeros(DIM * 2))
+    assert request is not None
+    honest = np.full((4, DIM), 0.5)
+    assert loop.deliver(honest, request.step, Origin(request.step), now=step - 1) == 4
+    assert loop.act(step).action.tolist() == [0.5] * DIM

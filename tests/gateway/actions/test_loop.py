@@ -1,6 +1,7 @@
 """The control loop's tick: asked before acting, so an onboard answer is used at once; the
 last action held, then the safe action, when nothing is queued; requests that stay
-unanswered past the deadline asked again; answers that come late or twice move nothing."""
+unanswered past the deadline asked again; answers that come late or twice, or that answer
+what was never asked, move nothing; nothing is played beyond the policy's horizon."""
 
 from __future__ import annotations
 
@@ -17,9 +18,10 @@ def chunk(first: float, n: int) -> np.ndarray:
     return np.repeat(np.arange(first, first + n, dtype=np.float64)[:, None], 2, axis=1)
 
 
-def loop(**settings: object) -> ControlLoop:
+def loop(horizon: int = 64, **settings: object) -> ControlLoop:
     options = {"request_at": 2, "deadline": 5} | settings
-    return ControlLoop(ActionQueue(2), SAFE, **options)  # type: ignore[arg-type]
+    return ControlLoop(ActionQueue(2, horizon=horizon), SAFE,
+                       **options)  # type: ignore[arg-type]
 
 
 def test_an_answer_before_the_action_is_used_on_the_same_tick() -> None:
@@ -46,6 +48,7 @@ def test_the_next_chunk_is_asked_for_when_request_at_actions_are_left() -> None:
 
 def test_a_dry_queue_holds_the_last_action_then_sends_the_safe_one() -> None:
     control = loop(hold_steps=2)
+    control.ask(0, np.ones(3))
     control.deliver(chunk(7, 1), 0, Origin(0), now=-1)
     ticks = [control.act(step) for step in range(4)]
     assert [t.action[0] for t in ticks] == [7, 7, 7, 0]
@@ -104,6 +107,7 @@ def test_committed_actions_go_with_the_request_for_real_time_chunking() -> None:
 
 def test_stop_drops_what_is_queued() -> None:
     control = loop()
+    control.ask(0, np.ones(3))
     control.deliver(chunk(5, 4), 0, Origin(0), now=-1)
     control.stop()
     assert control.act(0).safe
@@ -111,11 +115,12 @@ def test_stop_drops_what_is_queued() -> None:
 
 def test_a_restart_drops_what_was_queued_and_refuses_answers_from_before_it() -> None:
     control = loop(hold_steps=3)
+    control.ask(0, np.ones(3))
     control.deliver(chunk(5, 8), 0, Origin(0), now=-1)
     assert control.act(0).action[0] == 5
     assert control.ask(1, np.ones(3)) is None  # enough queued: nothing asked
     control.ask(2, np.ones(3))                 # asked for the observation of step 2
-    control.restart(4)
+    control.restart()
     tick = control.act(4)
     assert tick.safe  # neither the queued action for step 4 nor the last one, held
     # The answer to step 2's observation comes after the restart: refused, nothing queued.
@@ -125,3 +130,54 @@ def test_a_restart_drops_what_was_queued_and_refuses_answers_from_before_it() ->
     assert control.ask(5, np.ones(3)) is not None
     control.deliver(chunk(70, 4), 5, Origin(5), now=4)
     assert control.act(5).action[0] == 70
+
+
+@pytest.mark.parametrize("lie", [10**6, 2**40])
+def test_an_answer_for_a_step_never_asked_is_refused_and_the_next_is_taken(lie: int) -> None:
+    """An edge that names a step far ahead of any it was asked for poisons nothing: the
+    answers after it, to the steps the loop asked, are taken."""
+    control = loop(request_at=0)
+    assert control.ask(0, np.ones(3)) is not None
+    assert control.deliver(chunk(9, 4), 0, Origin(lie), now=-1) == 0
+    assert control.counts.refused_chunks == 1 and control.counts.answers == 0
+    assert control.deliver(chunk(20, 4), 0, Origin(0), now=-1) == 4  # what was asked
+    assert control.act(0).action[0] == 20
+    for step in range(1, 4):
+        control.act(step)
+    assert control.ask(4, np.ones(3)) is not None  # once the queue is dry
+    assert control.deliver(chunk(30, 4), 4, Origin(4), now=3) == 4
+    assert control.act(4).action[0] == 30 and control.counts.answers == 2
+
+
+def test_an_answer_refused_by_its_caller_lets_the_next_tick_ask_again() -> None:
+    control = loop(request_at=0)
+    control.ask(0, np.ones(3))
+    control.refuse(0)  # e.g. it said it answers another observation
+    assert control.counts.refused_chunks == 1
+    assert control.ask(1, np.ones(3)) is not None  # not after the deadline: at once
+    assert control.deliver(chunk(9, 4), 0, Origin(0), now=0) == 0  # nor taken after all
+
+
+def test_a_chunk_planted_beyond_the_horizon_is_refused_and_the_safe_action_follows() -> None:
+    """An edge answers once with actions 150 steps ahead and then goes silent: at their step
+    the loop holds the last action, then sends the safe one, not the planted action."""
+    control = loop(horizon=16, request_at=0, hold_steps=2)
+    control.ask(0, np.ones(3))
+    control.deliver(chunk(7, 4), 0, Origin(0), now=-1)
+    ticks = [control.act(step) for step in range(4)]
+    control.ask(4, np.ones(3))
+    with pytest.raises(BadChunk, match="beyond the horizon of 16 steps"):
+        control.deliver(chunk(99, 14), 154, Origin(4), now=3)
+    ticks += [control.act(step) for step in range(4, 170)]
+    assert not any(tick.action[0] >= 99 for tick in ticks)
+    assert [tick.action[0] for tick in ticks[:7]] == [7, 8, 9, 10, 10, 10, 0]
+    assert all(tick.safe for tick in ticks[6:])
+    assert control.counts.refused_chunks == 1
+
+
+def test_the_actions_of_a_chunk_beyond_the_horizon_are_dropped() -> None:
+    control = loop(horizon=5, request_at=0)
+    control.ask(2, np.ones(3))
+    assert control.deliver(chunk(0, 10), 2, Origin(2), now=1) == 6  # steps 2 to 7
+    assert control.queue.counts.ahead_actions == 4
+    assert [control.act(step).action[0] for step in range(2, 10)] == [0, 1, 2, 3, 4, 5, 0, 0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from oricf.gateway.actions.queue import ActionQueue, BadChunk
+from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
 
 
 def chunk(first: float, n: int, dim: int = 2) -> np.ndarray:
@@ -80,3 +80,24 @@ def test_bad_chunks_are_refused_and_leave_the_queue_as_it_was(bad: np.ndarray) -
     with pytest.raises(BadChunk):
         queue.put(bad, start_step=1, now=0)
     assert queue.remaining(1) == 2 and queue.counts.chunks == 1
+
+
+
+@pytest.mark.parametrize("late", ["skip", "shift"])
+def test_no_action_is_queued_beyond_the_horizon_of_its_observation(late: str) -> None:
+    """An action for a step more than `horizon` steps after the observation it answers, where
+    `late` places it, is dropped; a chunk whose first action is there is refused."""
+    queue = ActionQueue(2, late=late, horizon=10)  # type: ignore[arg-type]
+    # Observed at step 10, arriving at step 14, placed from step 15: steps 15 to 20 are
+    # within 10 steps of it.
+    assert queue.put(chunk(0, 8), start_step=15, now=14, origin=Origin(10)) == 6
+    assert queue.counts.ahead_actions == 2
+    assert [queue.take(step)[0] for step in range(15, 21)] == [0, 1, 2, 3, 4, 5]
+    assert queue.take(21) is None
+
+
+def test_a_chunk_that_starts_beyond_the_horizon_is_refused() -> None:
+    queue = ActionQueue(2, horizon=10)
+    with pytest.raises(BadChunk, match="150 steps after the observation it answers"):
+        queue.put(chunk(0, 14), start_step=160, now=12, origin=Origin(10))
+    assert queue.counts.chunks == 0 and queue.remaining(13) == 0

@@ -1,7 +1,8 @@
 """The control input over real DDS: a Hopper observation of the real simulator published at
 the policy's rate, the gateway's loop asking pybullet's trained policy (`oricf serve policy`)
 and publishing its action on time; the safe action when the observation stops, turns bad or
-the policy goes away, and last when the gateway stops."""
+the policy goes away, and last when the gateway stops; an edge that lies about the
+observation it answers, or plants actions far ahead, steers nothing."""
 
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ from oricf.gateway.shells.ros_node import GatewayNode
 from oricf.gateway.sources.control import ControlSource
 from tests.gateway.ros.gateway_node import spinning, wait_for
 from tests.support.chunk_policy import chunk_policy
+from tests.support.hostile_edge import chunk, hostile_edge
 from tests.support.metrics import scrape
 from tests.support.pybullet_sim import forward, hopper, reference_arrays
 from tests.support.services import RunningService, running_service
@@ -310,6 +312,56 @@ def test_an_edge_that_stalls_gets_the_safe_action_out_until_it_answers_again(
         assert any(list(m.data) != [0.0, 0.0, 0.0] for m in robot.next_actions(10))
 
 
+@pytest.mark.parametrize("tick", ["clock", "state"])
+def test_an_edge_that_names_a_step_never_asked_does_not_silence_the_loop(
+        ros_context: Context, tick: str) -> None:
+    """Its first answer says it answers the request's step + 10**6, its second + 2**40; then
+    it answers right: those two are refused, and every answer after them is played."""
+    lies = {0: 10**6, 1: 2**40}
+    action = [0.5, -0.5, 0.25]
+    robot = Robot(ros_context)
+    with hostile_edge(lambda call, request: chunk(
+            request, [action] * 4, observation=request.step + lies.get(call, 0))) as (
+            address, edge):
+        config = control_config(address, tick=tick, late="skip", request_at=1, hold_steps=3)
+        with running(config, ros_context, robot) as run:
+            source = run.source
+            robot.publishing = [0.1] * 15
+            wait_for(lambda: source.loop.counts.answers >= 10)
+            assert source.loop.counts.refused_chunks >= 2 and edge.calls >= 12
+            robot.drain()
+            assert any(list(m.data) == pytest.approx(action) for m in robot.next_actions(10))
+
+
+def test_an_action_planted_far_ahead_is_not_played_after_the_edge_goes_silent(
+        ros_context: Context) -> None:
+    """The edge answers a chunk, then a chunk for 150 steps after its observation (2.5 s at
+    this rate, beyond the default max_ahead_ms of one second), then nothing: the loop holds
+    the last action, then sends the safe action, and the planted action never goes out."""
+    honest, planted = [0.5, -0.5, 0.25], [0.9, 0.9, 0.9]
+
+    def answer(call: int, request: Any) -> Any:
+        if call == 0:
+            return chunk(request, [honest] * 8)
+        if call == 1:
+            return chunk(request, [planted] * 14, start=request.step + 150)
+        return None  # silent
+
+    robot = Robot(ros_context)
+    with hostile_edge(answer) as (address, edge):
+        config = control_config(address, late="skip", request_at=0, hold_steps=3)
+        with running(config, ros_context, robot) as run:
+            loop = run.source.loop
+            robot.publishing = [0.1] * 15
+            wait_for(lambda: edge.calls >= 2)
+            # Ticks are at most steps: past the planted actions' steps and a few more.
+            wait_for(lambda: loop.queue.counts.ticks > edge.steps[1] + 150 + 14 + 5, 20)
+            sent = [list(m.data) for m in robot.drain()]
+    assert all(values != pytest.approx(planted) for values in sent)
+    assert any(values == pytest.approx(honest) for values in sent)
+    assert sent[-1] == [0.0, 0.0, 0.0] and loop.counts.held_ticks > 0
+
+
 def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
         policy: RunningService, ros_context: Context, hopper_state: np.ndarray) -> None:
     target = {"topic": "/hopper/trajectory", "type": "trajectory_msgs/JointTrajectory",
@@ -337,6 +389,9 @@ def test_actions_go_out_as_a_joint_trajectory_within_their_bounds(
      "fields: geometry_msgs/Twist has no linear.q"),
     ({"target": {"topic": "/a", "type": "std_msgs/Float64MultiArray", "joints": ["a"]}},
      "joints: given with trajectory_msgs/JointTrajectory, and only with it"),
+    ({"max_ahead_ms": 5}, "max_ahead_ms: 5 ms is 0 steps at 60.606 Hz: from one step to 4096"),
+    ({"max_ahead_ms": 100_000}, "max_ahead_ms: 100000 ms is 6060 steps at 60.606 Hz"),
+    ({"max_ahead_ms": 0}, "max_ahead_ms: Input should be greater than 0"),
 ])
 def test_settings_that_cannot_work_are_refused_naming_the_key(change: dict[str, Any],
                                                              message: str) -> None:
