@@ -24,7 +24,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from oricf.bench.common import print_table, shipped_detector_model
 from oricf.config import REPO_ROOT
@@ -40,6 +39,7 @@ from oricf.models.declaration import DetectionTask
 from oricf.services.local import local_service, service_config
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
+from oricf.yamlfile import read_yaml
 
 HAND_COUNTS = REPO_ROOT / "tests" / "data" / "vtest_people_counts.yaml"
 TRACK_MIN_SCORE = 0.1
@@ -145,7 +145,7 @@ def quality(counts: list[int], hand: dict[int, int]) -> Quality:
 
 
 def hand_counts(path: Path = HAND_COUNTS) -> HandCounts:
-    data = yaml.safe_load(path.read_text())
+    data = read_yaml(path)
 
     def frames(key: str) -> dict[int, int]:
         return {int(k): int(v) for k, v in data[key].items()}

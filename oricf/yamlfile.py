@@ -1,19 +1,25 @@
 """Reading YAML with limits: every YAML text ORICF reads (pipelines, overlays, service
 configs, deployments, model declarations, the catalog, prompts, --set values) goes through
-`read_yaml` or `parse_yaml`.
+`read_yaml` or `parse_yaml`. Its reading of bytes, `read_limited`, is also the one reader of
+the other small files a config names (tokens, keys and certificates: oricf.tls).
 
 A config file may come from someone else (an overlay handed over, a model declaration
 downloaded with its weights), so reading one must not cost more than a config can need:
-the bytes read are capped (a link to /dev/zero reads no further than the cap), the text
-must be UTF-8, nesting is limited (deep nesting would end in a RecursionError), the nodes
-are counted with every alias counted as the nodes it stands for (an alias bomb is a few
-hundred bytes that expand to gigabytes once merged node by node), and integers are
-limited in digits. Every failure is a ConfigError naming the file and the line, never a
+only a regular file is read (a device such as /dev/zero, a FIFO that would wait for a
+writer forever, a socket or a folder is refused without reading), the bytes read are capped,
+the text must be UTF-8, nesting is limited (deep nesting would end in a RecursionError), the
+nodes are counted with every alias counted as the nodes it stands for (an alias bomb is a
+few hundred bytes that expand to gigabytes once merged node by node), integers are limited
+in digits, and a key given twice in one mapping is refused (the last one would otherwise
+win without a word). Every failure is a ConfigError naming the file and the line, never a
 parser's own exception.
 """
 
 from __future__ import annotations
 
+import os
+import stat
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +36,7 @@ MAX_BYTES = 1 << 20  # a config is a page or two; the largest shipped is far bel
 MAX_DEPTH = 64  # nesting of collections; configs go a handful of levels deep
 MAX_NODES = 100_000  # scalars and collections, every alias counted as what it expands to
 MAX_INT_DIGITS = 40  # above any 128-bit value; Python's own limit would raise ValueError
+MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
 class LimitedLoader(yaml.SafeLoader):
@@ -66,6 +73,8 @@ class LimitedLoader(yaml.SafeLoader):
             raise ComposerError(None, None, f"nested more than {MAX_DEPTH} levels deep", mark)
         node = super().compose_node(parent, index)
         self._depth -= 1
+        if isinstance(node, MappingNode):
+            self._refuse_repeated_keys(node)
         self._expanded[id(node)] = 1 + sum(self._expanded.get(id(child), 1)
                                            for child in _children(node))
         self._count(1, mark)
@@ -76,6 +85,36 @@ class LimitedLoader(yaml.SafeLoader):
         if self._nodes > MAX_NODES:
             raise ComposerError(None, None, f"more than {MAX_NODES:,} values (aliases "
                                 f"counted as what they repeat), reached at {self._where()}", mark)
+
+    def _refuse_repeated_keys(self, node: MappingNode) -> None:
+        """A key given twice in one mapping: PyYAML would keep the last without a word. The
+        keys a merge (`<<: *base`) brings are not this mapping's own, so they may be given
+        again: that is what a merge is for."""
+        seen: set[object] = set()
+        for key, _ in node.value:
+            if not isinstance(key, ScalarNode) or key.tag == MERGE_TAG:
+                continue
+            value = self._key_value(key)
+            if value in seen:
+                self._keys.append(f".{str(key.value)[:40]}")
+                where = self._where()
+                self._keys.pop()
+                raise ComposerError(None, None, f"the key {where} is given twice (the second "
+                                    f"would replace the first)", key.start_mark)
+            seen.add(value)
+
+    def _key_value(self, key: ScalarNode) -> object:
+        """A scalar key as the mapping will hold it: `1` and `0x1`, or `on` and `true`, are
+        one key, as in the dict they become."""
+        construct = self.yaml_constructors.get(key.tag)
+        if construct is None:
+            return (key.tag, key.value)
+        try:
+            value = construct(self, key)
+            hash(value)
+        except (TypeError, ValueError, OverflowError, yaml.YAMLError):
+            return (key.tag, key.value)  # left for the constructor to refuse, as it would
+        return value
 
     def _where(self) -> str:
         """The key path of the node being composed, escaped: a file's keys may be anything."""
@@ -108,25 +147,49 @@ def read_yaml(path: Path) -> Any:
 
 
 def _text(path: Path) -> str:
-    try:
-        with open(path, "rb") as file:
-            # One byte more than the cap tells a file at the cap from one beyond it, and a
-            # device or a pipe is never read further.
-            data = file.read(MAX_BYTES + 1)
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: a folder, not a YAML file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
-    if len(data) > MAX_BYTES:
-        raise ConfigError(f"{path}: larger than {MAX_BYTES:,} bytes, more than a config "
-                          f"can need")
+    data = read_limited(path, "a YAML file")
     try:
         return data.decode("utf-8-sig")  # a UTF-8 byte-order mark is harmless
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start:,}); save it as "
                           f"UTF-8") from None
+
+
+def read_limited(path: Path, kind: str, limit: int = MAX_BYTES,
+                 check: Callable[[os.stat_result], None] | None = None) -> bytes:
+    """The bytes of `path`, a regular file of at most `limit` bytes; ConfigError naming the
+    file otherwise (`kind` says what it should have been: "a YAML file", "a token file").
+    `check`, given the file's status once it is open, may refuse it too (a secret's mode)."""
+    try:
+        # O_NONBLOCK: opening a FIFO would otherwise wait for a writer, for ever. A device
+        # or a FIFO is refused below, before any read; a regular file ignores the flag.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: file not found") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        info = os.fstat(fd)  # of what was opened: the name may have changed since
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(f"{path}: {_file_type(info.st_mode)}, not {kind}")
+        if check is not None:
+            check(info)
+        with open(fd, "rb", closefd=False) as file:
+            # One byte more than the cap tells a file at the cap from one beyond it (or one
+            # that grew since its size was taken).
+            data = b"" if info.st_size > limit else file.read(limit + 1)
+    finally:
+        os.close(fd)
+    if info.st_size > limit or len(data) > limit:
+        raise ConfigError(f"{path}: larger than {limit:,} bytes, more than {kind} can need")
+    return data
+
+
+def _file_type(mode: int) -> str:
+    kinds = [(stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+             (stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device"),
+             (stat.S_ISSOCK, "a socket")]
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
 
 
 def parse_yaml(text: str, source: str) -> Any:

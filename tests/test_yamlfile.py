@@ -4,16 +4,18 @@ ConfigError naming the file, at once."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
+import yaml
 
-from oricf.config import apply_set, config_dir, read_with_overlays
+from oricf.config import REPO_ROOT, apply_set, config_dir, read_with_overlays
 from oricf.errors import ConfigError
-from oricf.yamlfile import MAX_BYTES, MAX_DEPTH, MAX_NODES, parse_yaml
+from oricf.yamlfile import MAX_BYTES, MAX_DEPTH, MAX_NODES, LimitedLoader, parse_yaml, read_limited
 
 
 def alias_bomb(levels: int = 9, width: int = 9) -> str:
@@ -38,6 +40,11 @@ HOSTILE: dict[str, tuple[bytes, str]] = {
     "control character": (b"name: \x1f\n", "character #x001f is not allowed in YAML"),
     "a long list": (b"- x\n" * (MAX_BYTES // 4 + 1), f"larger than {MAX_BYTES:,} bytes"),
     "too many values": (("[" + "1," * (MAX_NODES + 1) + "]").encode(), "values"),
+    "a key given twice": (b"executor: python\nexecutor: events\n",
+                          "(line 2, column 1): the key executor is given twice"),
+    "a nested key given twice": (b"routes: {people: [{topic: a, topic: b}]}\n",
+                                 "the key routes.people[0].topic is given twice"),
+    "one key written two ways": (b"1: a\n0x1: b\n", "the key 0x1 is given twice"),
 }
 
 
@@ -56,11 +63,26 @@ def test_a_hostile_overlay_is_refused_naming_it(case: str, tmp_path: Path) -> No
     assert reason in str(err.value)
 
 
-def test_a_link_to_an_endless_device_is_read_no_further_than_the_cap(tmp_path: Path) -> None:
+def test_a_link_to_an_endless_device_is_not_read(tmp_path: Path) -> None:
     config = tmp_path / "zero.yaml"
     config.symlink_to("/dev/zero")
-    with pytest.raises(ConfigError, match=f"{config}: larger than {MAX_BYTES:,} bytes"):
+    with pytest.raises(ConfigError, match=f"{config}: a device, not a YAML file"):
         read_with_overlays(config)
+
+
+def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path: Path) -> None:
+    fifo = tmp_path / "overlay.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match=rf"{fifo}: a FIFO \(named pipe\), not a YAML file"):
+        read_with_overlays(config_dir() / "pipelines" / "people_qa.yaml", [fifo])
+
+
+def test_a_file_beyond_the_cap_is_not_read(tmp_path: Path) -> None:
+    big = tmp_path / "big.yaml"
+    with open(big, "wb") as file:
+        file.truncate(64 << 20)  # sparse: its size says it all
+    with pytest.raises(ConfigError, match=f"{big}: larger than {MAX_BYTES:,} bytes"):
+        read_limited(big, "a YAML file")
 
 
 def test_a_folder_is_refused_by_name(tmp_path: Path) -> None:
@@ -81,6 +103,30 @@ def test_what_configs_use_still_reads() -> None:
                                      "route": {"timeout_ms": 5, "labels": ["a", "b"],
                                                "topic": "t"}}
     assert parse_yaml("\ufeffn: " + "9" * 30, "x") == {"n": int("9" * 30)}
+    # A merge brings keys the mapping may give again (compose/edge.yaml does): not twice.
+    merged = "base: &base {a: 1, b: 2}\nr: {<<: *base, a: 3}\ns: {<<: [*base], b: 4}\n"
+    assert parse_yaml(merged, "x") == {"base": {"a": 1, "b": 2}, "r": {"a": 3, "b": 2},
+                                       "s": {"a": 1, "b": 4}}
+    assert parse_yaml("'1': a\n1: b\n", "x") == {"1": "a", 1: "b"}  # a string, a number
+
+
+SHIPPED = ["configs", "compose", "ros", "tests/data", "docs"]
+
+
+def test_no_shipped_yaml_gives_a_key_twice() -> None:
+    """Every YAML file in the repository, each document of it, by the project's loader."""
+    files = [path for folder in SHIPPED for pattern in ("*.yaml", "*.yml")
+             for path in (REPO_ROOT / folder).rglob(pattern)]
+    assert len(files) > 40
+    for path in files:
+        loader = LimitedLoader(path.read_text())
+        try:
+            while loader.check_node():
+                loader.get_node()
+        except yaml.YAMLError as exc:
+            pytest.fail(f"{path.relative_to(REPO_ROOT)}: {exc}")
+        finally:
+            loader.dispose()
 
 
 def test_the_gateway_refuses_a_bomb_overlay_with_one_line(tmp_path: Path) -> None:
