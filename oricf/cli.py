@@ -29,6 +29,7 @@ from oricf.errors import ConfigError, ModelMissing
 from oricf.lifeline import follow_parent
 from oricf.logs import setup_logging
 from oricf.services import SERVICES
+from oricf.tls import check_token_sources
 
 log = logging.getLogger("oricf")
 
@@ -88,6 +89,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     data = deep_merge(data, security_overrides(args))
     data = deep_merge(data, metrics_overrides(args))
     config = validate(data, spec.config_schema, " + ".join(sources), base_dir=path.parent)
+    check_token_sources(config, " + ".join(sources))
     model = spec.create_model(config, ModelStore())
     return serve(spec, config, model, args.listen)
 

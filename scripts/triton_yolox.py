@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+import stat
 from pathlib import Path
 
 import cv2
@@ -30,6 +32,7 @@ from pytriton.proxy.types import Request
 from pytriton.triton import DEFAULT_PROTECTED_ENDPOINTS, Triton, TritonConfig, TritonSecurityConfig
 
 log = logging.getLogger("triton_yolox")
+MAX_TOKEN_FILE = 64 * 1024
 
 SIZE = 416
 STRIDES = (8, 16, 32)
@@ -104,6 +107,24 @@ class Yolox:
                                classes[keep][kept, None]), axis=1).astype(np.float32)
 
 
+def read_token(path: Path) -> str:
+    """The first token of a token file, by the rules ORICF reads one with (oricf.tls; this
+    environment has no ORICF to import): a regular file (a FIFO would wait for a writer
+    for ever, /dev/zero never end), of a few KiB at most, the token visible ASCII as gRPC
+    metadata carries it. ValueError naming the file otherwise, never quoting the token."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    with open(fd, "rb") as file:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise ValueError(f"{path}: not a regular file")
+        data = file.read(MAX_TOKEN_FILE + 1)
+    lines = [line.strip() for line in data.splitlines() if line.strip()]
+    if len(data) > MAX_TOKEN_FILE or not lines:
+        raise ValueError(f"{path}: no token, or more than {MAX_TOKEN_FILE} bytes")
+    if any(byte not in range(0x21, 0x7F) for byte in lines[0]):
+        raise ValueError(f"{path}: the token is visible ASCII only ('!' to '~')")
+    return lines[0].decode("ascii")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -119,6 +140,10 @@ def main() -> None:
                              "token")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    try:
+        token = read_token(args.access_token_file) if args.access_token_file else None
+    except (OSError, ValueError) as exc:
+        parser.error(f"--access-token-file: {exc}")
     yolox = Yolox(args.model)
     config = TritonConfig(grpc_address="127.0.0.1", grpc_port=args.grpc_port,
                           http_address="127.0.0.1", http_port=args.http_port,
@@ -130,8 +155,7 @@ def main() -> None:
     unbatched = ModelConfig(batching=False)
     with Triton(config=config,
                 security_config=TritonSecurityConfig(
-                    access_token=(args.access_token_file.read_text().strip()
-                                  if args.access_token_file else None),
+                    access_token=token,
                     restricted_endpoints=restricted)) as triton:
         triton.bind("yolox-nano", yolox.network,
                     [Tensor(name="images", dtype=np.float32, shape=(1, 3, SIZE, SIZE))],

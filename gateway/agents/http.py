@@ -71,8 +71,11 @@ class HttpSettings:
         if (args.tls_cert is None) != (args.tls_key is None):
             raise ConfigError("--tls-cert and --tls-key go together")
         listener = McpListener.from_flags(args)
-        tokens = (tuple(t.encode() for t in listener.auth.tokens())
-                  if listener.auth else ())
+        try:
+            tokens = (tuple(t.encode() for t in listener.auth.tokens())
+                      if listener.auth else ())
+        except ConfigError as exc:
+            raise ConfigError(f"{McpListener.keys.auth}: {exc}") from None
         if not 1024 <= args.max_request_bytes <= 256 * 1024 * 1024:
             raise ConfigError("--max-request-bytes: from 1024 to 268435456")
         return cls(listener.listen.host, listener.listen.port, tokens, listener.tls,

@@ -208,6 +208,8 @@ class ControlServer:
 
         app = self._app()
         tls = self.config.tls
+        if tls is not None:  # uvicorn reads them by name: first as every key is read
+            tls.files("control.tls")
         sock = self._socket()
         config = uvicorn.Config(app, log_level="warning", lifespan="off",
                                 http=guarded_h11(self.config.header_timeout_s),

@@ -22,6 +22,7 @@ from oricf.gateway.actuation.policy import Refused
 from oricf.gateway.operations.api import Json
 from oricf.gateway.operations.names import known_product
 from oricf.tls import TokenSource
+from oricf.yamlfile import read_limited
 
 ERRORS: dict[str, type[OricfError]] = {"InvalidInput": InvalidInput, "NotReady": NotReady,
                                        "Refused": Refused}
@@ -35,19 +36,34 @@ def path_segment(name: str) -> str:
     return escaped.replace(".", "%2E") if escaped in (".", "..") else escaped
 
 
+def ca_context(ca: Path) -> ssl.SSLContext:
+    """A client context trusting the CA of --ca, read as every certificate is (a regular
+    file within a size cap: a FIFO or a device is refused rather than waited on)."""
+    try:
+        pem = read_limited(ca, "a certificate").decode("latin-1")
+        return ssl.create_default_context(cadata=pem)
+    except ConfigError as exc:
+        raise ConfigError(f"--ca: {exc}") from None
+    except ssl.SSLError as exc:
+        raise ConfigError(f"--ca: {ca}: not a PEM certificate: {exc.reason}") from None
+
+
 class ControlClient:
     def __init__(self, address: str, token_file: Path | None = None,
                  ca: Path | None = None) -> None:
         headers = {}
         if token_file is not None:
-            headers["Authorization"] = f"Bearer {TokenSource(file=token_file).tokens()[0]}"
+            try:
+                token = TokenSource(file=token_file).tokens()[0]
+            except ConfigError as exc:
+                raise ConfigError(f"--token-file: {exc}") from None
+            headers["Authorization"] = f"Bearer {token}"
         if address.startswith("unix:"):
             transport = httpx.HTTPTransport(uds=address[len("unix:"):])
             self._http = httpx.Client(transport=transport, base_url="http://gateway",
                                       headers=headers, timeout=TIMEOUT_S)
         elif address.startswith(("http://", "https://")):
-            verify: ssl.SSLContext | bool = (
-                ssl.create_default_context(cafile=str(ca)) if ca is not None else True)
+            verify: ssl.SSLContext | bool = ca_context(ca) if ca is not None else True
             self._http = httpx.Client(base_url=address.rstrip("/"), headers=headers,
                                       timeout=TIMEOUT_S, verify=verify)
         else:

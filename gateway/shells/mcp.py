@@ -33,6 +33,7 @@ from oricf.gateway.agents.stdio import serve_stdio
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.operations.api import Operations
 from oricf.metrics import MetricsConfig, MetricsServer
+from oricf.tls import check_token_sources
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         return serve(gateway, AuditLog(args.audit), http, args.metrics_listen)
     config = load_pipeline(args.config, args.overlay, sets=args.sets)
+    check_token_sources(config, config.origin)
     if http is None:
         check_stdio(config)
     from oricf.gateway.shells.embedded import EmbeddedGateway

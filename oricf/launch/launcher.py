@@ -15,12 +15,14 @@ from pathlib import Path
 
 import yaml
 
+from oricf.errors import ConfigError
 from oricf.hosts import Address
 from oricf.launch import health
 from oricf.launch.deployment import Deployment, ProcessPlan, gateway_plan, service_plan
 from oricf.launch.process import LineSink, ManagedProcess, describe_exit, restart, wants_restart
 from oricf.launch.wiring import wire_gateway
 from oricf.tls import ClientTls
+from oricf.yamlfile import read_limited
 
 log = logging.getLogger(__name__)
 
@@ -173,11 +175,11 @@ def _refuse_unreadable(plans: list[ProcessPlan],
     files += [(f"health check of {name}", path) for name, (_, tls) in targets.items() if tls
               for path in (tls.ca, tls.cert, tls.key) if path]
     for user, path in files:
-        try:
-            path.open("rb").close()
-        except OSError as exc:
-            raise LaunchFailed(f"{user}: cannot read {path}: {exc.strerror} (make the "
-                               "certificates and token first: docs/security.md)") from None
+        try:  # read as its user will read it: a FIFO there would hold the launcher for ever
+            read_limited(path, "a certificate, key or token file")
+        except ConfigError as exc:
+            raise LaunchFailed(f"{user}: {exc} (make the certificates and token first: "
+                               "docs/security.md)") from None
 
 
 def _refuse_ports_in_use(plans: list[ProcessPlan]) -> None:

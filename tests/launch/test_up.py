@@ -231,7 +231,7 @@ def test_up_refuses_to_start_without_the_certificates(tmp_path: Path) -> None:
     path = write_deployment(tmp_path, {"services": {"detector": entry}, "tls": client})
     with oricf_up(path) as up:
         assert up.finish(timeout=60) == 1
-    assert f"detector: cannot read {tmp_path}/certs/server.key: No such file" in up.output
+    assert f"detector: {tmp_path}/certs/server.key: file not found" in up.output
     assert "started detector" not in up.output
 
 

@@ -1,16 +1,21 @@
-"""Property-based fuzzing of the files ORICF reads from others: pipeline overlays (YAML) and
-MCAP recordings. Whatever the bytes, reading ends quickly with the value or the project's
-own error (ConfigError, RecordingError) naming the file; never another exception, a hang,
-or memory beyond a chunk's worth."""
+"""Property-based fuzzing of the files ORICF reads from others: pipeline overlays (YAML),
+token files and MCAP recordings. Whatever the bytes, reading ends quickly with the value or
+the project's own error (ConfigError, RecordingError) naming the file; never another
+exception, a hang, or memory beyond a chunk's worth. Files that are no file (a FIFO,
+/dev/zero) stop each command that reads a token at once, naming the file and the key."""
 
 from __future__ import annotations
 
 import io
+import os
+import subprocess
+import sys
 import time
 import zlib
 from pathlib import Path
 
 import lz4.frame
+import pytest
 import zstandard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -25,6 +30,7 @@ from oricf.gateway.config import load_pipeline
 from oricf.gateway.recording.mcap_reader import MAGIC, McapFile
 from oricf.gateway.recording.pace import MAX_RATE, MIN_RATE, Pace
 from oricf.gateway.recording.recorder import RecordingError
+from oricf.tls import VISIBLE_ASCII, TokenSource
 
 EXAMPLES = 150
 SECONDS = 10  # for one file, far more than a config or a small recording needs
@@ -61,6 +67,50 @@ def test_any_overlay_gives_a_pipeline_or_a_config_error(data: bytes, tmp_path: P
     except ConfigError as exc:
         assert str(overlay) in str(exc) or "people_qa.yaml" in str(exc)
     assert time.monotonic() - started < SECONDS
+
+
+@FUZZ
+@given(data=st.one_of(st.binary(max_size=200), st.text(max_size=60).map(
+    lambda text: text.encode("utf-8", "surrogatepass"))))
+def test_any_token_file_gives_ascii_tokens_or_a_config_error(data: bytes,
+                                                             tmp_path: Path) -> None:
+    path = tmp_path / "tokens"
+    path.write_bytes(data)
+    path.chmod(0o600)
+    try:
+        tokens = TokenSource(file=path).tokens()
+    except ConfigError as exc:
+        assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
+        return
+    assert tokens and all(t and all(ord(c) in VISIBLE_ASCII for c in t) for t in tokens)
+
+
+def hostile_token_command(case: str, folder: Path) -> tuple[list[str], str]:
+    """`oricf` arguments that read one hostile token file, and what the error must say."""
+    fifo, unusable = folder / "approvers.fifo", folder / "tokens"
+    os.mkfifo(fifo, 0o600)
+    unusable.write_bytes("t\u00f6ken\u20ac\n".encode() if case == "mcp" else b"\n")
+    unusable.chmod(0o600)
+    if case == "gateway":  # a FIFO once held the gateway at start, for ever
+        return (["gateway", "--config", str(PEOPLE_QA), "--set",
+                 f"control.listen=unix:{folder / 'control.sock'}", "--set",
+                 f"control.approvers.file={fifo}", "--check"],
+                f"control.approvers.file: {fifo}: a FIFO (named pipe), not a token file")
+    if case == "mcp":  # once a UnicodeEncodeError traceback
+        return (["mcp", "--attach", f"unix:{folder / 'none.sock'}", "--token-file",
+                 str(unusable)], f"--token-file: {unusable}: line 1, character 2")
+    return (["serve", "detector", "--auth-token-file", str(unusable)],
+            f"detector.yaml: server.auth.file: {unusable}: no token")
+
+
+@pytest.mark.parametrize("case", ["gateway", "mcp", "serve"])
+def test_a_hostile_token_file_stops_the_command_at_once_naming_it(case: str,
+                                                                  tmp_path: Path) -> None:
+    args, reason = hostile_token_command(case, tmp_path)
+    done = subprocess.run([sys.executable, "-m", "oricf", *args], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert reason in done.stderr and "Traceback" not in done.stderr
 
 
 def chunk_bytes(content: bytes, compression: str) -> bytes:

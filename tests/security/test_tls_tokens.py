@@ -16,10 +16,11 @@ import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection_pb2, reflection_pb2_grpc
 
+from oricf.errors import ConfigError
 from oricf.gateway.values import Frame
 from oricf.launch.certs import make_certificates
 from oricf.launch.health import status
-from oricf.tls import ClientTls
+from oricf.tls import ClientTls, ServerTls, TokenSource
 from oricf.v1 import detector_pb2, detector_pb2_grpc
 from tests.gateway.test_pipeline import FRAMES, pipeline_config, run_frames
 from tests.support.certs import TOKEN
@@ -153,3 +154,92 @@ def test_oricf_serve_flags_and_the_health_command(certs: Path) -> None:
     assert probe.returncode == 0 and "SERVING" in probe.stdout
     assert plain.returncode == 1
     assert "mTLS, bearer tokens" in output and TOKEN not in output
+
+
+# Token files that cannot be used, each refused naming the file and the line, never quoting
+# what the file holds: a token that gRPC metadata or an HTTP header cannot carry would
+# otherwise fail every call (INTERNAL "Invalid metadata") or end in a UnicodeEncodeError.
+BAD_TOKENS: dict[str, tuple[bytes, str]] = {
+    "not latin-1": ("Sek€et-1\n".encode(), "line 1, character 4: a token is visible ASCII"),
+    "latin-1": ("Sekret-ok\nSek\xe9et\n".encode("latin-1"), "line 2, character 4"),
+    "a control character": (b"Sek\x01et\n", "line 1, character 4"),
+    "a space inside": (b"Sek et\n", "line 1, character 4"),
+    "a NUL": (b"Sekret\x00\n", "line 1, character 7"),
+    "empty": (b"", "no token (one a line)"),
+    "blank lines only": (b"\n  \n\t\n", "no token (one a line)"),
+}
+
+
+def token_file(folder: Path, data: bytes, mode: int = 0o600) -> Path:
+    path = folder / "tokens"
+    path.write_bytes(data)
+    path.chmod(mode)
+    return path
+
+
+@pytest.mark.parametrize("case", BAD_TOKENS)
+def test_a_token_that_cannot_be_sent_is_refused_naming_the_line(case: str,
+                                                                tmp_path: Path) -> None:
+    data, reason = BAD_TOKENS[case]
+    path = token_file(tmp_path, data)
+    with pytest.raises(ConfigError) as error:
+        TokenSource(file=path).tokens()
+    assert str(error.value).startswith(f"{path}: ") and reason in str(error.value)
+    assert "Sek" not in str(error.value)  # what the file holds is not quoted
+
+
+def test_token_variables_unset_empty_or_not_ascii_are_refused(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("ORICF_TEST_TOKEN", raising=False)
+    with pytest.raises(ConfigError, match=r"^\$ORICF_TEST_TOKEN: not set$"):
+        TokenSource(env="ORICF_TEST_TOKEN").tokens()
+    for value, reason in [("", "no token"), ("  ", "no token"), ("tök", "character 2")]:
+        monkeypatch.setenv("ORICF_TEST_TOKEN", value)
+        with pytest.raises(ConfigError, match=rf"^\$ORICF_TEST_TOKEN: .*{reason}"):
+            TokenSource(env="ORICF_TEST_TOKEN").tokens()
+    monkeypatch.setenv("ORICF_TEST_TOKEN", "  first!~token \n\nsecond\n")
+    assert TokenSource(env="ORICF_TEST_TOKEN").tokens() == ["first!~token", "second"]
+
+
+@pytest.mark.parametrize("mode", [0o666, 0o620, 0o602, 0o660])
+def test_a_token_file_others_may_write_is_refused(mode: int, tmp_path: Path) -> None:
+    path = token_file(tmp_path, f"{TOKEN}\n".encode(), mode)
+    with pytest.raises(ConfigError, match=rf"^{path}: writable by .* \(mode 0{mode:o}\)"):
+        TokenSource(file=path).tokens()
+
+
+def test_a_token_file_every_user_may_read_is_taken_with_a_warning(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    path = token_file(tmp_path, f"{TOKEN}\n".encode(), 0o644)
+    with caplog.at_level(logging.WARNING, logger="oricf.tls"):
+        assert TokenSource(file=path).tokens() == [TOKEN]
+    assert f"{path}: readable by every user of this machine (mode 0644)" in caplog.text
+    assert TOKEN not in caplog.text
+    caplog.clear()
+    (tmp_path / "private").mkdir()
+    private = token_file(tmp_path / "private", f"{TOKEN}\n".encode(), 0o640)
+    with caplog.at_level(logging.WARNING, logger="oricf.tls"):
+        assert TokenSource(file=private).tokens() == [TOKEN]
+    assert not caplog.records
+
+
+def test_token_files_and_keys_that_are_no_regular_file_are_not_read(tmp_path: Path) -> None:
+    """/dev/zero once grew to gigabytes, a FIFO waited for a writer for ever, a 64 MB file
+    was read whole: each is refused at once, before any read."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo, 0o600)
+    big = token_file(tmp_path, b"")
+    os.truncate(big, 64 << 20)
+    cases = {Path("/dev/zero"): "a device, not a token file",
+             fifo: r"a FIFO \(named pipe\), not a token file",
+             tmp_path: "a folder, not a token file",
+             big: "larger than 1,048,576 bytes",
+             tmp_path / "missing": "file not found"}
+    for path, reason in cases.items():
+        with pytest.raises(ConfigError, match=f"^{path}: {reason}"):
+            TokenSource(file=path).tokens()
+    tls = ServerTls(cert=tmp_path / "missing", key=fifo)
+    with pytest.raises(ConfigError, match=rf"^foxglove.tls.key: {fifo}: a FIFO"):
+        tls.ssl_context("foxglove.tls")
+    with pytest.raises(ConfigError, match=rf"^tls.ca: {fifo}: a FIFO"):
+        ClientTls(ca=fifo).channel("127.0.0.1:1", [])
