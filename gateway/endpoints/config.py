@@ -26,6 +26,15 @@ from oricf.tls import ClientTls, TokenSource
 
 Protocol = Literal["grpc", "openai"]
 
+# Metadata keys with a meaning of their own to HTTP/2 (hop-by-hop and framing headers), to
+# gRPC (its transport sets them) or to tracing (W3C Trace Context, Baggage, B3): a token
+# there would be dropped, refused by the transport or read as something else.
+RESERVED_HEADERS = frozenset({
+    "connection", "keep-alive", "proxy-connection", "transfer-encoding", "upgrade", "te",
+    "trailer", "host", "content-type", "content-length", "content-encoding",
+    "accept-encoding", "user-agent", "proxy-authorization", "proxy-authenticate",
+    "traceparent", "tracestate", "baggage", "b3"})
+
 
 class ImageTransport(Schema):
     transport: Literal["raw", "jpeg", "shm", "auto"] = Field(
@@ -100,11 +109,22 @@ class TargetConfig(Schema):
                                  "server takes `Authorization: Bearer`)")
             if self.token is None:
                 raise ValueError("token_header: given without a token")
-            if self.token_header.endswith("-bin") or self.token_header.startswith("grpc-"):
-                raise ValueError(f"token_header: {self.token_header}: gRPC keeps grpc-* "
-                                 f"keys for itself, and *-bin ones carry bytes")
+            check_token_header(self.token_header)
         _check_server_name(self.protocol, self.address, self.tls)
         return self
+
+
+def check_token_header(key: str) -> None:
+    """ValueError unless `key` is a metadata key of its own for the token: not `authorization`
+    (the default, where it goes as `Bearer TOKEN`), nor a key gRPC, HTTP/2 or tracing keep.
+    The schema's pattern has already refused uppercase, spaces and pseudo-headers (`:path`)."""
+    if key == "authorization":
+        raise ValueError("token_header: authorization is where the token goes without "
+                         "token_header, as `Bearer TOKEN`; leave token_header out")
+    if key.startswith(("grpc-", "x-b3-")) or key.endswith("-bin") or key in RESERVED_HEADERS:
+        raise ValueError(f"token_header: {key}: reserved (gRPC keeps grpc-* keys and *-bin "
+                         f"ones carry bytes; HTTP/2 and tracing give this key a meaning of its "
+                         f"own); name the key the server reads the token from")
 
 
 def _check_server_name(protocol: str, address: str, tls: ClientTls | None) -> None:

@@ -92,7 +92,17 @@ BAD = [
     ({"endpoints": {"detector": {"token_header": "triton-grpc-protocol-triton-access-token"}}},
      "endpoints.detector: token_header: given without a token"),
     ({"endpoints": {"detector": {"token": {"env": "T"}, "token_header": "key-bin"}}},
-     "endpoints.detector: token_header: key-bin: gRPC keeps grpc-* keys for itself"),
+     "endpoints.detector: token_header: key-bin: reserved (gRPC keeps grpc-* keys and *-bin "
+     "ones carry bytes"),
+    *[({"endpoints": {"detector": {"token": {"env": "T"}, "token_header": key}}},
+       f"endpoints.detector: token_header: {key}: reserved")
+      for key in ("content-type", "te", "user-agent", "host", "connection",
+                  "transfer-encoding", "traceparent", "tracestate", "baggage",
+                  "grpc-timeout", "x-b3-traceid")],
+    ({"endpoints": {"detector": {"token": {"env": "T"}, "token_header": "authorization"}}},
+     "endpoints.detector: token_header: authorization is where the token goes without"),
+    ({"endpoints": {"detector": {"token": {"env": "T"}, "token_header": ":path"}}},
+     "endpoints.detector.token_header: String should match pattern"),
     ({"endpoints": {"detector": {"token": {"env": "T"}, "token_header": "Bearer x"}}},
      "endpoints.detector.token_header: String should match pattern"),
     ({"endpoints": {"detector": {"image": {"transport": "png"}}}},
@@ -201,3 +211,25 @@ def test_check_option_validates_without_ros(capsys: pytest.CaptureFixture[str],
     assert "4 routes" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="file not found"):
         main(["--config", str(tmp_path / "missing.yaml"), "--check"])
+
+
+def test_check_reads_every_token_naming_the_file_and_the_key(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A token the schema takes but that cannot be used stops --check (and so the start),
+    naming the pipeline's files and the key: not the first call, with INTERNAL."""
+    empty = tmp_path / "empty.tokens"
+    empty.write_text("\n")
+    empty.chmod(0o600)
+    monkeypatch.delenv("ORICF_TEST_UNSET", raising=False)
+    cases = {"endpoints.detector.token.file=" + str(tmp_path / "missing"):
+             f"endpoints.detector.token.file: {tmp_path / 'missing'}: file not found",
+             f"endpoints.llm.token.file={empty}":
+             f"endpoints.llm.token.file: {empty}: no token",
+             "endpoints.asr.token.env=ORICF_TEST_UNSET":
+             "endpoints.asr.token.env: $ORICF_TEST_UNSET: not set",
+             f"control.approvers.file={empty}": f"control.approvers.file: {empty}: no token"}
+    control = f"control.listen=unix:{tmp_path / 'control.sock'}"
+    for assignment, reason in cases.items():
+        with pytest.raises(ConfigError) as error:
+            main(["--config", str(PEOPLE_QA), "--set", control, "--set", assignment, "--check"])
+        assert str(error.value).startswith(f"{PEOPLE_QA} + --set: {reason}")
