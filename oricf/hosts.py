@@ -104,6 +104,16 @@ def host_of(target: str) -> str:
         return ""
 
 
+def listen_address(value: str | int) -> Address:
+    """What a listener binds: `host:port`, or a bare port (`8080`, `:8080`) on 127.0.0.1,
+    loopback unless a host is named. Port 0 picks a free one. ValueError naming the value
+    otherwise."""
+    text = str(value)
+    if text.removeprefix(":").isascii() and text.removeprefix(":").isdigit():
+        text = f"127.0.0.1:{text.removeprefix(':')}"
+    return Address.parse(text, any_port=True)
+
+
 def is_loopback(host: str) -> bool:
     """127.0.0.0/8, ::1 or a loopback name. Any other host name may resolve anywhere."""
     host = host.strip("[]")

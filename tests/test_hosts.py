@@ -19,6 +19,7 @@ from oricf.hosts import (
     host_of,
     is_loopback,
     is_loopback_address,
+    listen_address,
 )
 
 
@@ -100,3 +101,14 @@ def test_schemas_validate_an_address_once_and_write_it_back_as_text() -> None:
         validate({"server": "a:1", "listen": "unix:/x", "control": "a:1"}, _Schema, "x.yaml")
     with pytest.raises(ConfigError, match=r"control: unix: needs a path"):
         validate({"server": "a:1", "listen": "a:1", "control": "unix:"}, _Schema, "x.yaml")
+
+
+def test_a_bare_port_a_listener_binds_is_loopback() -> None:
+    for bare in ("8080", ":8080", 8080):
+        assert listen_address(bare) == Address("127.0.0.1", 8080)
+    assert listen_address("0") == Address("127.0.0.1", 0)
+    assert listen_address("[::1]:8080") == Address("::1", 8080)
+    assert listen_address("0.0.0.0:8080") == Address("0.0.0.0", 8080)
+    for bad in (":", "", "localhost", "99999", ":-1", "[::1]"):
+        with pytest.raises(ValueError, match="host:port"):
+            listen_address(bad)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field, field_validator
 
 from oricf.config import Schema
-from oricf.hosts import Address
+from oricf.hosts import listen_address
 from oricf.metrics import MetricsConfig
 from oricf.tls import ServerTls, TokenSource
 from oricf.tracing import TracingConfig
@@ -37,10 +37,8 @@ class HttpSettings(Schema):
     @field_validator("listen", mode="before")
     @classmethod
     def _host_port(cls, value: object) -> object:
-        if isinstance(value, int) or (isinstance(value, str) and value.isdigit()):
-            value = f"127.0.0.1:{value}"  # loopback unless a host is named
-        if isinstance(value, str):
-            Address.parse(value, any_port=True)
+        if isinstance(value, (int, str)) and not isinstance(value, bool):
+            return str(listen_address(value))  # loopback unless a host is named
         return value
 
     @property
