@@ -88,10 +88,12 @@ def image_size(data: bytes, encoding: str, width: int = 0, height: int = 0,
         return width, height
     # The size comes from the file's own header, before anything is decoded: a few bytes
     # must never make the decoder allocate gigabytes.
-    kind, actual_w, actual_h = encoded_size(data)
+    kind, actual_w, actual_h, short = _encoded(data)
     if kind != encoding:
         raise InvalidInput(f"image labelled {encoding} is a {kind.upper()} file")
     check_size(actual_w, actual_h, max_pixels)
+    if short:  # the decoder would fill the rest of the image in with grey
+        raise InvalidInput(short)
     if (width and width != actual_w) or (height and height != actual_h):
         raise InvalidInput(
             f"image declared as {width}x{height} but the {encoding.upper()} is "
@@ -151,30 +153,69 @@ JPEG_STANDALONE = frozenset(range(0xD0, 0xD8)) | {0x01}
 # In entropy-coded data 0xFF is followed by 0x00 (a stuffed byte) or a restart marker; any
 # other byte after it (but 0xFF, a fill byte) is the next marker.
 JPEG_NEXT_MARKER = re.compile(rb"\xff[^\x00\xd0-\xd7\xff]")
+# Huffman-coded DCT frames (baseline, extended, progressive): every scan that carries DC
+# coefficients codes each of its blocks with at least one bit, so its data bounds the size.
+JPEG_HUFFMAN_DCT = frozenset({0xC0, 0xC1, 0xC2})
 # Decoders pass over the whole image once per scan, so repeating scans multiplies the CPU a
 # small file costs. Encoders write far fewer (libjpeg's progressive script: 10 for colour,
 # 18 for CMYK).
 MAX_JPEG_SCANS = 64
 
 
+@dataclass(frozen=True)
+class JpegFrame:
+    """A JPEG's frame header (SOFn)."""
+
+    marker: int
+    width: int
+    height: int
+    sampling: dict[int, tuple[int, int]]  # component id -> (horizontal, vertical) factors
+    end: int  # where the segment after it starts
+
+    def blocks(self, components: list[int]) -> int:
+        """The 8x8 blocks a scan of these components codes (an interleaved scan codes whole
+        MCUs); 0 where the header does not say (the decoder refuses such a file)."""
+        factors = [self.sampling.get(c, (0, 0)) for c in components]
+        if not factors or not self.sampling or min(min(f) for f in factors) == 0:
+            return 0
+        h_max = max(h for h, _ in self.sampling.values())
+        v_max = max(v for _, v in self.sampling.values())
+        if len(factors) == 1:  # the component's own samples, in blocks
+            h, v = factors[0]
+            return (_ceil(_ceil(self.width * h, h_max), 8)
+                    * _ceil(_ceil(self.height * v, v_max), 8))
+        mcus = _ceil(self.width, 8 * h_max) * _ceil(self.height, 8 * v_max)
+        return mcus * sum(h * v for h, v in factors)
+
+
+def _ceil(a: int, b: int) -> int:
+    return -(-a // b)
+
+
 def encoded_size(data: bytes) -> tuple[str, int, int]:
     """("jpeg" or "png", width, height) from the file's header, whatever it is labelled;
     raises InvalidInput for anything else, a header that cannot be read, or a JPEG with
     more than MAX_JPEG_SCANS scans."""
+    kind, width, height, _ = _encoded(data)
+    return kind, width, height
+
+
+def _encoded(data: bytes) -> tuple[str, int, int, str]:
+    """encoded_size's answer, and why a JPEG's data is too short for its frame ("" if it
+    is not)."""
     if data.startswith(PNG_SIGNATURE):
         if len(data) < 24 or data[12:16] != b"IHDR":
             raise InvalidInput("PNG file without its IHDR header (corrupt or truncated)")
-        return "png", int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+        return ("png", int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"),
+                "")
     if data.startswith(b"\xff\xd8"):
-        width, height, after = _jpeg_frame_size(data)
-        _count_jpeg_scans(data, after)
-        return "jpeg", width, height
+        frame = _jpeg_frame(data)
+        return "jpeg", frame.width, frame.height, _walk_jpeg_scans(data, frame)
     raise InvalidInput("image data is neither a JPEG nor a PNG file")
 
 
-def _jpeg_frame_size(data: bytes) -> tuple[int, int, int]:
-    """Walks the JPEG's marker segments to its frame header (SOFn): width, height and where
-    the segment after it starts."""
+def _jpeg_frame(data: bytes) -> JpegFrame:
+    """Walks the JPEG's marker segments to its frame header (SOFn)."""
     i, end = 2, len(data)
     while i < end:
         if data[i] != 0xFF:
@@ -197,18 +238,34 @@ def _jpeg_frame_size(data: bytes) -> tuple[int, int, int]:
         if marker in JPEG_FRAMES:
             if i + 7 > end:
                 break
-            return (int.from_bytes(data[i + 5:i + 7], "big"),
-                    int.from_bytes(data[i + 3:i + 5], "big"), i + length)
+            components = data[i + 8:min(i + length, end)]
+            sampling = {components[k]: (components[k + 1] >> 4, components[k + 1] & 15)
+                        for k in range(0, len(components) - 2, 3)}
+            return JpegFrame(marker, int.from_bytes(data[i + 5:i + 7], "big"),
+                             int.from_bytes(data[i + 3:i + 5], "big"), sampling, i + length)
         i += length
     raise InvalidInput("JPEG file is corrupt or truncated before its frame header")
 
 
-def _count_jpeg_scans(data: bytes, i: int) -> int:
-    """Counts the scans (SOS segments) from i to the end of the image, refusing more than
-    MAX_JPEG_SCANS. Segments are skipped by their length, so a thumbnail inside EXIF does
-    not count; entropy-coded data is searched for the next marker."""
-    scans, end = 0, len(data)
-    while (found := JPEG_NEXT_MARKER.search(data, i)) is not None:
+def _walk_jpeg_scans(data: bytes, frame: JpegFrame) -> str:
+    """Walks the scans (SOS segments) after the frame header to the end of the image,
+    refusing more than MAX_JPEG_SCANS, and says why a scan's data is too short for the
+    frame ("" if none is). Segments are skipped by their length, so a thumbnail inside EXIF
+    does not count; entropy-coded data is searched for the next marker."""
+    scans, end, i = 0, len(data), frame.end
+    scan: tuple[int, int] | None = None  # the open scan: where its data starts, bits it needs
+    while True:
+        found = JPEG_NEXT_MARKER.search(data, i)
+        if scan is not None:  # its data runs to this marker (or to the end of the file)
+            held = (found.start() if found else end) - scan[0]
+            if held * 8 < scan[1]:
+                return (f"JPEG scan {scans} holds {held:,} bytes, too few for the "
+                        f"{frame.width}x{frame.height} image its frame header claims (at "
+                        f"least {_ceil(scan[1], 8):,}): corrupt, truncated or lying about "
+                        f"its size")
+            scan = None
+        if found is None:
+            break
         marker = data[found.start() + 1]
         i = found.start() + 2
         if marker == 0xD9:  # end of image: what follows is not decoded
@@ -226,8 +283,23 @@ def _count_jpeg_scans(data: bytes, i: int) -> int:
                 raise InvalidInput(
                     f"JPEG file has more than {MAX_JPEG_SCANS} scans; refused because every "
                     f"scan is another pass over the whole image")
+            scan = (i + length, _scan_bits(data[i + 2:i + length], frame))
         i += length
-    return scans
+    return ""
+
+
+def _scan_bits(header: bytes, frame: JpegFrame) -> int:
+    """The fewest bits a scan's data can hold: one per block it codes where it carries DC
+    coefficients (a Huffman code is at least one bit; a DC refinement is one bit), none for
+    an AC scan of a progressive JPEG (one code may end thousands of blocks) or arithmetic
+    coding."""
+    count = header[0] if header else 0
+    if frame.marker not in JPEG_HUFFMAN_DCT or len(header) < 2 + 2 * count:
+        return 0
+    spectral_start = header[1 + 2 * count]
+    if spectral_start != 0:
+        return 0
+    return frame.blocks([header[1 + 2 * k] for k in range(count)])
 
 
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> bytes:

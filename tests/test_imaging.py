@@ -68,6 +68,26 @@ def test_jpeg_bombs_are_refused_from_their_frame_header(marker: int, fill: int) 
         decode_image(_jpeg_claiming(20000, 20000, marker, fill), "jpeg")
 
 
+@pytest.mark.parametrize("marker", [0xC0, 0xC1, 0xC2])
+def test_a_jpeg_whose_data_is_too_short_for_its_frame_is_refused(marker: int) -> None:
+    """Within every size limit, but a few bytes for 640x480: the decoder would fill the rest
+    in with grey and call it an image."""
+    with pytest.raises(InvalidInput, match=r"JPEG scan 1 holds \d+ bytes, too few for the "
+                                           r"640x480 image its frame header claims"):
+        decode_image(_jpeg_claiming(640, 480, marker, 0), "jpeg")
+
+
+@pytest.mark.parametrize("options", [[], [cv2.IMWRITE_JPEG_PROGRESSIVE, 1],
+                                     [cv2.IMWRITE_JPEG_OPTIMIZE, 1],
+                                     [cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+                                      cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]])
+def test_the_smallest_real_jpegs_still_decode(options: list[int]) -> None:
+    """One colour: as few bits a block as an encoder writes, baseline or progressive."""
+    for shape in [(1, 1, 3), (37, 91, 3), (1080, 1920, 3), (1080, 1920)]:
+        data = cv2.imencode(".jpg", np.zeros(shape, np.uint8), options)[1].tobytes()
+        assert decode_image(data, "jpeg").shape == (*shape[:2], 3)
+
+
 def test_a_jpeg_with_fill_bytes_still_decodes() -> None:
     real = cv2.imencode(".jpg", np.full((8, 8, 3), 200, np.uint8))[1].tobytes()
     at = real.index(b"\xff\xc0")

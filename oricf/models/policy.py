@@ -5,7 +5,8 @@ The model class of `oricf serve policy`. It checks what arrives (length, NaN, in
 every declared camera's image and no other), normalises the state as declared, makes each
 image its input's tensor as the declaration says (as a detector's image), runs the model and
 returns `chunk` actions of `dim` values each, clipped to the declared bounds; an answer that
-is not finite is refused, never sent to a robot.
+is not finite is refused, never sent to a robot. The same two checks (finite inputs, a finite
+answer) guard the policy where `oricf serve models` serves it over the Open Inference Protocol.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from oricf.models.image import to_tensor
 from oricf.models.info import ModelInfo
 from oricf.models.policy_shapes import camera_inputs, committed_input
 from oricf.models.policy_task import CameraInput, PolicyTask
-from oricf.models.tensors import DATATYPES
+from oricf.models.tensors import DATATYPES, clip
 from oricf.store import ModelStore
 
 log = logging.getLogger(__name__)
@@ -35,8 +36,26 @@ def require_finite(values: np.ndarray, name: str) -> None:
         raise InvalidInput(f"{name}[{bad[0]}] is {values[bad[0]]}: every value must be "
                            f"finite")
 
+
 class PolicyFailed(InvalidInput):
     """The model answered NaN or infinity for a valid observation: nothing is sent."""
+
+
+def require_finite_inputs(feeds: Mapping[str, np.ndarray]) -> None:
+    """Every value of a policy's floating-point inputs finite, as the network takes it
+    (InvalidInput naming the input and the first value that is not)."""
+    for name, value in feeds.items():
+        if value.dtype.kind == "f":
+            require_finite(value.reshape(-1), f"input '{clip(name)}'")
+
+
+def require_finite_answer(policy: str, outputs: Mapping[str, np.ndarray]) -> None:
+    """PolicyFailed when a floating-point output holds NaN or infinity: a network that
+    overflows (a state of 3.4e38 is finite, its products are not) gives no action."""
+    for name, value in outputs.items():
+        if value.dtype.kind == "f" and not np.all(np.isfinite(value)):
+            raise PolicyFailed(f"policy {policy} answered NaN or infinity (output "
+                               f"'{clip(name)}') for this observation; no action is given")
 
 
 class PolicyModel:
@@ -106,6 +125,11 @@ class PolicyModel:
         """The names of the cameras whose images every observation must carry."""
         return [camera.name for camera in self.task.images]
 
+    def input_pixels(self, camera: str) -> int:
+        """The pixels of the network's image for a declared camera (width x height)."""
+        _, _, (width, height) = self._cameras[camera]
+        return width * height
+
     def check_images(self, images: Mapping[str, object]) -> None:
         """Exactly the declared cameras (InvalidInput naming the missing or unknown one)."""
         missing = [name for name in self.cameras if name not in images]
@@ -135,11 +159,10 @@ class PolicyModel:
             window = committed_window(committed, self.task.committed.steps,
                                       self.task.action.dim)
             feed[self._committed_input] = window.reshape(1, -1).astype(self._dtype)
-        raw = self.model.infer(feed)[self._output]
-        actions = np.asarray(raw, np.float32).reshape(self.task.chunk, self.task.action.dim)
-        if not np.all(np.isfinite(actions)):
-            raise PolicyFailed(f"policy {self.name} answered NaN or infinity for this "
-                               f"observation; no action is given")
+        require_finite_inputs(feed)  # a finite state may overflow once normalised
+        raw = np.asarray(self.model.infer(feed)[self._output], np.float32)
+        require_finite_answer(self.name, {self._output: raw})
+        actions = raw.reshape(self.task.chunk, self.task.action.dim)
         return np.clip(actions, self.low, self.high)
 
 

@@ -6,7 +6,9 @@ the service decodes it, refusing oversized or lying images, and applies the decl
 pre-processing; a detection model then also returns decoded detections when asked
 (services/models/decoded.py). That is how a remote gateway sends camera frames as JPEG and
 gets a few hundred bytes back. Inputs and outputs may name regions of system shared memory
-(SharedMemoryServicer) instead of carrying their bytes, as with Triton.
+(SharedMemoryServicer) instead of carrying their bytes, as with Triton. A declared control
+policy is refused NaN or infinity in its inputs and never answers them, as in the Policy
+service.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import numpy as np
 from oricf import __version__
 from oricf.errors import InvalidInput, NotFound
 from oricf.models.declared import DeclaredModel
+from oricf.models.policy import require_finite_answer, require_finite_inputs
+from oricf.models.policy_task import PolicyTask
 from oricf.models.shared_memory import SharedMemoryRef, tensor_ref
 from oricf.models.tensors import clip
 from oricf.models.wire import (
@@ -115,11 +119,16 @@ class InferenceServicer(SharedMemoryServicer):
             if unknown:
                 raise InvalidInput(f"model {model.name} has no input '{clip(unknown[0])}' "
                                    f"(inputs: {', '.join(s.name for s in model.inputs)})")
+            policy = isinstance(model.declaration.task, PolicyTask)
+            if policy:  # as the Policy service: never an action from NaN or infinity
+                require_finite_inputs(feeds)
             # Decoding may have taken the caller's whole deadline: no one waits for the rest.
             check_deadline(context, "before inference could start")
             batcher = self.batchers.get(model.name)
             outputs = model.infer(feeds) if batcher is None else \
                 self._batched(batcher, model, feeds, context)
+            if policy:
+                require_finite_answer(model.name, outputs)
             if ask is not None:
                 outputs = {**outputs, ask.output: decoded(model, ask, outputs, prepared)}
             if wanted:

@@ -10,8 +10,11 @@ from oricf.services import SERVICES
 from oricf.services.policy.config import PolicyConfig
 from oricf.services.policy.servicer import PolicyServicer
 from oricf.services.runtime import ModelSlot, ServiceParts
+from oricf.services.runtime.streams import MessageStreams
 from oricf.store import ModelStore
 from oricf.v1 import policy_pb2_grpc
+
+SPEC = SERVICES["policy"]
 
 
 def create_model(config: PolicyConfig, store: ModelStore) -> PolicyModel:
@@ -20,12 +23,19 @@ def create_model(config: PolicyConfig, store: ModelStore) -> PolicyModel:
 
 def add_servicer(server: grpc.Server, slot: ModelSlot[PolicyModel],
                  config: PolicyConfig) -> None:
-    policy_pb2_grpc.add_PolicyServicer_to_server(PolicyServicer(slot), server)
+    policy_pb2_grpc.add_PolicyServicer_to_server(PolicyServicer(slot, config), server)
+
+
+def message_streams(config: PolicyConfig) -> MessageStreams:
+    """ActStream: a robot's stream holds a call slot only while an observation is answered."""
+    return MessageStreams(frozenset({f"/{SPEC.grpc_service}/ActStream"}),
+                          config.stream_idle_s, "stream_idle_s")
 
 
 PARTS = ServiceParts(
-    SERVICES["policy"],
+    SPEC,
     config_schema=PolicyConfig,
     create_model=create_model,
     add_servicer=add_servicer,
+    message_streams=message_streams,
 )

@@ -24,6 +24,7 @@ from oricf.errors import (
     Overloaded,
 )
 from oricf.services.runtime.limits import PUSHBACK_KEY, CallLimit, exempt
+from oricf.services.runtime.streams import MessageStreams, idle_bounded, per_message
 
 log = logging.getLogger(__name__)
 
@@ -125,12 +126,12 @@ def _requests(stream: bool, parse: Parse, request: Any) -> Any:
     return (parse(item) for item in request) if stream else parse(request)
 
 
-def _refuse(context: grpc.ServicerContext, limit: CallLimit) -> None:
+def _refuse(context: grpc.ServicerContext, limit: CallLimit,
+            what: str = "calls in progress") -> None:
     wait_ms = limit.pushback_ms()
     context.set_trailing_metadata(((PUSHBACK_KEY, str(wait_ms)),))
     context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
-                  f"the service is busy ({limit.limit} calls in progress); "
-                  f"retry in {wait_ms} ms")
+                  f"the service is busy ({limit.limit} {what}); retry in {wait_ms} ms")
 
 
 def _wrap_unary_response(behavior: Callable[..., Any], method: str, parse: Parse,
@@ -167,6 +168,29 @@ def _wrap_stream_response(behavior: Callable[..., Any], method: str, parse: Pars
     return handler
 
 
+def _wrap_message_stream(behavior: Callable[..., Any], method: str, parse: Parse,
+                         limit: CallLimit, streams: CallLimit, settings: MessageStreams
+                         ) -> Callable[..., Any]:
+    """A stream answered message by message (services/runtime/streams.py): one of `streams`
+    while open, a call slot of `limit` only while a message is answered."""
+    def handler(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+        if not streams.try_enter():
+            _refuse(context, streams, "streams open")
+        received = idle_bounded(request, settings.idle_s, settings.key)
+        admitted = per_message(received, parse, limit)
+        try:
+            check_deadline(context)
+            yield from behavior(admitted, context)
+        except Exception as exc:
+            _abort(context, exc, method)
+        finally:
+            admitted.close()  # gives back the slot of a message whose answer was not asked for
+            received.close()
+            streams.leave()
+
+    return handler
+
+
 def streams_by_callback(handler: grpc.RpcMethodHandler) -> bool:
     """Whether a handler streams through a callback (grpcio's experimental_non_blocking, as
     grpc_health's Watch does) instead of holding one of the server's threads for as long as
@@ -176,10 +200,15 @@ def streams_by_callback(handler: grpc.RpcMethodHandler) -> bool:
 
 class ErrorMappingInterceptor(grpc.ServerInterceptor):
     """Error mapping and request parsing for every handler; the call limit for every handler
-    but health and reflection."""
+    but health and reflection, per message for the streams of `message_streams` (as many of
+    them open at once as the limit allows calls)."""
 
-    def __init__(self, limit: CallLimit | None = None) -> None:
+    def __init__(self, limit: CallLimit | None = None,
+                 message_streams: MessageStreams | None = None) -> None:
         self.limit = limit
+        self.message_streams = message_streams if limit is not None else None
+        self.open_streams = None if limit is None else CallLimit(limit.limit,
+                                                                 limit.retry_after_ms)
 
     def intercept_service(
         self,
@@ -209,6 +238,15 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
             return handler._replace(unary_stream=_wrap_stream_response(
                 handler.unary_stream, method, parse, False, limit))
         if handler.stream_stream:
-            return handler._replace(stream_stream=_wrap_stream_response(
-                handler.stream_stream, method, parse, True, limit))
+            return handler._replace(stream_stream=self._stream_stream(handler.stream_stream,
+                                                                      method, parse, limit))
         return handler
+
+    def _stream_stream(self, behavior: Callable[..., Any], method: str, parse: Parse,
+                       limit: CallLimit | None) -> Callable[..., Any]:
+        settings = self.message_streams
+        if settings is not None and method in settings.methods:
+            assert limit is not None and self.open_streams is not None
+            return _wrap_message_stream(behavior, method, parse, limit, self.open_streams,
+                                        settings)
+        return _wrap_stream_response(behavior, method, parse, True, limit)

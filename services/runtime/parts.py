@@ -11,6 +11,7 @@ import grpc
 
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.model import Model, ModelSlot
+from oricf.services.runtime.streams import MessageStreams
 from oricf.services.spec import ServiceSpec
 from oricf.store import ModelStore
 
@@ -24,6 +25,9 @@ class ServiceParts:
     # (slot, its config) -> Starlette routes of the OpenAI-compatible HTTP API; None: none.
     # Called only when server.http is set, so Starlette is imported only then.
     http_routes: Callable[[ModelSlot[Any], Any], list[Any]] | None = None
+    # its config -> the streaming RPCs answered message by message (runtime/streams.py);
+    # None: a stream holds a call slot for as long as it is open.
+    message_streams: Callable[[Any], MessageStreams] | None = None
 
     @property
     def name(self) -> str:

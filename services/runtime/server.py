@@ -70,8 +70,12 @@ class ServiceHost:
             interceptors.append(TracingInterceptor())
         if settings.auth is not None:
             interceptors.append(TokenAuthInterceptor(settings.auth.tokens()))
-        interceptors.append(ErrorMappingInterceptor(call_limit))
-        self._workers = futures.ThreadPoolExecutor(max_workers=limit + SPARE_WORKERS,
+        streams = spec.message_streams(config) if spec.message_streams else None
+        interceptors.append(ErrorMappingInterceptor(call_limit, streams))
+        # A thread for each message stream that may be open, beside those for calls: quiet
+        # streams must leave threads for everyone else's calls.
+        workers = limit + SPARE_WORKERS + (limit if streams is not None else 0)
+        self._workers = futures.ThreadPoolExecutor(max_workers=workers,
                                                    thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(
             self._workers,

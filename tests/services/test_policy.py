@@ -8,7 +8,6 @@ import math
 import re
 import threading
 from collections.abc import Iterator
-from pathlib import Path
 
 import grpc
 import numpy as np
@@ -101,21 +100,43 @@ def test_model_info_reports_the_policys_declaration(stub: policy_pb2_grpc.Policy
                                      "lead_steps": "0"}
 
 
-def test_a_policy_declared_to_act_ahead_answers_chunks_starting_that_many_steps_later(
-        tmp_path: Path, arrays: dict[str, np.ndarray]) -> None:
+@pytest.fixture(scope="module")
+def ahead(tmp_path_factory: pytest.TempPathFactory) -> Iterator[policy_pb2_grpc.PolicyStub]:
+    """The Hopper declared to act 8 steps ahead."""
     declaration = yaml.safe_load(HOPPER.read_text())
     declaration["task"]["lead_steps"] = 8
-    ahead = tmp_path / "hopper-ahead.yaml"
-    ahead.write_text(yaml.safe_dump(declaration))
-    with running_service("policy", {"model": str(ahead)}) as service:
-        stub = policy_pb2_grpc.PolicyStub(service.channel)
-        chunk = stub.Act(observe(7, GOOD), timeout=10)
-        streamed = list(stub.ActStream(iter([observe(3, GOOD), observe(4, GOOD)]), timeout=10))
-        info = stub.GetModelInfo(common_pb2.GetModelInfoRequest(), timeout=10)
+    path = tmp_path_factory.mktemp("ahead") / "hopper-ahead.yaml"
+    path.write_text(yaml.safe_dump(declaration))
+    with running_service("policy", {"model": str(path)}) as service:
+        yield policy_pb2_grpc.PolicyStub(service.channel)
+
+
+def test_a_policy_declared_to_act_ahead_answers_chunks_starting_that_many_steps_later(
+        ahead: policy_pb2_grpc.PolicyStub, arrays: dict[str, np.ndarray]) -> None:
+    chunk = ahead.Act(observe(7, GOOD), timeout=10)
+    streamed = list(ahead.ActStream(iter([observe(3, GOOD), observe(4, GOOD)]), timeout=10))
+    info = ahead.GetModelInfo(common_pb2.GetModelInfoRequest(), timeout=10)
     assert (chunk.start_step, chunk.observation_step, chunk.capture_time_ns) == (15, 7, 1_007)
     assert [(c.start_step, c.observation_step) for c in streamed] == [(11, 3), (12, 4)]
     np.testing.assert_allclose(chunk.actions, expected(arrays, GOOD), atol=1e-5)
     assert info.parameters["lead_steps"] == "8"
+
+
+def test_a_step_whose_first_action_would_be_past_the_last_step_is_invalid_argument(
+        ahead: policy_pb2_grpc.PolicyStub) -> None:
+    last = 2**64 - 1  # the largest uint64
+
+    def at(step: int) -> policy_pb2.Observation:
+        return policy_pb2.Observation(step=step, state=GOOD.tolist())
+
+    with pytest.raises(grpc.RpcError) as err:
+        ahead.Act(at(last - 3), timeout=10)
+    assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert err.value.details() == (f"step: {last - 3} + the policy's lead_steps 8 is past "
+                                   f"the last step there is ({last})")
+    chunks = list(ahead.ActStream(iter([at(last), at(last - 8)]), timeout=10))
+    assert [c.HasField("error") for c in chunks] == [True, False]
+    assert chunks[1].start_step == last
 
 
 GOOD = np.linspace(-0.5, 0.5, 15).astype(np.float32)
@@ -132,6 +153,8 @@ BAD = {
         start_step=2, actions=[0.1] * 4)), "committed.actions: 4 values is not a whole"),
     "nan committed": (observe(1, GOOD, committed=policy_pb2.CommittedActions(
         actions=[0.1, math.nan, 0.2])), r"committed.actions\[1\] is nan"),
+    # Finite as float32; the network's products are not.
+    "overflowing": (observe(1, np.full(15, 3.4e38, np.float32)), "NaN or infinity"),
 }
 
 
@@ -159,11 +182,58 @@ def test_a_bad_observation_in_a_stream_is_answered_with_an_error_and_the_stream_
     np.testing.assert_allclose(chunks[3].actions, expected(arrays, GOOD), atol=1e-5)
 
 
-def test_the_same_declaration_is_served_over_the_open_inference_protocol(
-        arrays: dict[str, np.ndarray]) -> None:
+def test_quiet_streams_leave_the_service_to_other_callers(
+        policy: RunningService, stub: policy_pb2_grpc.PolicyStub) -> None:
+    """As many streams as the service takes calls, each quiet after one observation: a call
+    from another client is still answered, and one stream more is refused at once."""
+    limit = policy.host.config.server.max_concurrent_rpcs
+    released = threading.Event()
+
+    def one_then_quiet(step: int) -> Iterator[policy_pb2.Observation]:
+        yield observe(step, GOOD)
+        released.wait(timeout=30)
+
+    with grpc.insecure_channel(policy.address) as quiet:
+        robots = policy_pb2_grpc.PolicyStub(quiet)
+        streams = [robots.ActStream(one_then_quiet(i), timeout=60) for i in range(limit)]
+        try:
+            assert sorted(next(s).observation_step for s in streams) == list(range(limit))
+            assert stub.Act(observe(99, GOOD), timeout=10).observation_step == 99
+            with pytest.raises(grpc.RpcError) as err:
+                list(robots.ActStream(iter([observe(100, GOOD)]), timeout=10))
+        finally:
+            released.set()
+        assert [len(list(s)) for s in streams] == [0] * limit  # then each ends cleanly
+    assert err.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+    assert f"({limit} streams open)" in err.value.details()
+
+
+@pytest.fixture(scope="module")
+def oip() -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
+    """The Hopper declaration in `oricf serve models`."""
     with running_service("models", {"models": [str(HOPPER)]}) as models:
-        stub = oip_grpc.GRPCInferenceServiceStub(models.channel)
-        request = infer_request("pybullet-hopper", {"observation": GOOD.reshape(1, 15)})
-        outputs = response_outputs(stub.ModelInfer(request, timeout=10))
+        yield oip_grpc.GRPCInferenceServiceStub(models.channel)
+
+
+def test_the_same_declaration_is_served_over_the_open_inference_protocol(
+        oip: oip_grpc.GRPCInferenceServiceStub, arrays: dict[str, np.ndarray]) -> None:
+    request = infer_request("pybullet-hopper", {"observation": GOOD.reshape(1, 15)})
+    outputs = response_outputs(oip.ModelInfer(request, timeout=10))
     # Raw tensors: the model's own output, before the policy service's bounds.
     np.testing.assert_allclose(outputs["action"][0], forward(arrays, GOOD), atol=1e-5)
+
+
+@pytest.mark.parametrize(("value", "message"), [
+    (math.nan, r"input 'observation'\[4\] is nan: every value must be finite"),
+    (math.inf, r"input 'observation'\[4\] is inf"),
+    (-math.inf, r"input 'observation'\[4\] is -inf"),
+    (3.4e38, r"policy pybullet-hopper answered NaN or infinity \(output 'action'\)"),
+])
+def test_the_open_inference_protocol_refuses_what_the_policy_service_refuses(
+        oip: oip_grpc.GRPCInferenceServiceStub, value: float, message: str) -> None:
+    state = np.where(np.arange(15) == 4, np.float32(value), GOOD).astype(np.float32)
+    with pytest.raises(grpc.RpcError) as err:
+        oip.ModelInfer(infer_request("pybullet-hopper", {"observation": state.reshape(1, 15)}),
+                       timeout=10)
+    assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert re.search(message, err.value.details()), err.value.details()

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from oricf.models.wire import infer_request, response_outputs
+from oricf.oip import open_inference_grpc_pb2 as oip_pb2
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
 from tests.support.camera_policy import CAMERA, committed_declaration, declaration
@@ -103,16 +104,36 @@ def test_a_missing_unknown_or_broken_image_is_invalid_argument(
 
 
 
+@pytest.fixture(scope="module")
+def oip(tmp_path_factory: pytest.TempPathFactory
+        ) -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
+    """The same declaration in `oricf serve models`."""
+    folder = tmp_path_factory.mktemp("camera-policy-oip")
+    with running_service("models", {"models": [str(declaration(folder))]}) as models:
+        yield oip_grpc.GRPCInferenceServiceStub(models.channel)
+
+
+def tensors(image: np.ndarray) -> oip_pb2.ModelInferRequest:
+    return infer_request("channel-means", {"state": np.asarray([STATE], np.float32),
+                                           "image": image})
+
+
 def test_the_same_declaration_is_served_over_the_open_inference_protocol(
-        tmp_path: Path) -> None:
-    with running_service("models", {"models": [str(declaration(tmp_path))]}) as models:
-        stub = oip_grpc.GRPCInferenceServiceStub(models.channel)
-        image = np.zeros((1, 3, 8, 8), np.float32)
-        image[0, 1] = 0.5  # raw tensors: the image as the model takes it
-        request = infer_request("channel-means", {
-            "state": np.asarray([STATE], np.float32), "image": image})
-        outputs = response_outputs(stub.ModelInfer(request, timeout=10))
+        oip: oip_grpc.GRPCInferenceServiceStub) -> None:
+    image = np.zeros((1, 3, 8, 8), np.float32)
+    image[0, 1] = 0.5  # raw tensors: the image as the model takes it
+    outputs = response_outputs(oip.ModelInfer(tensors(image), timeout=10))
     np.testing.assert_allclose(outputs["action"][0], [0.0, 0.5, 0.0, *STATE], atol=1e-6)
+
+
+def test_a_nan_image_over_the_open_inference_protocol_is_invalid_argument(
+        oip: oip_grpc.GRPCInferenceServiceStub) -> None:
+    image = np.zeros((1, 3, 8, 8), np.float32)
+    image[0, 2, 3, 3] = np.nan
+    with pytest.raises(grpc.RpcError) as err:
+        oip.ModelInfer(tensors(image), timeout=10)
+    assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert "input 'image'[155] is nan: every value must be finite" in err.value.details()
 
 
 @pytest.mark.parametrize(("start", "expected"), [

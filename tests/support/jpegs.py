@@ -1,5 +1,5 @@
 """Hostile and unusual JPEGs made from real ones: repeated scans, EXIF orientation, lying
-frame headers."""
+frame headers, large ones."""
 
 from __future__ import annotations
 
@@ -29,6 +29,12 @@ def with_orientation(jpeg: bytes, orientation: int = 6) -> bytes:
     tiff = b"MM\x00\x2a" + (8).to_bytes(4, "big") + (1).to_bytes(2, "big") + entry + bytes(4)
     body = b"Exif\x00\x00" + tiff
     return jpeg[:2] + b"\xff\xe1" + (len(body) + 2).to_bytes(2, "big") + body + jpeg[2:]
+
+
+def blank(width: int, height: int) -> bytes:
+    """A real black JPEG of width x height: a few hundred kilobytes at 6000x6000 that the
+    decoder fills in whole (3 bytes a pixel)."""
+    return bytes(cv2.imencode(".jpg", np.zeros((height, width, 3), np.uint8))[1].tobytes())
 
 
 def claiming(width: int, height: int) -> bytes:
