@@ -6,12 +6,14 @@ subscribed to every channel for the whole run, and speaks a question every --eve
 (the demo's phrasings in turn). Each answer is judged against the people count published
 just before it: right when the answer states that number.
 
-Every --sample-every seconds (a minute by default) it reads the resident memory (RSS) and the
-CPU time of every process (each service, the gateway, the viewer and this bench) and counts
-the ERROR and Traceback lines in the processes' log. At the end, per process: RSS at the first
-sample and the last, growth per hour (a least-squares line over the samples after --warmup),
-CPU; questions answered and asked, wrong answers, error lines. --report FILE writes all of
-it as JSON, and the samples as CSV beside it (FILE with .csv).
+Every --sample-every seconds (a minute by default) it reads the resident memory (RSS, and
+its anonymous and file-backed parts) and the CPU time of every process (each service, the
+gateway, the viewer and this bench) and counts the ERROR and Traceback lines in the
+processes' log. At the end, per process: RSS at the first sample and the last, growth per
+hour (a least-squares line over the samples after --warmup, and over the run's last third),
+whether memory still grows in the last third and which (anonymous or file-backed), CPU;
+questions answered and asked, wrong answers, error lines. --report FILE writes all of it as
+JSON, and the samples as CSV beside it (FILE with .csv).
 
 Exits 1 when a question went unanswered, an error line appeared or a process ended.
 """

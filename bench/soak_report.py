@@ -1,9 +1,11 @@
-"""What `oricf bench soak` measures and reports: the resident memory (RSS) and CPU time of
-each process read from /proc (psutil), the ERROR and Traceback lines of the processes' log,
-each answer judged against the people count published just before it, and the summary per
-process (RSS at the first sample and the last, growth per hour by a least-squares line over
-the samples after the warm-up, and over the run's second half alone: a cache that fills and
-levels off has a late slope near zero, a leak keeps its slope), as a table, JSON and CSV."""
+"""What `oricf bench soak` measures and reports: the resident memory (RSS, split into
+anonymous and file-backed) and CPU time of each process read from /proc, the ERROR and
+Traceback lines of the processes' log, each answer judged against the people count published
+just before it, and the summary per process (RSS at the first sample and the last, growth
+per hour by a least-squares line over the samples after the warm-up, and over the run's
+last third alone with a plateau test naming the memory that still grows there: a cache that
+fills and levels off is flat at the end, a leak keeps growing; soak_memory), as a table,
+JSON and CSV."""
 
 from __future__ import annotations
 
@@ -11,7 +13,6 @@ import csv
 import json
 import logging
 import re
-import statistics
 import threading
 from collections import Counter
 from dataclasses import asdict, dataclass, field
@@ -21,10 +22,17 @@ from typing import Any
 import psutil
 
 from oricf.bench.common import print_table
+from oricf.bench.soak_memory import (
+    MB,
+    SPLIT_FIELDS,
+    late_window_start,
+    rss_split_mb,
+    slope_mb_per_h,
+    trend,
+)
 
 log = logging.getLogger(__name__)
 
-MB = 1e6
 # A line that reports a failure: the services' and the gateway's ERROR and CRITICAL log
 # records, a Python traceback, an interpreter that died.
 ERROR_LINE = re.compile(r"\b(ERROR|CRITICAL)\b|Traceback \(most recent call last\)|"
@@ -43,6 +51,8 @@ class Sample:
     pid: int
     rss_mb: float | None  # None: the process had ended
     cpu_s: float | None   # user + system, its waited-for children's included
+    anon_mb: float | None = None  # RssAnon: heap, buffers, objects (what a leak grows)
+    file_mb: float | None = None  # RssFile: mapped files (a model's weights, libraries)
 
 
 def read_process(name: str, pid: int, t_s: float) -> Sample:
@@ -56,7 +66,9 @@ def read_process(name: str, pid: int, t_s: float) -> Sample:
     except psutil.Error:  # gone, or not ours to read
         return Sample(t_s, name, pid, None, None)
     cpu = times.user + times.system + times.children_user + times.children_system
-    return Sample(round(t_s, 1), name, pid, round(rss / MB, 1), round(cpu, 2))
+    split = rss_split_mb(pid)
+    return Sample(round(t_s, 1), name, pid, round(rss / MB, 1), round(cpu, 2),
+                  split.get("anon"), split.get("file"))
 
 
 def stated_numbers(text: str) -> set[int]:
@@ -125,14 +137,30 @@ class LogErrors:
         return Counting(logging.ERROR)
 
 
+def series(samples: list[Sample], since_s: float, memory: str = "rss"
+           ) -> list[tuple[float, float]]:
+    """(time, MB) of one memory ("rss", "anon" or "file") from since_s on, where read."""
+    values = ((s.t_s, getattr(s, f"{memory}_mb")) for s in samples if s.t_s >= since_s)
+    return [(t, mb) for t, mb in values if mb is not None]
+
+
 def growth_mb_per_h(samples: list[Sample], warmup_s: float) -> float | None:
     """The slope of a least-squares line through RSS over time after the warm-up, per hour;
     None with fewer than two such samples."""
-    points = [(s.t_s, s.rss_mb) for s in samples if s.t_s >= warmup_s and s.rss_mb is not None]
-    if len(points) < 2 or len({t for t, _ in points}) < 2:
+    return slope_mb_per_h(series(samples, warmup_s))
+
+
+def still_growing(samples: list[Sample], since_s: float) -> list[str] | None:
+    """The memories that still grow from since_s on, by the plateau test: "anon" and
+    "file" where the split was read, "rss" where not; None with too few samples."""
+    split = [trend(series(samples, since_s, name)) for name in SPLIT_FIELDS.values()]
+    if all(found is not None for found in split):
+        return [name for name, found in zip(SPLIT_FIELDS.values(), split, strict=True)
+                if found is not None and found.growing]
+    whole = trend(series(samples, since_s))
+    if whole is None:
         return None
-    slope, _ = statistics.linear_regression([t for t, _ in points], [m for _, m in points])
-    return slope * 3600
+    return ["rss"] if whole.growing else []
 
 
 @dataclass
@@ -140,8 +168,16 @@ class ProcessSummary:
     process: str
     rss_first_mb: float | None
     rss_last_mb: float | None
-    growth_mb_per_h: float | None
-    late_growth_mb_per_h: float | None  # the same line over the second half of the run
+    anon_first_mb: float | None
+    anon_last_mb: float | None
+    file_first_mb: float | None
+    file_last_mb: float | None
+    growth_mb_per_h: float | None       # RSS, after the warm-up
+    late_from_s: float                  # the last third of the run: from here to the end
+    late_growth_mb_per_h: float | None  # RSS over the last third
+    late_anon_mb_per_h: float | None
+    late_file_mb_per_h: float | None
+    still_growing: list[str] | None     # memories growing beyond noise in the last third
     cpu_s: float | None        # over the soak (last sample - first)
     cpu_share: float | None    # of one core, over the soak
     ended: bool                # gone before the last sample
@@ -155,35 +191,54 @@ class ProcessSummary:
             return "-" if value is None else f"{value:+.1f}"
 
         return [self.process, mb(self.rss_first_mb), mb(self.rss_last_mb),
+                f"{mb(self.anon_first_mb)} > {mb(self.anon_last_mb)}",
+                f"{mb(self.file_first_mb)} > {mb(self.file_last_mb)}",
                 rate(self.growth_mb_per_h), rate(self.late_growth_mb_per_h),
+                f"{rate(self.late_anon_mb_per_h)} / {rate(self.late_file_mb_per_h)}",
+                self.verdict(),
                 "-" if self.cpu_s is None else f"{self.cpu_s:.1f}",
                 "-" if self.cpu_share is None else f"{self.cpu_share:.0%}",
                 "ENDED" if self.ended else "running", str(self.error_lines)]
+
+    def verdict(self) -> str:
+        if self.still_growing is None:
+            return "-"
+        return f"GROWING {'+'.join(self.still_growing)}" if self.still_growing else "flat"
 
 
 def summarize(samples: list[Sample], warmup_s: float, errors: Counter[str]
               ) -> list[ProcessSummary]:
     names = list(dict.fromkeys(s.process for s in samples))
-    summaries = []
-    for name in names:
-        mine = [s for s in samples if s.process == name]
-        alive = [s for s in mine if s.rss_mb is not None]
-        first, last = (alive[0], alive[-1]) if alive else (None, None)
-        cpu = share = None
-        if first is not None and last is not None and first.cpu_s is not None \
-                and last.cpu_s is not None:
-            cpu = last.cpu_s - first.cpu_s
-            share = cpu / (last.t_s - first.t_s) if last.t_s > first.t_s else None
-        half = max(warmup_s, (mine[0].t_s + mine[-1].t_s) / 2)
-        summaries.append(ProcessSummary(
-            name, first.rss_mb if first else None, last.rss_mb if last else None,
-            growth_mb_per_h(mine, warmup_s), growth_mb_per_h(mine, half), cpu, share,
-            mine[-1].rss_mb is None, errors.get(name, 0)))
-    return summaries
+    return [summarize_one([s for s in samples if s.process == name], warmup_s,
+                          errors.get(name, 0)) for name in names]
 
 
-HEADER = ["process", "RSS first MB", "RSS last MB", "growth MB/h", "2nd half MB/h",
-          "CPU s", "CPU", "state", "error lines"]
+def ends(alive: list[Sample], memory: str) -> tuple[float | None, float | None]:
+    """One memory ("rss", "anon" or "file") at the first sample and the last."""
+    if not alive:
+        return None, None
+    return getattr(alive[0], f"{memory}_mb"), getattr(alive[-1], f"{memory}_mb")
+
+
+def summarize_one(mine: list[Sample], warmup_s: float, error_lines: int) -> ProcessSummary:
+    alive = [s for s in mine if s.rss_mb is not None]
+    first, last = (alive[0], alive[-1]) if alive else (None, None)
+    cpu = share = None
+    if first is not None and last is not None and first.cpu_s is not None \
+            and last.cpu_s is not None:
+        cpu = last.cpu_s - first.cpu_s
+        share = cpu / (last.t_s - first.t_s) if last.t_s > first.t_s else None
+    late = late_window_start(mine[0].t_s, mine[-1].t_s, warmup_s)
+    return ProcessSummary(
+        mine[0].process, *ends(alive, "rss"), *ends(alive, "anon"), *ends(alive, "file"),
+        growth_mb_per_h(mine, warmup_s), late, growth_mb_per_h(mine, late),
+        slope_mb_per_h(series(mine, late, "anon")), slope_mb_per_h(series(mine, late, "file")),
+        still_growing(mine, late), cpu, share, mine[-1].rss_mb is None, error_lines)
+
+
+HEADER = ["process", "RSS first MB", "RSS last MB", "anon MB", "file MB", "growth MB/h",
+          "last 3rd MB/h", "anon / file MB/h", "last 3rd", "CPU s", "CPU", "state",
+          "error lines"]
 
 
 def print_samples(samples: list[Sample]) -> None:
@@ -196,9 +251,13 @@ def print_samples(samples: list[Sample]) -> None:
 
 def print_summary(summaries: list[ProcessSummary], answers: list[Answer],
                   warmup_s: float) -> None:
-    print_table(f"Per process (growth: a line fitted to RSS after the first {warmup_s:g} s, "
-                "and to the second half of the run)",
-                HEADER, [s.cells() for s in summaries])
+    print_table(f"Per process (RSS, anonymous and file-backed memory at the first sample > "
+                f"the last; growth: a line fitted to RSS after the first {warmup_s:g} s, and "
+                "to the run's last third, split; last 3rd: flat, or the memory that grows "
+                "there beyond its noise)", HEADER, [s.cells() for s in summaries])
+    growing = [f"{s.process} ({'+'.join(s.still_growing)})" for s in summaries
+               if s.still_growing]
+    print("\nstill growing in the last third: " + (", ".join(growing) if growing else "none"))
     answered = sum(a.answered for a in answers)
     wrong = sum(a.answered and not a.right for a in answers)
     print(f"\nanswered {answered}/{len(answers)} questions; {wrong} answers did not state "

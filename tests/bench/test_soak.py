@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from collections import Counter
 from pathlib import Path
 
@@ -19,6 +20,8 @@ from oricf.bench.soak_report import (
     Outcome,
     Sample,
     growth_mb_per_h,
+    print_summary,
+    read_process,
     stated_numbers,
     summarize,
 )
@@ -116,20 +119,66 @@ def test_a_log_line_still_being_written_is_read_once_it_is_whole(tmp_path: Path)
 def test_growth_is_the_slope_after_the_warm_up_per_hour() -> None:
     # 300 MB while warming up, then 1 MB more a minute: 60 MB an hour.
     samples = [Sample(0.0, "llm", 1, 300.0, 0.0)] + [
-        Sample(60.0 * k, "llm", 1, 400.0 + k, 0.0) for k in range(1, 6)]
+        Sample(60.0 * k, "llm", 1, 400.0 + k, 0.0) for k in range(1, 11)]
     assert growth_mb_per_h(samples, warmup_s=60) == pytest.approx(60.0)
     assert growth_mb_per_h(samples[:2], warmup_s=60) is None
     summary, = summarize(samples, 60, Counter())
-    assert (summary.rss_first_mb, summary.rss_last_mb) == (300.0, 405.0)
+    assert (summary.rss_first_mb, summary.rss_last_mb) == (300.0, 410.0)
+    assert summary.late_from_s == pytest.approx(420.0)  # the last third after the warm-up
     assert summary.late_growth_mb_per_h == pytest.approx(60.0)  # a leak keeps its slope
+    assert summary.still_growing == ["rss"]  # no anonymous/file split read: RSS itself
 
 
-def test_memory_that_levels_off_has_no_late_growth() -> None:
-    # A cache filling for ten minutes, then flat for ten: growth over the run, none late.
-    samples = [Sample(60.0 * k, "llm", 1, 400.0 + min(k, 10) * 5, 0.0) for k in range(21)]
-    summary, = summarize(samples, 60, Counter())
-    assert summary.growth_mb_per_h is not None and summary.growth_mb_per_h > 60
-    assert summary.late_growth_mb_per_h == pytest.approx(0.0)
+def by_minute(anon: list[float], file: list[float]) -> list[Sample]:
+    """A sample a minute of a process whose RSS is its anonymous and file-backed memory."""
+    return [Sample(60.0 * k, "llm", 1, a + f, 0.0, a, f)
+            for k, (a, f) in enumerate(zip(anon, file, strict=True))]
+
+
+def test_memory_that_rose_and_then_sat_flat_is_not_reported_as_growing(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # Ten minutes: 431 MB rising to 548 MB by minute 7 (a model's pages and buffers filling),
+    # then flat give or take half a megabyte. A line over the second half still climbs
+    # (+518 MB/h in such a run); over the last third it is flat.
+    anon = [120.0, 135, 150, 165, 180, 195, 205, 212, 211.5, 212, 211.6]
+    file = [311.0, 320, 328, 333, 335, 336, 336, 336, 336, 336.5, 336]
+    summary, = summarize(by_minute(anon, file), 60, Counter())
+    assert summary.growth_mb_per_h is not None and summary.growth_mb_per_h > 300
+    assert summary.late_growth_mb_per_h == pytest.approx(0.0, abs=20)
+    assert summary.still_growing == []
+    assert (summary.anon_first_mb, summary.anon_last_mb) == (120.0, 211.6)
+    assert (summary.file_first_mb, summary.file_last_mb) == (311.0, 336.0)
+    print_summary([summary], [], 60)
+    out = capsys.readouterr().out
+    assert "flat" in out and "still growing in the last third: none" in out
+
+
+def test_memory_that_keeps_rising_is_reported_with_the_memory_that_grows(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # The anonymous memory climbs 2 MB a minute to the end; the mapped file levels off.
+    anon = [120.0 + 2 * k for k in range(11)]
+    file = [311.0, 330, 336, 336, 336, 336, 336, 336, 336, 336, 336]
+    summary, = summarize(by_minute(anon, file), 60, Counter())
+    assert summary.still_growing == ["anon"]
+    assert summary.late_anon_mb_per_h == pytest.approx(120.0)
+    assert summary.late_file_mb_per_h == pytest.approx(0.0)
+    print_summary([summary], [], 60)
+    out = capsys.readouterr().out
+    assert "GROWING anon" in out and "still growing in the last third: llm (anon)" in out
+
+
+def test_memory_that_moves_up_and_down_is_flat_within_its_noise() -> None:
+    # A speech voice's buffers: runs of different lengths move RSS by 20 MB either way.
+    anon = [200.0, 240, 215, 238, 210, 236, 212, 239, 214, 237, 216]
+    summary, = summarize(by_minute(anon, [90.0] * 11), 60, Counter())
+    assert summary.still_growing == []
+
+
+def test_the_soak_reads_anonymous_and_file_backed_memory_of_a_process() -> None:
+    sample = read_process("bench", os.getpid(), 1.0)
+    assert sample.anon_mb is not None and sample.file_mb is not None
+    assert sample.rss_mb is not None and sample.anon_mb + sample.file_mb <= sample.rss_mb + 1
+    assert sample.anon_mb > 0 and sample.file_mb > 0  # a heap, and python's own mapped files
 
 
 def test_a_process_that_ended_is_reported_and_fails_the_soak(tmp_path: Path) -> None:
