@@ -143,11 +143,17 @@ class ClientTls(Schema):
             raise ValueError("give both cert and key, or neither")
         return self
 
+    def files(self, what: str = "tls") -> tuple[bytes, bytes | None, bytes | None]:
+        """The CA, the key and the certificate (None without mTLS), read; `what` names the
+        YAML key."""
+        return (_read(self.ca, f"{what}.ca"),
+                _read_secret(self.key, f"{what}.key") if self.key else None,
+                _read(self.cert, f"{what}.cert") if self.cert else None)
+
     def channel(self, address: str, options: list[tuple[str, object]]) -> grpc.Channel:
+        ca, key, cert = self.files()
         credentials = grpc.ssl_channel_credentials(
-            root_certificates=_read(self.ca, "tls.ca"),
-            private_key=_read_secret(self.key, "tls.key") if self.key else None,
-            certificate_chain=_read(self.cert, "tls.cert") if self.cert else None)
+            root_certificates=ca, private_key=key, certificate_chain=cert)
         if self.server_name:
             options = [*options, ("grpc.ssl_target_name_override", self.server_name)]
         return grpc.secure_channel(address, credentials, options=options)

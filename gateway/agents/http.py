@@ -76,6 +76,11 @@ class HttpSettings:
                       if listener.auth else ())
         except ConfigError as exc:
             raise ConfigError(f"{McpListener.keys.auth}: {exc}") from None
+        if listener.tls is not None:  # uvicorn reads them by name: first as every key is
+            try:                      # read, so a FIFO or a device is refused, not waited on
+                listener.tls.files()
+            except ConfigError as exc:
+                raise ConfigError(f"{McpListener.keys.tls}: {exc}") from None
         if not 1024 <= args.max_request_bytes <= 256 * 1024 * 1024:
             raise ConfigError("--max-request-bytes: from 1024 to 268435456")
         return cls(listener.listen.host, listener.listen.port, tokens, listener.tls,

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
+from oricf.errors import ConfigError
 from oricf.gateway.endpoints.config import TargetConfig
 from oricf.tracing import inject
 
@@ -138,9 +139,16 @@ def _trace_context(request: httpx.Request) -> None:
 def _ssl_context(config: TargetConfig) -> ssl.SSLContext:
     tls = config.tls
     assert tls is not None
-    context = ssl.create_default_context(cafile=str(tls.ca))
-    if tls.cert is not None and tls.key is not None:
-        context.load_cert_chain(str(tls.cert), str(tls.key))
+    # The ssl module reads the certificate and key by name: each is read first as the
+    # gRPC channel reads it, so a FIFO or a device is refused rather than waited on.
+    ca, _, _ = tls.files("tls")
+    try:
+        context = ssl.create_default_context(cadata=ca.decode("ascii", "replace"))
+        if tls.cert is not None and tls.key is not None:
+            context.load_cert_chain(str(tls.cert), str(tls.key))
+    except (OSError, ssl.SSLError) as exc:
+        raise ConfigError(f"tls: cannot load {tls.ca}, {tls.cert} or {tls.key}: {exc}"
+                          ) from None
     return context
 
 

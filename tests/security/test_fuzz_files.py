@@ -99,11 +99,18 @@ def hostile_token_command(case: str, folder: Path) -> tuple[list[str], str]:
     if case == "mcp":  # once a UnicodeEncodeError traceback
         return (["mcp", "--attach", f"unix:{folder / 'none.sock'}", "--token-file",
                  str(unusable)], f"--token-file: {unusable}: line 1, character 2")
+    if case == "mcp-tls":  # uvicorn would open the certificate by name and wait on it
+        key = folder / "key.pem"
+        key.write_bytes(b"not a key")
+        key.chmod(0o600)
+        return (["mcp", "--config", str(PEOPLE_QA), "--transport", "http", "--tls-cert",
+                 str(fifo), "--tls-key", str(key)],
+                f"--tls-cert/--tls-key: tls.cert: {fifo}: a FIFO (named pipe)")
     return (["serve", "detector", "--auth-token-file", str(unusable)],
             f"detector.yaml: server.auth.file: {unusable}: no token")
 
 
-@pytest.mark.parametrize("case", ["gateway", "mcp", "serve"])
+@pytest.mark.parametrize("case", ["gateway", "mcp", "mcp-tls", "serve"])
 def test_a_hostile_token_file_stops_the_command_at_once_naming_it(case: str,
                                                                   tmp_path: Path) -> None:
     args, reason = hostile_token_command(case, tmp_path)

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import base64
 import email.utils
+import os
 import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import grpc
@@ -312,6 +314,17 @@ def test_endpoint_mistakes_name_the_key(endpoint: dict[str, Any], message: str) 
     with pytest.raises(ConfigError) as error:
         asking(endpoint)
     assert message in str(error.value)
+
+
+def test_a_ca_that_is_a_fifo_is_refused_at_once_naming_the_key(tmp_path: Path,
+                                                                 pipeline_for: Any) -> None:
+    """The ssl module would open the CA by name and wait for a writer for ever."""
+    fifo = tmp_path / "ca.fifo"
+    os.mkfifo(fifo, 0o600)
+    config = asking({**OPENAI, "address": "https://127.0.0.1:9/v1", "tls": {"ca": str(fifo)}})
+    with pytest.raises(ConfigError) as error:
+        pipeline_for(config)
+    assert f"tls.ca: {fifo}: a FIFO (named pipe)" in str(error.value)
 
 
 def test_a_method_without_openai_calls_is_refused_on_such_an_endpoint() -> None:
