@@ -63,6 +63,10 @@ class ServerSettings(Schema):
     tls: ServerTls | None = Field(None, description="serve TLS (mTLS with client_ca)")
     auth: TokenSource | None = Field(None, description="require one of these bearer tokens")
     reflection: bool = Field(True, description="serve gRPC reflection (grpcurl without protos)")
+    reflection_idle_s: float = Field(
+        10.0, gt=0, le=3600,
+        description="a reflection stream that asks nothing this long is closed "
+                    "(DEADLINE_EXCEEDED); a few are open at once, more get RESOURCE_EXHAUSTED")
     metrics: MetricsConfig | None = Field(
         None, description="serve Prometheus metrics at http://LISTEN/metrics (off if absent)")
     retry_after_ms: int = Field(

@@ -23,8 +23,13 @@ from oricf.errors import (
     NotReady,
     Overloaded,
 )
-from oricf.services.runtime.limits import PUSHBACK_KEY, CallLimit, exempt
-from oricf.services.runtime.streams import MessageStreams, idle_bounded, per_message
+from oricf.services.runtime.limits import EXEMPT_STREAMS, PUSHBACK_KEY, CallLimit, exempt
+from oricf.services.runtime.streams import (
+    MessageStreams,
+    OpenStreams,
+    idle_bounded,
+    per_message,
+)
 
 log = logging.getLogger(__name__)
 
@@ -169,14 +174,13 @@ def _wrap_stream_response(behavior: Callable[..., Any], method: str, parse: Pars
 
 
 def _wrap_message_stream(behavior: Callable[..., Any], method: str, parse: Parse,
-                         limit: CallLimit, streams: CallLimit, settings: MessageStreams
-                         ) -> Callable[..., Any]:
+                         limit: CallLimit | None, streams: OpenStreams) -> Callable[..., Any]:
     """A stream answered message by message (services/runtime/streams.py): one of `streams`
-    while open, a call slot of `limit` only while a message is answered."""
+    while open, a call slot of `limit` (None: exempt) only while a message is answered."""
     def handler(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
-        if not streams.try_enter():
-            _refuse(context, streams, "streams open")
-        received = idle_bounded(request, settings.idle_s, settings.key)
+        if not streams.open.try_enter():
+            _refuse(context, streams.open, streams.what)
+        received = idle_bounded(request, streams.idle_s, streams.key)
         admitted = per_message(received, parse, limit)
         try:
             check_deadline(context)
@@ -186,7 +190,7 @@ def _wrap_message_stream(behavior: Callable[..., Any], method: str, parse: Parse
         finally:
             admitted.close()  # gives back the slot of a message whose answer was not asked for
             received.close()
-            streams.leave()
+            streams.open.leave()
 
     return handler
 
@@ -201,14 +205,27 @@ def streams_by_callback(handler: grpc.RpcMethodHandler) -> bool:
 class ErrorMappingInterceptor(grpc.ServerInterceptor):
     """Error mapping and request parsing for every handler; the call limit for every handler
     but health and reflection, per message for the streams of `message_streams` (as many of
-    them open at once as the limit allows calls)."""
+    them open at once as the limit allows calls). With `reflection_idle_s`, the exempt
+    streams that wait for requests (reflection's) are bounded too: EXEMPT_STREAMS open at
+    once, each closed after that long without a request."""
 
     def __init__(self, limit: CallLimit | None = None,
-                 message_streams: MessageStreams | None = None) -> None:
+                 message_streams: MessageStreams | None = None,
+                 reflection_idle_s: float | None = None) -> None:
         self.limit = limit
-        self.message_streams = message_streams if limit is not None else None
-        self.open_streams = None if limit is None else CallLimit(limit.limit,
-                                                                 limit.retry_after_ms)
+        self.message_streams: OpenStreams | None = None
+        self.exempt_streams: OpenStreams | None = None
+        self.stream_methods = message_streams.methods if message_streams else frozenset()
+        if limit is None:
+            return
+        if message_streams is not None:
+            self.message_streams = OpenStreams(
+                CallLimit(limit.limit, limit.retry_after_ms), message_streams.idle_s,
+                message_streams.key, "streams open")
+        if reflection_idle_s is not None:
+            self.exempt_streams = OpenStreams(
+                CallLimit(EXEMPT_STREAMS, limit.retry_after_ms), reflection_idle_s,
+                "server.reflection_idle_s", "reflection streams open")
 
     def intercept_service(
         self,
@@ -244,9 +261,9 @@ class ErrorMappingInterceptor(grpc.ServerInterceptor):
 
     def _stream_stream(self, behavior: Callable[..., Any], method: str, parse: Parse,
                        limit: CallLimit | None) -> Callable[..., Any]:
-        settings = self.message_streams
-        if settings is not None and method in settings.methods:
-            assert limit is not None and self.open_streams is not None
-            return _wrap_message_stream(behavior, method, parse, limit, self.open_streams,
-                                        settings)
+        if self.message_streams is not None and method in self.stream_methods:
+            return _wrap_message_stream(behavior, method, parse, limit, self.message_streams)
+        if self.exempt_streams is not None and limit is None:
+            # Exempt from the call limit, yet it holds a thread while it waits for the client.
+            return _wrap_message_stream(behavior, method, parse, None, self.exempt_streams)
         return _wrap_stream_response(behavior, method, parse, True, limit)

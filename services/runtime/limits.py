@@ -18,6 +18,10 @@ from oricf.errors import InvalidInput, Overloaded
 
 PUSHBACK_KEY = "grpc-retry-pushback-ms"
 EXEMPT_PREFIXES = ("/grpc.health.v1.", "/grpc.reflection.")
+# Exempt calls that stream requests (reflection's ServerReflectionInfo) open at once: each
+# holds a thread while it waits for the client, so they are bounded on their own. grpcurl
+# opens one per command and closes it when done.
+EXEMPT_STREAMS = 4
 
 
 class CallLimit:

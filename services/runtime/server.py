@@ -24,7 +24,7 @@ from oricf.metrics import MetricsServer
 from oricf.services.runtime.auth import TokenAuthInterceptor
 from oricf.services.runtime.config import ServiceConfig
 from oricf.services.runtime.errors import ErrorMappingInterceptor
-from oricf.services.runtime.limits import CallLimit
+from oricf.services.runtime.limits import EXEMPT_STREAMS, CallLimit
 from oricf.services.runtime.metrics import service_registry
 from oricf.services.runtime.model import Model, ModelSlot
 from oricf.services.runtime.parts import ServiceParts
@@ -71,10 +71,12 @@ class ServiceHost:
         if settings.auth is not None:
             interceptors.append(TokenAuthInterceptor(settings.auth.tokens()))
         streams = spec.message_streams(config) if spec.message_streams else None
-        interceptors.append(ErrorMappingInterceptor(call_limit, streams))
-        # A thread for each message stream that may be open, beside those for calls: quiet
-        # streams must leave threads for everyone else's calls.
-        workers = limit + SPARE_WORKERS + (limit if streams is not None else 0)
+        interceptors.append(ErrorMappingInterceptor(call_limit, streams,
+                                                    settings.reflection_idle_s))
+        # A thread for each stream that may be open (message streams, reflection's), beside
+        # those for calls: quiet streams must leave threads for everyone else's calls.
+        workers = (limit + SPARE_WORKERS + (limit if streams is not None else 0)
+                   + (EXEMPT_STREAMS if settings.reflection else 0))
         self._workers = futures.ThreadPoolExecutor(max_workers=workers,
                                                    thread_name_prefix=f"{spec.name}-rpc")
         self.server = grpc.server(

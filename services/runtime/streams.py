@@ -1,5 +1,6 @@
-"""Streams answered message by message (the Policy service's ActStream): a call slot only
-while a message is answered, and a time limit on silence.
+"""Streams answered message by message (the Policy service's ActStream, reflection's
+ServerReflectionInfo): a call slot only while a message is answered, and a time limit on
+silence.
 
 A robot keeps such a stream open and sends an observation per control step; between two it
 costs the service nothing but a thread. Counting the whole stream as a call would let a few
@@ -8,6 +9,9 @@ call slot when a message arrives and gives it back when the servicer asks for th
 (it answers each before reading the next). Open message streams are bounded on their own
 (the server keeps a thread for each, beside those of its calls), and a stream that sends
 nothing for `idle_s` is closed, so quiet ones cannot keep new streams out for long.
+Reflection streams are exempt from the call limit, as health checks are, but hold a thread
+as long as they are open just the same: they are bounded and timed the same way, with a few
+threads of their own.
 """
 
 from __future__ import annotations
@@ -33,11 +37,26 @@ class MessageStreams:
     key: str  # the config key idle_s comes from, for the message that closes a stream
 
 
-def per_message(requests: Iterator[Any], parse: Callable[[bytes], T], limit: CallLimit
+@dataclass(frozen=True)
+class OpenStreams:
+    """Streams of one kind that are open: at most `open.limit` at once, each closed after
+    idle_s without a request."""
+
+    open: CallLimit  # a slot per open stream
+    idle_s: float
+    key: str  # the config key idle_s comes from
+    what: str  # what a refusal says there are too many of: "streams open"
+
+
+def per_message(requests: Iterator[Any], parse: Callable[[bytes], T], limit: CallLimit | None
                 ) -> Iterator[T]:
-    """Each request parsed, holding a call slot of `limit` until the next is asked for;
-    Overloaded (the call ends with pushback) when none is free as a request arrives."""
+    """Each request parsed, holding a call slot of `limit` (None: exempt, none) until the
+    next is asked for; Overloaded (the call ends with pushback) when none is free as a
+    request arrives."""
     for data in requests:  # waiting here holds no slot
+        if limit is None:
+            yield parse(data)
+            continue
         if not limit.try_enter():
             wait_ms = limit.pushback_ms()
             raise Overloaded(f"the service is busy ({limit.limit} calls in progress); "

@@ -3,7 +3,10 @@ is closed after `stream_idle_s` and gives back everything it held; camera images
 cost far more decoded than sent (a 116 KB PNG of 6300x6300 for an 8x8 input, a few hundred
 bytes of JPEG claiming 6000x6000, a truncated JPEG) are INVALID_ARGUMENT before anything
 large is allocated, and an image beyond the memory budget (`server.max_inflight_mb`) is
-refused as the detector refuses it. The service is SERVING afterwards."""
+refused as the detector refuses it. Reflection streams, which every service serves outside
+its call limit, are bounded on their own and closed after `server.reflection_idle_s`, so
+quiet ones leave the service's threads to calls and health checks. The service is SERVING
+afterwards."""
 
 from __future__ import annotations
 
@@ -12,13 +15,18 @@ import struct
 import threading
 import zlib
 from collections.abc import Iterator
+from concurrent import futures
+from contextlib import contextmanager
+from typing import Any
 
 import cv2
 import grpc
 import numpy as np
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
+from grpc_reflection.v1alpha import reflection_pb2, reflection_pb2_grpc
 
+from oricf.services.runtime.limits import EXEMPT_STREAMS
 from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
 from tests.support.camera_policy import CAMERA, declaration
 from tests.support.jpegs import claiming
@@ -33,13 +41,15 @@ CALLS = 8  # at once: the service's call limit
 # Eight 6300x6300 images decoded at once would hold about 1 GB; refused on their headers,
 # what is left is the messages and the allocator's slack.
 MAX_GROWTH_MB = 100
+# More quiet reflection streams than the service has threads (2 x CALLS + 4).
+QUIET_STREAMS = 3 * CALLS
 
 
 @pytest.fixture(scope="module")
 def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
     folder = tmp_path_factory.mktemp("camera-policy")
     overrides = {"model": str(declaration(folder)), "stream_idle_s": IDLE_S,
-                 "server": {"max_inflight_mb": BUDGET_MB}}
+                 "server": {"max_inflight_mb": BUDGET_MB, "reflection_idle_s": IDLE_S}}
     with running_service("policy", overrides) as running:
         yield running
         health = health_pb2_grpc.HealthStub(running.channel).Check(
@@ -148,3 +158,73 @@ def test_an_image_beyond_the_memory_budget_is_refused_alone(
                                        observe(good(), 3)]), timeout=30))
     assert [(c.observation_step, c.HasField("error")) for c in chunks] == [
         (1, False), (2, True), (3, False)]
+
+
+@contextmanager
+def quiet_reflection_streams(address: str, count: int
+                             ) -> Iterator[tuple[grpc.Channel, list[Iterator[Any]]]]:
+    """`count` reflection streams on a channel of their own, each asking once and then
+    neither asking again nor closing; closed on exit, once the service has let them go."""
+    released = threading.Event()
+
+    def ask_once_then_quiet() -> Iterator[reflection_pb2.ServerReflectionRequest]:
+        yield reflection_pb2.ServerReflectionRequest(list_services="")
+        released.wait(timeout=30)
+
+    channel = grpc.insecure_channel(address)
+    stub = reflection_pb2_grpc.ServerReflectionStub(channel)
+    try:
+        yield channel, [stub.ServerReflectionInfo(ask_once_then_quiet(), timeout=30)
+                        for _ in range(count)]
+    finally:
+        released.set()
+        channel.close()  # ends the streams still open
+    wait_for(lambda: not [t for t in threading.enumerate() if t.name == "stream-reader"], 10,
+             "the streams' reader threads ended")
+
+
+def first_answer(stream: Iterator[Any]) -> grpc.StatusCode | None:
+    """None when the stream answered its request, else the code it ended with."""
+    try:
+        next(stream)
+        return None
+    except grpc.RpcError as exc:
+        return exc.code()
+
+
+def test_quiet_reflection_streams_leave_the_threads_to_calls_and_health(
+        service: RunningService, stub: policy_pb2_grpc.PolicyStub) -> None:
+    # The streams close first on the way out, so that no reader waits on one.
+    with futures.ThreadPoolExecutor(QUIET_STREAMS) as readers, \
+            quiet_reflection_streams(service.address, QUIET_STREAMS) as (_, streams):
+        answers = [readers.submit(first_answer, stream) for stream in streams]
+        # Each is answered or refused at once; one past the bound would hold a thread.
+        futures.wait(answers, timeout=10)
+        assert stub.Act(observe(good()), timeout=5).actions
+        health = health_pb2_grpc.HealthStub(service.channel).Check(
+            health_pb2.HealthCheckRequest(), timeout=5)
+        assert health.status == health_pb2.HealthCheckResponse.SERVING
+        codes = [answer.result(timeout=10) for answer in answers]
+        assert codes.count(None) == EXEMPT_STREAMS, codes
+        assert codes.count(grpc.StatusCode.RESOURCE_EXHAUSTED) == QUIET_STREAMS - EXEMPT_STREAMS
+        refused = next(s for s, code in zip(streams, codes, strict=True) if code is not None)
+        assert f"the service is busy ({EXEMPT_STREAMS} reflection streams open)" \
+            in refused.details()  # type: ignore[attr-defined]
+
+
+def test_a_quiet_reflection_stream_is_closed_after_reflection_idle_s(
+        service: RunningService) -> None:
+    with quiet_reflection_streams(service.address, EXEMPT_STREAMS) as (channel, streams):
+        assert [first_answer(stream) for stream in streams] == [None] * EXEMPT_STREAMS
+        for stream in streams:
+            with pytest.raises(grpc.RpcError) as err:
+                next(stream)
+            assert err.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
+            assert f"nothing was sent for {IDLE_S:g} s; the stream is closed " \
+                   f"(server.reflection_idle_s)" in err.value.details()
+        # Their places are free again: a whole reflection exchange is answered.
+        stub = reflection_pb2_grpc.ServerReflectionStub(channel)
+        request = reflection_pb2.ServerReflectionRequest(list_services="")
+        (reply,) = stub.ServerReflectionInfo(iter([request]), timeout=10)
+        names = {s.name for s in reply.list_services_response.service}
+        assert "oricf.v1.Policy" in names

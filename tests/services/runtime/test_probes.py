@@ -11,6 +11,7 @@ from pathlib import Path
 import grpc
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
+from grpc_reflection.v1alpha import reflection_pb2, reflection_pb2_grpc
 
 from oricf.errors import ConfigError
 from oricf.tls import ClientTls
@@ -62,6 +63,11 @@ def test_the_health_port_answers_check_in_plaintext_beside_mtls(certs: Path) -> 
             reply = health_pb2_grpc.HealthStub(channel).Check(health_pb2.HealthCheckRequest(),
                                                               timeout=5)
             assert reply.status == SERVING
+            with pytest.raises(grpc.RpcError) as anonymous:  # reflection needs the token
+                list(reflection_pb2_grpc.ServerReflectionStub(channel).ServerReflectionInfo(
+                    iter([reflection_pb2.ServerReflectionRequest(list_services="")]),
+                    timeout=5))
+            assert anonymous.value.code() == grpc.StatusCode.UNAUTHENTICATED
     with pytest.raises(grpc.RpcError):  # stopped with the service
         check(probe)
 
