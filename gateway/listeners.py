@@ -1,6 +1,6 @@
 """The settings of the gateway's surfaces that listen, as a pipeline YAML writes them. They
 are part of the pipeline's schema (oricf.gateway.config), so they live in the core; the
-surfaces that serve them (oricf.gateway.control, oricf.gateway.live_view) import them from here.
+surfaces that serve them (oricf.gateway.api, oricf.gateway.live_view) import them from here.
 
     control:                                 # the control API (`oricf mcp --attach`)
       listen: unix:/run/oricf/control.sock   # or 127.0.0.1:7100 (loopback by default)

@@ -101,7 +101,7 @@ class Route:
         self.products = products
         self.stats = RouteStats()
         # (time.monotonic() when done, the record): the newest one that went through, for
-        # readers such as the control API's `look` (oricf.gateway.control)
+        # readers such as the control API's `look` (oricf.gateway.api)
         self.latest: tuple[float, Record] | None = None
         # Called with each record after its outputs (the live view): they must not block.
         self.watchers: list[Callable[[str, Record], None]] = []

@@ -150,7 +150,7 @@ def test_the_independence_contract_names_every_service() -> None:
     assert services == [{f"oricf.services.{name}" for name in SERVICES}]
 
 
-SURFACES = ("oricf.gateway.agents", "oricf.gateway.control", "oricf.gateway.live_view")
+SURFACES = ("oricf.gateway.agents", "oricf.gateway.api", "oricf.gateway.live_view")
 
 
 def test_no_gateway_surface_imports_another(graph: Graph) -> None:

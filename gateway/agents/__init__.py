@@ -5,7 +5,7 @@
 resources, with update notifications), `stdio` (the SDK's stdio transport, answering
 malformed messages), `http` (streamable HTTP: tokens, TLS). `oricf mcp` itself is a shell
 (oricf.gateway.shells.mcp): a gateway in this process, or one that runs, through the control
-API. It imports neither the control API (oricf.gateway.control) nor the live view.
+API. It imports neither the control API (oricf.gateway.api) nor the live view.
 docs/agents.md.
 Importing this package imports nothing.
 """

@@ -1,7 +1,7 @@
 """What starts beside a running pipeline (oricf.gateway.host.gateway.Gateway.activate): the
 live view (oricf.gateway.live_view) when its YAML has `foxglove:`, the operations on it
 (oricf.gateway.operations.view) with the agent's actuation (oricf.gateway.actuation) when
-it has `agent:` targets, and the control API (oricf.gateway.control.server) when it has
+it has `agent:` targets, and the control API (oricf.gateway.api.server) when it has
 `control:`. The host imports the surfaces; the surfaces import the core, never each other.
 """
 
@@ -61,7 +61,7 @@ def serve_control(view: PipelineView) -> Callable[[], None]:
     config = view.pipeline.config.control
     if config is None:
         return view.close
-    from oricf.gateway.control.server import ControlServer  # starlette and uvicorn
+    from oricf.gateway.api.server import ControlServer  # starlette and uvicorn
 
     server = ControlServer(config, view)
     try:

@@ -8,7 +8,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from oricf.gateway.control.server import ControlServer
+from oricf.gateway.api.server import ControlServer
 from oricf.gateway.listeners import ControlConfig
 
 
