@@ -34,7 +34,7 @@ def declaration() -> Path:
 
 
 @pytest.fixture(scope="module")
-def policy(declaration: Path) -> Iterator[PolicyModel]:
+def reacher_model(declaration: Path) -> Iterator[PolicyModel]:
     model = PolicyModel(load_declaration(declaration), ModelStore(session_root()))
     model.load()
     yield model
@@ -55,17 +55,17 @@ def successes(sim: ReacherCameraSim, policy: PolicyModel, mode: str, delay: int 
 
 
 def test_the_policy_reaches_the_target_it_sees_and_not_without_its_camera(
-        sim: ReacherCameraSim, policy: PolicyModel) -> None:
-    assert policy.cameras == ["top"] and policy.task.state.size == sim.state_size == 6
-    assert successes(sim, policy, "onboard") >= 4
-    assert successes(sim, policy, BLIND) <= 2
+        sim: ReacherCameraSim, reacher_model: PolicyModel) -> None:
+    assert reacher_model.cameras == ["top"] and reacher_model.task.state.size == sim.state_size == 6
+    assert successes(sim, reacher_model, "onboard") >= 4
+    assert successes(sim, reacher_model, BLIND) <= 2
 
 
 def test_on_the_edge_the_image_goes_with_each_request(sim: ReacherCameraSim,
-                                                      policy: PolicyModel) -> None:
+                                                      reacher_model: PolicyModel) -> None:
     """Behind a round trip of a step each request carries the image captured with its
     state, and the chunk that answers it still reaches the target."""
-    assert successes(sim, policy, "edge-sync", delay=1) >= 4
+    assert successes(sim, reacher_model, "edge-sync", delay=1) >= 4
 
 
 def test_the_same_settings_find_the_cache_and_train_nothing(declaration: Path) -> None:

@@ -1,5 +1,5 @@
-"""Fixtures for gateway tests: a private DDS domain, an rclpy context, real services, a
-real robot's state."""
+"""Fixtures for gateway tests: a private DDS domain, an rclpy context, a real robot's state
+(the services are the session's, tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from rclpy.context import Context
 
 from tests.gateway.ros.gateway_node import private_domain
 from tests.support.pybullet_sim import hopper
-from tests.support.services import RunningService, running_service
 
 
 @pytest.fixture(scope="session")
@@ -37,13 +36,6 @@ def ros_context(ros_env: dict[str, str]) -> Iterator[Context]:
     rclpy.init(context=context)
     yield context
     rclpy.try_shutdown(context=context)
-
-
-@pytest.fixture(scope="module")
-def policy() -> Iterator[RunningService]:
-    """`oricf serve policy` with its shipped settings: pybullet's Hopper policy."""
-    with running_service("policy") as service:
-        yield service
 
 
 @pytest.fixture(scope="module")

@@ -116,7 +116,7 @@ def hears_the_question(service: HttpService) -> None:
 
 
 @pytest.fixture(scope="module")
-def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def asr_large_messages(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     """The service with its shipped limits, a larger gRPC message for the many-channel case."""
     folder = tmp_path_factory.mktemp("asr")
     settings = overlay(folder, {"server": {"max_message_mb": 40}})
@@ -136,18 +136,18 @@ def asr_raised(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService
 
 
 def test_a_flac_file_whose_header_declares_too_many_samples_is_refused_before_decoding(
-        asr: HttpService, silent_flac: bytes) -> None:
+        asr_large_messages: HttpService, silent_flac: bytes) -> None:
     for _ in range(4):
-        says = refused(asr, "silence.flac", silent_flac)
+        says = refused(asr_large_messages, "silence.flac", silent_flac)
         assert says.startswith("the FLAC file's header: 29.5 s at 384000 Hz in 8 channel(s)")
         assert says.endswith("over the limit of 32 MB (audio.max_decoded_mb)")
-    hears_the_question(asr)
+    hears_the_question(asr_large_messages)
 
 
 @pytest.mark.parametrize("declared", [0, RATE])  # unknown; one second
 def test_a_flac_file_whose_header_lies_is_refused_while_it_is_decoded(
-        asr: HttpService, silent_flac: bytes, declared: int) -> None:
-    says = refused(asr, "lies.flac", lying_flac(silent_flac, declared))
+        asr_large_messages: HttpService, silent_flac: bytes, declared: int) -> None:
+    says = refused(asr_large_messages, "lies.flac", lying_flac(silent_flac, declared))
     assert says.startswith("audio decoded so far:")
     assert says.endswith("over the limit of 32 MB (audio.max_decoded_mb)")
 
@@ -159,9 +159,10 @@ def test_a_flac_file_within_raised_limits_is_decoded_in_bounded_pieces(
 
 
 def test_a_wav_file_of_many_channels_is_mixed_down_in_bounded_pieces(
-        asr: HttpService) -> None:
+        asr_large_messages: HttpService) -> None:
     wav = many_channel_wav(24)  # 1 s at 384 kHz in 32 channels, under the upload limit
-    transcribe_silence_within_bounds(asr, "many.wav", wav, len(wav) / (2 * 32 * RATE))
+    transcribe_silence_within_bounds(asr_large_messages, "many.wav", wav,
+                                     len(wav) / (2 * 32 * RATE))
 
 
 @pytest.mark.parametrize(("header", "says"), [
@@ -170,18 +171,18 @@ def test_a_wav_file_of_many_channels_is_mixed_down_in_bounded_pieces(
     # 256 MB of data declared, 24 MB present
     (wav_header(RATE, 8, 0x0FFFFFFF), "truncated WAV file"),
 ])
-def test_wav_headers_that_lie_about_their_data_are_refused(asr: HttpService, header: bytes,
-                                                           says: str) -> None:
-    assert says in refused(asr, "lies.wav", header + bytes(24 * 1024 * 1024))
+def test_wav_headers_that_lie_about_their_data_are_refused(
+        asr_large_messages: HttpService, header: bytes, says: str) -> None:
+    assert says in refused(asr_large_messages, "lies.wav", header + bytes(24 * 1024 * 1024))
 
 
-def test_grpc_transcribe_bounds_the_decoded_size(asr: HttpService) -> None:
+def test_grpc_transcribe_bounds_the_decoded_size(asr_large_messages: HttpService) -> None:
     """What gRPC itself holds of a message (docs/services.md) varies too much from call to
     call to measure the conversion beside it: tests/audio measures that on its own."""
     data = bytes(36 * 1024 * 1024)  # 1.5 s at 384 kHz in 32 channels: 36 MB of samples
     audio = speech_pb2.Audio(data=data, encoding="pcm_s16le", sample_rate=RATE, channels=32)
     many = speech_pb2.Audio(data=many_channel_wav(30), encoding="wav")  # 30 MB: decoded
-    with grpc.insecure_channel(asr.grpc_address, options=CHANNEL_OPTIONS) as channel:
+    with grpc.insecure_channel(asr_large_messages.grpc_address, options=CHANNEL_OPTIONS) as channel:
         stub = speech_pb2_grpc.SpeechRecognizerStub(channel)
         with pytest.raises(grpc.RpcError) as refusal:
             stub.Transcribe(speech_pb2.TranscribeRequest(audio=audio), timeout=60)
@@ -191,4 +192,4 @@ def test_grpc_transcribe_bounds_the_decoded_size(asr: HttpService) -> None:
         "audio: 1.5 s at 384000 Hz in 32 channel(s), 36.0 MB of 16-bit samples, over the "
         "limit of 32 MB (audio.max_decoded_mb)")
     assert reply.text == ""
-    hears_the_question(asr)
+    hears_the_question(asr_large_messages)

@@ -56,7 +56,7 @@ SHORT_ANSWERS = {"max_tokens": 2, "max_tokens_limit": 4}
 
 
 @pytest.fixture(scope="module")
-def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def short_llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("llm")
     short = overlay(folder, {"server": SERVER, "generation": SHORT_ANSWERS})
     with http_service("llm", "--overlay", short) as service:
@@ -75,7 +75,7 @@ def patient_llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpServic
 
 
 @pytest.fixture(scope="module")
-def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def limited_asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("asr")
     with http_service("asr", "--overlay", overlay(folder, {"server": ASR_SERVER})) as service:
         yield service
@@ -114,8 +114,8 @@ FIELDS = {"model": VALUES, "messages": st.one_of(st.lists(MESSAGE, max_size=3), 
 @settings(max_examples=examples(150), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(body=st.fixed_dictionaries({}, optional=FIELDS))
-def test_fuzzed_chat_bodies_get_clear_answers(llm: HttpService, body: dict[str, Any]) -> None:
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", timeout=30,
+def test_fuzzed_chat_bodies_get_clear_answers(short_llm: HttpService, body: dict[str, Any]) -> None:
+    response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", timeout=30,
                           content=json.dumps(body),
                           headers={"Content-Type": "application/json"})
     if response.status_code != 200:
@@ -125,8 +125,8 @@ def test_fuzzed_chat_bodies_get_clear_answers(llm: HttpService, body: dict[str, 
 @settings(max_examples=examples(60), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(body=st.binary(max_size=300))
-def test_bytes_that_are_not_json_are_400(llm: HttpService, body: bytes) -> None:
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=body, timeout=30)
+def test_bytes_that_are_not_json_are_400(short_llm: HttpService, body: bytes) -> None:
+    response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", content=body, timeout=30)
     if response.status_code != 200:  # an accident of valid JSON is answered
         assert_openai_error(response)
 
@@ -149,31 +149,32 @@ AUDIO_HEADERS = [b"RIFF\x24\x00\x00\x00WAVEfmt ", b"RIFF\xff\xff\xff\xffWAVE", b
 @given(data=st.builds(lambda head, rest: head + rest, st.sampled_from(AUDIO_HEADERS),
                       st.binary(max_size=3000)),
        response_format=st.sampled_from(["json", "text", "verbose_json"]))
-def test_fuzzed_uploads_get_clear_answers(asr: HttpService, data: bytes,
+def test_fuzzed_uploads_get_clear_answers(limited_asr: HttpService, data: bytes,
                                           response_format: str) -> None:
     """Bytes behind the magic of each format the service reads, FFmpeg's formats too."""
-    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", timeout=30,
+    response = httpx.post(f"{limited_asr.base_url}/v1/audio/transcriptions", timeout=30,
                           files={"file": ("fuzz", data)},
                           data={"response_format": response_format})
     if response.status_code != 200:
         assert_openai_error(response)
-    assert asr.process.poll() is None
+    assert limited_asr.process.poll() is None
 
 
-def test_ten_megabyte_bodies_are_refused_with_bounded_memory(llm: HttpService,
-                                                             asr: HttpService) -> None:
-    before = rss_mb(llm.process.pid), rss_mb(asr.process.pid)
+def test_ten_megabyte_bodies_are_refused_with_bounded_memory(short_llm: HttpService,
+                                                             limited_asr: HttpService) -> None:
+    before = rss_mb(short_llm.process.pid), rss_mb(limited_asr.process.pid)
     big = b"{" + b" " * (10 * 1024 * 1024) + b"}"
     for _ in range(5):
-        response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=big, timeout=30)
+        response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", content=big, timeout=30)
         assert response.status_code == 413
         assert_openai_error(response)
     noise = {"file": ("noise.wav", bytes(range(256)) * 40_000)}  # 10 MB that is not audio
-    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", files=noise, timeout=30)
+    response = httpx.post(f"{limited_asr.base_url}/v1/audio/transcriptions", files=noise,
+                          timeout=30)
     assert response.status_code == 400 and "not audio" in response.json()["error"]["message"]
-    assert rss_mb(llm.process.pid) - before[0] < MAX_GROWTH_MB
-    assert rss_mb(asr.process.pid) - before[1] < MAX_GROWTH_MB
-    still_serving(llm)
+    assert rss_mb(short_llm.process.pid) - before[0] < MAX_GROWTH_MB
+    assert rss_mb(limited_asr.process.pid) - before[1] < MAX_GROWTH_MB
+    still_serving(short_llm)
 
 
 @pytest.mark.parametrize("form", [
@@ -183,8 +184,8 @@ def test_ten_megabyte_bodies_are_refused_with_bounded_memory(llm: HttpService,
     {"files": {"file": ("a.mp3", b"\xff\xfb" + bytes(5000))}},            # MP3 sync, no frames
     {"files": {"file": ("a.wav", b"RIFF\xff\xff\xff\xffWAVEfmt " + bytes(64))}},
 ])
-def test_hostile_uploads_are_client_errors(asr: HttpService, form: dict[str, Any]) -> None:
-    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", timeout=30, **form)
+def test_hostile_uploads_are_client_errors(limited_asr: HttpService, form: dict[str, Any]) -> None:
+    response = httpx.post(f"{limited_asr.base_url}/v1/audio/transcriptions", timeout=30, **form)
     assert_openai_error(response)
 
 
@@ -202,21 +203,21 @@ def raw(service: HttpService, data: bytes, wait_s: float = 0.0) -> bytes:
         return b"".join(chunks)
 
 
-def test_lying_content_lengths(llm: HttpService) -> None:
+def test_lying_content_lengths(short_llm: HttpService) -> None:
     head = b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\nConnection: close\r\n"
     # More promised than sent: the body's deadline passes, 408.
-    answer = raw(llm, head + b"Content-Length: 1000\r\n\r\n{\"messages\": ")
+    answer = raw(short_llm, head + b"Content-Length: 1000\r\n\r\n{\"messages\": ")
     assert answer.startswith(b"HTTP/1.1 408") and b'"request_timeout"' in answer
     # Less promised than sent: the body is what was promised (not JSON), the rest is not HTTP.
-    answer = raw(llm, head + b"Content-Length: 5\r\n\r\n" + json.dumps(QUESTION).encode())
+    answer = raw(short_llm, head + b"Content-Length: 5\r\n\r\n" + json.dumps(QUESTION).encode())
     assert answer.startswith(b"HTTP/1.1 400")
     # A Content-Length that is not a number is refused before any route runs.
-    answer = raw(llm, head + b"Content-Length: lots\r\n\r\n{}")
+    answer = raw(short_llm, head + b"Content-Length: lots\r\n\r\n{}")
     assert answer.startswith(b"HTTP/1.1 400")
     # Far more promised than the limit, and nothing sent: 413, not a wait for the body.
-    answer = raw(llm, head + b"Content-Length: 99999999999999\r\n\r\n")
+    answer = raw(short_llm, head + b"Content-Length: 99999999999999\r\n\r\n")
     assert answer.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in answer
-    still_serving(llm)
+    still_serving(short_llm)
 
 
 CHAT_HEAD = (b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
@@ -249,12 +250,12 @@ def continued(sock: socket.socket) -> None:
     assert seen.startswith(b"HTTP/1.1 100"), seen
 
 
-def test_half_sent_bodies_hold_no_call_slot(llm: HttpService) -> None:
+def test_half_sent_bodies_hold_no_call_slot(short_llm: HttpService) -> None:
     """Twice as many clients as call slots send a POST's headers and 10 bytes of its body,
     then stall: a caller over HTTP and one over gRPC are answered meanwhile (a call slot is
     taken once a body is whole), and each stalled client is answered 408 and disconnected
     at the body's deadline."""
-    stalled = [socket.create_connection(("127.0.0.1", llm.port), timeout=15)
+    stalled = [socket.create_connection(("127.0.0.1", short_llm.port), timeout=15)
                for _ in range(2 * MAX_CONCURRENT_RPCS)]
     try:
         for sock in stalled:
@@ -262,9 +263,10 @@ def test_half_sent_bodies_hold_no_call_slot(llm: HttpService) -> None:
         for sock in stalled:
             continued(sock)
             sock.sendall(b'{"messages')
-        response = httpx.post(f"{llm.base_url}/v1/chat/completions", json=QUESTION, timeout=30)
+        response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", json=QUESTION,
+                              timeout=30)
         assert response.status_code == 200, response.text
-        with grpc.insecure_channel(llm.grpc_address) as channel:
+        with grpc.insecure_channel(short_llm.grpc_address) as channel:
             answer = language_pb2_grpc.LanguageModelStub(channel).Generate(
                 language_pb2.GenerateRequest(prompt=QUESTION["messages"][0]["content"]),
                 timeout=30)
@@ -275,24 +277,24 @@ def test_half_sent_bodies_hold_no_call_slot(llm: HttpService) -> None:
     finally:
         for sock in stalled:
             sock.close()
-    still_serving(llm)
+    still_serving(short_llm)
 
 
-def test_an_upload_declared_over_the_limit_is_413_before_its_body(asr: HttpService) -> None:
+def test_an_upload_declared_over_the_limit_is_413_before_its_body(limited_asr: HttpService) -> None:
     """Only the headers, saying a terabyte is coming: 413 at once, long before the body's
     deadline, and the connection is closed."""
-    with socket.create_connection(("127.0.0.1", asr.port), timeout=15) as sock:
+    with socket.create_connection(("127.0.0.1", limited_asr.port), timeout=15) as sock:
         sock.sendall(UPLOAD_HEAD + b"Content-Length: 1000000000000\r\n\r\n")
         refusal = until_closed(sock, ASR_REQUEST_TIMEOUT_S / 2)
     assert refusal.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in refusal
     assert b"connection: close" in refusal.lower()
 
 
-def test_a_chunked_upload_past_the_limit_is_413_at_once(asr: HttpService) -> None:
+def test_a_chunked_upload_past_the_limit_is_413_at_once(limited_asr: HttpService) -> None:
     """A chunked body has no length to be refused by: it is cut off where it crosses the
     upload limit and answered 413 without waiting for the rest (which never comes here)."""
     chunk = bytes(1024 * 1024)
-    with socket.create_connection(("127.0.0.1", asr.port), timeout=15) as sock:
+    with socket.create_connection(("127.0.0.1", limited_asr.port), timeout=15) as sock:
         sock.sendall(UPLOAD_HEAD + b"Transfer-Encoding: chunked\r\n\r\n"
                      + b"%x\r\n%s\r\n" % (len(FILE_PART), FILE_PART))
         try:
@@ -302,7 +304,7 @@ def test_a_chunked_upload_past_the_limit_is_413_at_once(asr: HttpService) -> Non
             pass
         refusal = until_closed(sock, ASR_REQUEST_TIMEOUT_S / 2)
     assert refusal.startswith(b"HTTP/1.1 413") and b'"request_too_large"' in refusal
-    assert health(asr).status_code == 200
+    assert health(limited_asr).status_code == 200
 
 
 SURROGATE_BODIES = [
@@ -323,10 +325,10 @@ SURROGATE_BODIES = [
 
 
 @pytest.mark.parametrize(("body", "field"), SURROGATE_BODIES)
-def test_lone_surrogates_are_400_naming_the_field(llm: HttpService, body: dict[str, Any],
+def test_lone_surrogates_are_400_naming_the_field(short_llm: HttpService, body: dict[str, Any],
                                                   field: str) -> None:
     """`"\\ud800"` (a surrogate without its pair) anywhere in a body is not text."""
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=json.dumps(body),
+    response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", content=json.dumps(body),
                           headers={"Content-Type": "application/json"}, timeout=30)
     assert response.status_code == 400, response.text
     assert_openai_error(response)
@@ -334,14 +336,14 @@ def test_lone_surrogates_are_400_naming_the_field(llm: HttpService, body: dict[s
     assert error["param"] == field and "surrogate" in error["message"]
 
 
-def test_lone_surrogates_as_bytes_are_400(llm: HttpService) -> None:
+def test_lone_surrogates_as_bytes_are_400(short_llm: HttpService) -> None:
     """The same surrogate as the three bytes that would encode it (Python's JSON decoder
     lets them through)."""
     body = b'{"messages": [{"role": "user", "content": "\xed\xa0\x80"}]}'
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", content=body, timeout=30)
+    response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", content=body, timeout=30)
     assert response.status_code == 400, response.text
     assert response.json()["error"]["param"] == "messages[0].content"
-    still_serving(llm)
+    still_serving(short_llm)
 
 
 SILENCE = encode_wav(np.zeros(8000, dtype=np.int16), 16000)  # half a second, real audio
@@ -365,25 +367,25 @@ def form(fields: dict[str, bytes], charset: str | None = None) -> tuple[bytes, d
     (b"\xed\xa0\x80", None),              # the bytes of one, in a UTF-8 form
     (b"\xed\xa0\x80", "utf-8"),
 ])
-def test_lone_surrogates_in_form_fields_are_client_errors(asr: HttpService, name: str,
+def test_lone_surrogates_in_form_fields_are_client_errors(limited_asr: HttpService, name: str,
                                                           value: bytes,
                                                           charset: str | None) -> None:
     body, headers = form({name: value}, charset)
-    response = httpx.post(f"{asr.base_url}/v1/audio/transcriptions", content=body,
+    response = httpx.post(f"{limited_asr.base_url}/v1/audio/transcriptions", content=body,
                           headers=headers, timeout=30)
     assert_openai_error(response)
     if charset and "escape" in charset:
         assert response.json()["error"]["param"] == "content-type"
-    assert asr.process.poll() is None
+    assert limited_asr.process.poll() is None
 
 
-def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:
-    slow = [socket.create_connection(("127.0.0.1", llm.port), timeout=15) for _ in range(10)]
+def test_slow_clients_are_cut_off_and_others_served(short_llm: HttpService) -> None:
+    slow = [socket.create_connection(("127.0.0.1", short_llm.port), timeout=15) for _ in range(10)]
     started = time.monotonic()
     try:
         for sock in slow:
             sock.sendall(b"GET /v1/models HTTP/1.1\r\nHost: x\r\n")  # headers never end
-        still_serving(llm)  # meanwhile
+        still_serving(short_llm)  # meanwhile
         closed = 0
         while closed < len(slow) and time.monotonic() - started < REQUEST_TIMEOUT_S + 10:
             for sock in slow:
@@ -398,7 +400,7 @@ def test_slow_clients_are_cut_off_and_others_served(llm: HttpService) -> None:
     finally:
         for sock in slow:
             sock.close()
-    still_serving(llm)
+    still_serving(short_llm)
 
 
 TCP_ESTABLISHED = "01"  # /proc's hex state of a connected TCP socket
@@ -441,9 +443,9 @@ def test_idle_connections_never_lock_a_client_out(patient_llm: HttpService,
     still_serving(patient_llm)
 
 
-def test_200_connections_at_once(llm: HttpService) -> None:
-    before = rss_mb(llm.process.pid)
-    url = f"{llm.base_url}/v1/chat/completions"
+def test_200_connections_at_once(short_llm: HttpService) -> None:
+    before = rss_mb(short_llm.process.pid)
+    url = f"{short_llm.base_url}/v1/chat/completions"
 
     def one(_: int) -> int:
         try:
@@ -455,8 +457,8 @@ def test_200_connections_at_once(llm: HttpService) -> None:
         statuses = list(pool.map(one, range(200)))
     assert set(statuses) <= {0, 200, 429, 503}, statuses
     assert statuses.count(200) >= 1 and statuses.count(429) + statuses.count(503) >= 1
-    assert rss_mb(llm.process.pid) - before < MAX_GROWTH_MB
-    still_serving(llm)
+    assert rss_mb(short_llm.process.pid) - before < MAX_GROWTH_MB
+    still_serving(short_llm)
 
 
 PATTERN_ATOMS = st.sampled_from(["a", "[0-9]", ".", "\\d", "(a|b)", "\\x00", "[^a]", "[b-a]"])
@@ -479,14 +481,14 @@ SCHEMAS = st.one_of(
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(schema=SCHEMAS, stream=st.booleans())
 def test_fuzzed_json_schemas_never_take_the_language_service_down(
-        llm: HttpService, schema: dict[str, Any], stream: bool) -> None:
+        short_llm: HttpService, schema: dict[str, Any], stream: bool) -> None:
     """Counted repetitions nested in each other, optional runs, look-alike alternatives,
     characters no token gives: answered (the grammar is within the limits) or refused with
     a 400 naming the limit, and the process lives on."""
     body = {**QUESTION, "stream": stream, "response_format": {
         "type": "json_schema", "json_schema": {"name": "x", "schema": schema}}}
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", json=body, timeout=120)
+    response = httpx.post(f"{short_llm.base_url}/v1/chat/completions", json=body, timeout=120)
     if response.status_code != 200:
         assert response.status_code == 400
         assert_openai_error(response)
-    assert llm.process.poll() is None
+    assert short_llm.process.poll() is None

@@ -38,7 +38,7 @@ FIELDS = {"model": VALUES, "input": VALUES, "voice": VALUES, "response_format": 
 
 
 @pytest.fixture(scope="module")
-def tts(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def limited_tts(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("tts")
     with http_service("tts", "--overlay", overlay(folder, {"server": SERVER})) as service:
         yield service
@@ -68,22 +68,23 @@ def still_speaking(service: HttpService) -> None:
 @settings(max_examples=examples(200), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(st.fixed_dictionaries({}, optional=FIELDS))
-def test_fuzzed_bodies_get_audio_or_clear_errors(tts: HttpService, body: dict[str, Any]) -> None:
+def test_fuzzed_bodies_get_audio_or_clear_errors(limited_tts: HttpService,
+                                                 body: dict[str, Any]) -> None:
     try:  # JSON's escapes carry lone surrogates too (httpx's json= cannot encode them)
         content = json.dumps(body, allow_nan=False).encode()
     except ValueError:  # a float hypothesis drew that JSON cannot carry (NaN, infinity)
         content = repr(body).encode("utf-8", "backslashreplace")
-    response = httpx.post(url(tts), content=content, timeout=60,
+    response = httpx.post(url(limited_tts), content=content, timeout=60,
                           headers={"Content-Type": "application/json"})
     assert_answered(response)
-    assert tts.process.poll() is None
+    assert limited_tts.process.poll() is None
 
 
 @settings(max_examples=examples(60), deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.binary(max_size=300))
-def test_bytes_that_are_not_json_are_400(tts: HttpService, body: bytes) -> None:
-    response = httpx.post(url(tts), content=body, timeout=30)
+def test_bytes_that_are_not_json_are_400(limited_tts: HttpService, body: bytes) -> None:
+    response = httpx.post(url(limited_tts), content=body, timeout=30)
     assert_answered(response)
     assert response.status_code != 200
 
@@ -97,9 +98,9 @@ def test_bytes_that_are_not_json_are_400(tts: HttpService, body: bytes) -> None:
      "response_format"),
     ({"input": "Hello.", "voice": "espeak", "instructions": "\ud800"}, "instructions"),
 ])
-def test_lone_surrogates_are_400_naming_the_field(tts: HttpService, body: dict[str, Any],
+def test_lone_surrogates_are_400_naming_the_field(limited_tts: HttpService, body: dict[str, Any],
                                                   field: str) -> None:
-    response = httpx.post(url(tts), content=json.dumps(body), timeout=30,
+    response = httpx.post(url(limited_tts), content=json.dumps(body), timeout=30,
                           headers={"Content-Type": "application/json"})
     assert response.status_code == 400, response.text
     assert_answered(response)
@@ -107,15 +108,15 @@ def test_lone_surrogates_are_400_naming_the_field(tts: HttpService, body: dict[s
     assert error["param"] == field and "surrogate" in error["message"]
 
 
-def test_ten_megabyte_bodies_are_refused_with_bounded_memory(tts: HttpService) -> None:
-    before = rss_mb(tts.process.pid)
+def test_ten_megabyte_bodies_are_refused_with_bounded_memory(limited_tts: HttpService) -> None:
+    before = rss_mb(limited_tts.process.pid)
     big = b'{"input": "' + b"a " * (5 * 1024 * 1024) + b'"}'
     for _ in range(3):
-        response = httpx.post(url(tts), content=big, timeout=30)
+        response = httpx.post(url(limited_tts), content=big, timeout=30)
         assert response.status_code == 413, response.text
-    assert rss_mb(tts.process.pid) - before < MAX_GROWTH_MB
-    still_speaking(tts)
+    assert rss_mb(limited_tts.process.pid) - before < MAX_GROWTH_MB
+    still_speaking(limited_tts)
 
 
-def test_after_the_fuzzing_it_still_speaks(tts: HttpService) -> None:
-    still_speaking(tts)
+def test_after_the_fuzzing_it_still_speaks(limited_tts: HttpService) -> None:
+    still_speaking(limited_tts)

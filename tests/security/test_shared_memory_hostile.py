@@ -30,20 +30,20 @@ LIMITS = {"shared_memory": {"max_regions": 4, "max_total_mb": 16}}
 
 
 @pytest.fixture(scope="module")
-def models() -> Iterator[RunningService]:
+def models_few_regions() -> Iterator[RunningService]:
     with running_service("models", LIMITS) as service:
         yield service
 
 
 @pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
+def detector_few_regions() -> Iterator[RunningService]:
     with running_service("detector", LIMITS) as service:
         yield service
 
 
 @pytest.fixture
-def stub(models: RunningService) -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
-    stub = oip_grpc.GRPCInferenceServiceStub(models.channel)
+def stub(models_few_regions: RunningService) -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
+    stub = oip_grpc.GRPCInferenceServiceStub(models_few_regions.channel)
     yield stub
     stub.SystemSharedMemoryUnregister(oip.SystemSharedMemoryUnregisterRequest())
 
@@ -167,9 +167,9 @@ def test_an_object_shrunk_after_registering_is_a_short_read_not_a_crash(
     assert stub.ServerReady(oip.ServerReadyRequest()).ready
 
 
-def test_detect_by_region_refuses_what_it_cannot_read(detector: RunningService) -> None:
-    stub = detector_pb2_grpc.DetectorStub(detector.channel)
-    shm = oip_grpc.GRPCInferenceServiceStub(detector.channel)
+def test_detect_by_region_refuses_what_it_cannot_read(detector_few_regions: RunningService) -> None:
+    stub = detector_pb2_grpc.DetectorStub(detector_few_regions.channel)
+    shm = oip_grpc.GRPCInferenceServiceStub(detector_few_regions.channel)
     owned = OwnedRegion(640 * 480 * 3)
     try:
         register(shm, "frame", owned.key, 640 * 480 * 3)
@@ -203,8 +203,8 @@ PARAMETER_VALUES = st.one_of(st.text(max_size=20), st.integers(-(2**63), 2**63 -
                                         "shared_memory_byte_size"]), PARAMETER_VALUES),
        st.booleans())
 def test_fuzzed_shared_memory_parameters_get_client_errors(
-        models: RunningService, values: dict[str, object], on_output: bool) -> None:
-    stub = oip_grpc.GRPCInferenceServiceStub(models.channel)
+        models_few_regions: RunningService, values: dict[str, object], on_output: bool) -> None:
+    stub = oip_grpc.GRPCInferenceServiceStub(models_few_regions.channel)
     request = infer_request("yolox-nano", {"images": np.zeros((1, 3, 416, 416), np.float32)})
     target = request.outputs.add(name="output") if on_output else request.inputs[0]
     if not on_output:
@@ -220,9 +220,9 @@ def test_fuzzed_shared_memory_parameters_get_client_errors(
 @pytest.mark.parametrize("rpc", ["SystemSharedMemoryRegister", "SystemSharedMemoryStatus",
                                  "SystemSharedMemoryUnregister"])
 def test_fuzzed_registry_calls_on_the_detector_get_client_errors(
-        detector: RunningService, rpc: str) -> None:
+        detector_few_regions: RunningService, rpc: str) -> None:
     method = oip.DESCRIPTOR.services_by_name["GRPCInferenceService"].methods_by_name[rpc]
-    call = detector.channel.unary_unary(f"/inference.GRPCInferenceService/{rpc}")
+    call = detector_few_regions.channel.unary_unary(f"/inference.GRPCInferenceService/{rpc}")
 
     @settings(max_examples=60, deadline=None, derandomize=True,
               suppress_health_check=list(HealthCheck))
@@ -234,5 +234,5 @@ def test_fuzzed_registry_calls_on_the_detector_get_client_errors(
             assert error.code() in ACCEPTABLE, error.details()
 
     fuzz()
-    assert detector_pb2_grpc.DetectorStub(detector.channel).GetModelInfo(
+    assert detector_pb2_grpc.DetectorStub(detector_few_regions.channel).GetModelInfo(
         common_pb2.GetModelInfoRequest(), timeout=10).model

@@ -108,11 +108,11 @@ def still_speaks(service: HttpService) -> None:
 
 
 @pytest.fixture(scope="module")
-def tts(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
-    """The service with its shipped limits."""
-    with http_service("tts") as service:
-        still_speaks(service)  # each voice's first runs allocate for good
-        yield service
+def warm_tts(tts_http: HttpService) -> HttpService:
+    """The session's tts_http (its shipped limits) once each voice has spoken: their first
+    runs allocate for good, so what a test measures is its own request's cost."""
+    still_speaks(tts_http)
+    return tts_http
 
 
 @pytest.fixture(scope="module")
@@ -126,15 +126,15 @@ def tts_short(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]
 
 @pytest.mark.parametrize("voice", VOICES)
 def test_numbers_that_write_out_too_long_are_refused_before_synthesis(
-        tts: HttpService, voice: str) -> None:
-    used = cpu_s(tts.process.pid)
-    response = speak(tts, NUMBERS, voice)
+        warm_tts: HttpService, voice: str) -> None:
+    used = cpu_s(warm_tts.process.pid)
+    response = speak(warm_tts, NUMBERS, voice)
     assert response.status_code == 400, response.status_code
     error = response.json()["error"]
     assert error["param"] == "input"
     assert error["message"].startswith("input: 6,003 characters once numbers")
     assert error["message"].endswith("limit of 4,000 (text.max_spoken_chars)")
-    assert wait_idle(tts) - used < 1.0
+    assert wait_idle(warm_tts) - used < 1.0
 
 
 # The neural voice's Arabic run is the long run's; its digits run stays in the default run.
@@ -142,26 +142,26 @@ def test_numbers_that_write_out_too_long_are_refused_before_synthesis(
     pytest.param(*values, id=name, marks=[pytest.mark.long] if name == "arabic-joe" else [])
     for name, values in COSTLY.items()])
 def test_costly_sentences_are_made_in_runs_of_bounded_memory(
-        tts: HttpService, text: str, voice: str, speed: float, max_growth_mb: float) -> None:
-    response, growth = peak_growth_mb(tts, lambda: speak(tts, text, voice, speed=speed))
+        warm_tts: HttpService, text: str, voice: str, speed: float, max_growth_mb: float) -> None:
+    response, growth = peak_growth_mb(warm_tts, lambda: speak(warm_tts, text, voice, speed=speed))
     assert response.status_code == 200, response.text
     assert seconds(response) > 30  # all of it was said
     assert growth < max_growth_mb, f"peak resident memory grew by {growth:.0f} MiB"
-    still_speaks(tts)
+    still_speaks(warm_tts)
 
 
 @pytest.mark.parametrize("voice", VOICES)
-def test_an_abandoned_stream_stops_its_synthesis(tts: HttpService, voice: str) -> None:
-    wait_idle(tts)
-    with httpx.stream("POST", f"{tts.base_url}/v1/audio/speech", timeout=120,
+def test_an_abandoned_stream_stops_its_synthesis(warm_tts: HttpService, voice: str) -> None:
+    wait_idle(warm_tts)
+    with httpx.stream("POST", f"{warm_tts.base_url}/v1/audio/speech", timeout=120,
                       json={"input": LONG, "voice": voice, "speed": 0.25,
                             "response_format": "pcm"}) as response:
         assert response.status_code == 200
         next(response.iter_raw())  # the first sentence has come
-        left = cpu_s(tts.process.pid)
-    after = wait_idle(tts) - left
+        left = cpu_s(warm_tts.process.pid)
+    after = wait_idle(warm_tts) - left
     assert after < MAX_CPU_AFTER_LEAVING_S, f"{after:.1f} s of CPU after the client left"
-    still_speaks(tts)
+    still_speaks(warm_tts)
 
 
 def test_audio_past_the_limit_is_refused_over_http(tts_short: HttpService) -> None:
@@ -197,15 +197,15 @@ def test_audio_past_the_limit_stops_synthesis_over_grpc(tts_short: HttpService,
 
 
 @pytest.mark.parametrize("voice", VOICES)
-def test_a_cancelled_grpc_stream_stops_its_synthesis(tts: HttpService, voice: str) -> None:
-    wait_idle(tts)
+def test_a_cancelled_grpc_stream_stops_its_synthesis(warm_tts: HttpService, voice: str) -> None:
+    wait_idle(warm_tts)
     request = synthesis_pb2.SynthesizeRequest(text=LONG, voice=voice, speed=0.25)
-    with grpc.insecure_channel(tts.grpc_address, options=CHANNEL_OPTIONS) as channel:
+    with grpc.insecure_channel(warm_tts.grpc_address, options=CHANNEL_OPTIONS) as channel:
         call = synthesis_pb2_grpc.SpeechSynthesizerStub(channel).SynthesizeStream(
             request, timeout=120)
         assert next(call).sentence == 0
         call.cancel()
-        left = cpu_s(tts.process.pid)
-        after = wait_idle(tts) - left
+        left = cpu_s(warm_tts.process.pid)
+        after = wait_idle(warm_tts) - left
     assert after < MAX_CPU_AFTER_LEAVING_S, f"{after:.1f} s of CPU after the call was cancelled"
-    still_speaks(tts)
+    still_speaks(warm_tts)

@@ -21,14 +21,14 @@ def pcm_request(samples: np.ndarray, rate: int = 16000, channels: int = 0,
 
 
 @pytest.fixture(scope="module")
-def asr() -> Iterator[RunningService]:
+def asr_25s() -> Iterator[RunningService]:
     with running_service("asr", {"audio": {"max_audio_s": 25}}) as service:
         yield service
 
 
 @pytest.fixture
-def stub(asr: RunningService) -> speech_pb2_grpc.SpeechRecognizerStub:
-    return speech_pb2_grpc.SpeechRecognizerStub(asr.channel)
+def stub(asr_25s: RunningService) -> speech_pb2_grpc.SpeechRecognizerStub:
+    return speech_pb2_grpc.SpeechRecognizerStub(asr_25s.channel)
 
 
 def test_transcribes_a_spoken_question(stub: speech_pb2_grpc.SpeechRecognizerStub) -> None:
@@ -119,8 +119,8 @@ def test_bad_input_is_invalid_argument_and_the_service_goes_on(
     assert "people" in words(transcript.text)
 
 
-def test_health_is_serving(asr: RunningService) -> None:
-    health = health_pb2_grpc.HealthStub(asr.channel)
+def test_health_is_serving(asr_25s: RunningService) -> None:
+    health = health_pb2_grpc.HealthStub(asr_25s.channel)
     for service in ("", "oricf.v1.SpeechRecognizer"):
         status = health.Check(health_pb2.HealthCheckRequest(service=service), timeout=5).status
         assert status == health_pb2.HealthCheckResponse.SERVING

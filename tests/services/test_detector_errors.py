@@ -12,15 +12,15 @@ from tests.support.services import RunningService, running_service
 
 
 @pytest.fixture(scope="module")
-def detector() -> Iterator[RunningService]:
+def detector_small_messages() -> Iterator[RunningService]:
     # A small message limit so that "over the limit" needs only a few megabytes.
     with running_service("detector", {"server": {"max_message_mb": 2}}) as service:
         yield service
 
 
 @pytest.fixture
-def stub(detector: RunningService) -> detector_pb2_grpc.DetectorStub:
-    return detector_pb2_grpc.DetectorStub(detector.channel)
+def stub(detector_small_messages: RunningService) -> detector_pb2_grpc.DetectorStub:
+    return detector_pb2_grpc.DetectorStub(detector_small_messages.channel)
 
 
 def good_request() -> detector_pb2.DetectRequest:

@@ -35,19 +35,19 @@ def counting_service(folder: Path) -> dict[str, object]:
 
 
 @pytest.fixture(scope="module")
-def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
+def llm_counting(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
     with running_service("llm", counting_service(tmp_path_factory.mktemp("p"))) as service:
         yield service
 
 
 @pytest.fixture
-def stub(llm: RunningService) -> language_pb2_grpc.LanguageModelStub:
-    return language_pb2_grpc.LanguageModelStub(llm.channel)
+def stub(llm_counting: RunningService) -> language_pb2_grpc.LanguageModelStub:
+    return language_pb2_grpc.LanguageModelStub(llm_counting.channel)
 
 
 @pytest.fixture
-def model(llm: RunningService) -> Iterator[LlamaModel]:
-    model: LlamaModel = llm.host.slot.peek()
+def model(llm_counting: RunningService) -> Iterator[LlamaModel]:
+    model: LlamaModel = llm_counting.host.slot.peek()
     wait_until(lambda: not model.gate.busy and model.gate.waiting == 0)
     yield model
     wait_until(lambda: not model.gate.busy and model.gate.waiting == 0)

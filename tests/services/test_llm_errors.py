@@ -13,14 +13,14 @@ N_CTX = 512  # small, so that a prompt within the character limit can overflow i
 
 
 @pytest.fixture(scope="module")
-def llm() -> Iterator[RunningService]:
+def llm_small_context() -> Iterator[RunningService]:
     with running_service("llm", {"model": {"n_ctx": N_CTX}}) as service:
         yield service
 
 
 @pytest.fixture
-def stub(llm: RunningService) -> language_pb2_grpc.LanguageModelStub:
-    return language_pb2_grpc.LanguageModelStub(llm.channel)
+def stub(llm_small_context: RunningService) -> language_pb2_grpc.LanguageModelStub:
+    return language_pb2_grpc.LanguageModelStub(llm_small_context.channel)
 
 
 def request(prompt: str = "How many people do you see?", **fields: object

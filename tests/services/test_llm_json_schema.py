@@ -38,7 +38,7 @@ def response_format(schema: dict[str, Any]) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def llm_json_schema(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("llm")
     limits = overlay(folder, {"generation": {"max_tokens_limit": 64}})
     with http_service("llm", "--overlay", limits) as service:
@@ -46,8 +46,8 @@ def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
 
 
 @pytest.fixture
-def api(llm: HttpService) -> openai.OpenAI:
-    return client(llm, timeout=SLOW_ANSWER_S)
+def api(llm_json_schema: HttpService) -> openai.OpenAI:
+    return client(llm_json_schema, timeout=SLOW_ANSWER_S)
 
 
 def ask(api: openai.OpenAI, schema: dict[str, Any], **options: Any) -> str:
@@ -58,9 +58,9 @@ def ask(api: openai.OpenAI, schema: dict[str, Any], **options: Any) -> str:
     return answer.choices[0].message.content or ""
 
 
-def assert_serving(llm: HttpService, api: openai.OpenAI) -> None:
-    assert llm.process.poll() is None, "the language service died"
-    with grpc.insecure_channel(llm.grpc_address) as channel:
+def assert_serving(service: HttpService, api: openai.OpenAI) -> None:
+    assert service.process.poll() is None, "the language service died"
+    with grpc.insecure_channel(service.grpc_address) as channel:
         reply = language_pb2_grpc.LanguageModelStub(channel).Generate(
             language_pb2.GenerateRequest(prompt="How many people do you see?", facts=[]),
             timeout=60)
@@ -69,13 +69,13 @@ def assert_serving(llm: HttpService, api: openai.OpenAI) -> None:
         "type": "integer"}}, "required": ["people"]})) == {"people": 4}
 
 
-def test_a_counted_repetition_of_2000_is_400_and_both_apis_go_on(llm: HttpService,
+def test_a_counted_repetition_of_2000_is_400_and_both_apis_go_on(llm_json_schema: HttpService,
                                                        api: openai.OpenAI) -> None:
     schema = string("^a{0,2000}$")
     with pytest.raises(openai.BadRequestError) as error:
         ask(api, schema)
     assert "{0,2000} is over the limit of 256 repeats" in error.value.message
-    assert_serving(llm, api)
+    assert_serving(llm_json_schema, api)
 
 
 HOSTILE = [
@@ -98,16 +98,16 @@ HOSTILE = [
 
 @pytest.mark.parametrize("stream", [False, True])
 @pytest.mark.parametrize(("schema", "says"), HOSTILE)
-def test_costly_schemas_are_400_naming_the_limit(llm: HttpService, api: openai.OpenAI,
+def test_costly_schemas_are_400_naming_the_limit(llm_json_schema: HttpService, api: openai.OpenAI,
                                                  schema: dict[str, Any], says: str,
                                                  stream: bool) -> None:
     body = {"model": MODEL, "stream": stream, "response_format": response_format(schema),
             "messages": [{"role": "user", "content": QUESTION}]}
-    response = httpx.post(f"{llm.base_url}/v1/chat/completions", json=body, timeout=60)
+    response = httpx.post(f"{llm_json_schema.base_url}/v1/chat/completions", json=body, timeout=60)
     assert response.status_code == 400, response.text
     error = response.json()["error"]
     assert says in error["message"] and error["type"] == "invalid_request_error"
-    assert llm.process.poll() is None
+    assert llm_json_schema.process.poll() is None
 
 
 def test_a_reasonable_pattern_is_enforced(api: openai.OpenAI) -> None:
@@ -134,10 +134,10 @@ WORST_ALLOWED = [
 # Streamed, the same schemas are the long run's (the default run streams other schemas).
 @pytest.mark.parametrize("stream", [False, pytest.param(True, marks=pytest.mark.long)])
 @pytest.mark.parametrize("schema", WORST_ALLOWED)
-def test_the_costliest_allowed_schemas_are_served(llm: HttpService, api: openai.OpenAI,
+def test_the_costliest_allowed_schemas_are_served(llm_json_schema: HttpService, api: openai.OpenAI,
                                                   schema: dict[str, Any],
                                                   stream: bool) -> None:
-    before = rss_mb(llm.process.pid)
+    before = rss_mb(llm_json_schema.process.pid)
     if stream:
         chunks = api.chat.completions.create(
             model=MODEL, messages=[{"role": "user", "content": QUESTION}], max_tokens=64,
@@ -146,5 +146,5 @@ def test_the_costliest_allowed_schemas_are_served(llm: HttpService, api: openai.
         assert finish[-1] in ("stop", "length")
     else:
         assert ask(api, schema, max_tokens=64)
-    assert llm.process.poll() is None
-    assert rss_mb(llm.process.pid) - before < MAX_GROWTH_MB
+    assert llm_json_schema.process.poll() is None
+    assert rss_mb(llm_json_schema.process.pid) - before < MAX_GROWTH_MB

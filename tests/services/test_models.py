@@ -24,14 +24,14 @@ YOLOX = REPO_ROOT / "configs" / "models" / "yolox-nano.yaml"
 
 
 @pytest.fixture(scope="module")
-def models() -> Iterator[RunningService]:
+def models_small_messages() -> Iterator[RunningService]:
     with running_service("models", {"server": {"max_message_mb": 8}}) as service:
         yield service
 
 
 @pytest.fixture
-def stub(models: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
-    return oip_grpc.GRPCInferenceServiceStub(models.channel)
+def stub(models_small_messages: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
+    return oip_grpc.GRPCInferenceServiceStub(models_small_messages.channel)
 
 
 @pytest.fixture(scope="module")

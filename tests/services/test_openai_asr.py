@@ -22,7 +22,7 @@ MAX_UPLOAD_MB = 1
 
 
 @pytest.fixture(scope="module")
-def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def asr_small_uploads(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     folder = tmp_path_factory.mktemp("asr")
     limits = overlay(folder, {"server": {"http": {"max_upload_mb": MAX_UPLOAD_MB}}})
     with http_service("asr", "--overlay", limits) as service:
@@ -30,8 +30,8 @@ def asr(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
 
 
 @pytest.fixture
-def api(asr: HttpService) -> openai.OpenAI:
-    return client(asr)
+def api(asr_small_uploads: HttpService) -> openai.OpenAI:
+    return client(asr_small_uploads)
 
 
 @pytest.fixture(scope="module")

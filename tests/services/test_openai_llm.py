@@ -29,7 +29,7 @@ COUNT_SCHEMA = {"type": "object", "properties": {"people": {"type": "integer"}},
 
 
 @pytest.fixture(scope="module")
-def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
+def llm_one_call(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
     # One call at a time, so that the refusal test can fill the only slot.
     folder = tmp_path_factory.mktemp("llm")
     extra = overlay(folder, {"server": {"max_concurrent_rpcs": 1}})
@@ -38,8 +38,8 @@ def llm(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
 
 
 @pytest.fixture
-def api(llm: HttpService) -> openai.OpenAI:
-    return client(llm)
+def api(llm_one_call: HttpService) -> openai.OpenAI:
+    return client(llm_one_call)
 
 
 def ask(api: openai.OpenAI, question: str = QUESTION, **options: object) -> str:
@@ -66,9 +66,9 @@ def test_a_plain_chat_is_answered(api: openai.OpenAI) -> None:
     assert answer.object == "chat.completion" and answer.id.startswith("chatcmpl-")
 
 
-def test_facts_give_the_same_answer_as_grpc(llm: HttpService, api: openai.OpenAI) -> None:
+def test_facts_give_the_same_answer_as_grpc(llm_one_call: HttpService, api: openai.OpenAI) -> None:
     facts = [common_pb2.Fact(name="people_count", integer=4, age_s=0.5)]
-    with grpc.insecure_channel(llm.grpc_address) as channel:
+    with grpc.insecure_channel(llm_one_call.grpc_address) as channel:
         over_grpc = language_pb2_grpc.LanguageModelStub(channel).Generate(
             language_pb2.GenerateRequest(prompt=QUESTION, facts=facts, temperature=0),
             timeout=30).text
@@ -158,7 +158,7 @@ def test_a_body_over_the_limit_is_413(api: openai.OpenAI) -> None:
     assert "over this service's limit" in error.value.message
 
 
-def test_a_call_over_the_limit_is_429_with_retry_after(llm: HttpService,
+def test_a_call_over_the_limit_is_429_with_retry_after(llm_one_call: HttpService,
                                                        api: openai.OpenAI) -> None:
     # A streamed answer holds the service's only call slot until its last byte; its schema
     # makes it long (20 numbers at least), so it is still going while the others ask.
@@ -168,11 +168,11 @@ def test_a_call_over_the_limit_is_429_with_retry_after(llm: HttpService,
                    "messages": [{"role": "user", "content": "List numbers in JSON."}],
                    "response_format": {"type": "json_schema",
                                        "json_schema": {"name": "numbers", "schema": many}}}
-    with httpx.stream("POST", f"{llm.base_url}/v1/chat/completions", json=long_answer,
+    with httpx.stream("POST", f"{llm_one_call.base_url}/v1/chat/completions", json=long_answer,
                       timeout=60) as stream:
         assert stream.status_code == 200
         next(stream.iter_lines())  # the answer has begun
-        response = httpx.post(f"{llm.base_url}/v1/chat/completions", timeout=10, json={
+        response = httpx.post(f"{llm_one_call.base_url}/v1/chat/completions", timeout=10, json={
             "messages": [{"role": "user", "content": QUESTION}]})
         assert response.status_code == 429
         assert int(response.headers["retry-after"]) >= 1
@@ -182,22 +182,22 @@ def test_a_call_over_the_limit_is_429_with_retry_after(llm: HttpService,
     # The slot is free again once the service has seen that client go, which it learns a
     # moment after the socket closes: the official client, retrying after the Retry-After it
     # is given, gets its answer.
-    assert "4" in ask(client(llm, max_retries=3))
+    assert "4" in ask(client(llm_one_call, max_retries=3))
 
 
-def test_a_client_still_sending_its_body_holds_no_call_slot(llm: HttpService,
+def test_a_client_still_sending_its_body_holds_no_call_slot(llm_one_call: HttpService,
                                                             api: openai.OpenAI) -> None:
     """A call slot is taken once a body is whole: with the service's only slot, callers over
     HTTP and gRPC are answered while a client sits on half a body (until the body's
     deadline, 30 s here)."""
-    with socket.create_connection(("127.0.0.1", llm.port), timeout=10) as slow:
+    with socket.create_connection(("127.0.0.1", llm_one_call.port), timeout=10) as slow:
         slow.sendall(b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n"
                      b"Content-Type: application/json\r\nExpect: 100-continue\r\n"
                      b"Content-Length: 100\r\n\r\n")
         assert slow.recv(100).startswith(b"HTTP/1.1 100")  # the route is reading its body
         slow.sendall(b"{")
         assert "4" in ask(api)
-        with grpc.insecure_channel(llm.grpc_address) as channel:
+        with grpc.insecure_channel(llm_one_call.grpc_address) as channel:
             language_pb2_grpc.LanguageModelStub(channel).Generate(
                 language_pb2.GenerateRequest(prompt=QUESTION), timeout=30)
 

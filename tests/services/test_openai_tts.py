@@ -4,30 +4,22 @@ real `oricf serve tts --http-listen` process: WAV and PCM from both voices, and 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import httpx
 import numpy as np
 import openai
 import pytest
 
 from oricf.audio import parse_wav
-from tests.support.openai_http import HttpService, client, http_service
+from tests.support.openai_http import HttpService, client
 from tests.support.tts import VOICES
 
 MODEL = "oricf-tts"
 RATE = 22050
 
 
-@pytest.fixture(scope="module")
-def tts() -> Iterator[HttpService]:
-    with http_service("tts") as service:
-        yield service
-
-
 @pytest.fixture
-def api(tts: HttpService) -> openai.OpenAI:
-    return client(tts)
+def api(tts_http: HttpService) -> openai.OpenAI:
+    return client(tts_http)
 
 
 @pytest.mark.parametrize("voice", VOICES)
@@ -81,7 +73,7 @@ BAD = {
 
 
 @pytest.mark.parametrize(("fields", "param"), BAD.values(), ids=BAD.keys())
-def test_bad_requests_are_400_naming_the_field(api: openai.OpenAI, tts: HttpService,
+def test_bad_requests_are_400_naming_the_field(api: openai.OpenAI, tts_http: HttpService,
                                                fields: dict[str, object], param: str) -> None:
     request = {"model": MODEL, "voice": "joe", "input": "Hello.", "response_format": "wav",
                **fields}
@@ -90,7 +82,7 @@ def test_bad_requests_are_400_naming_the_field(api: openai.OpenAI, tts: HttpServ
     error = refused.value.body
     assert isinstance(error, dict) and error["param"] == param and error["message"]
     assert error["type"] == "invalid_request_error"
-    assert tts.process.poll() is None
+    assert tts_http.process.poll() is None
     assert api.audio.speech.create(model=MODEL, voice="espeak", input="Still here.").content
 
 
@@ -100,7 +92,7 @@ def test_another_model_is_404_and_models_lists_this_one(api: openai.OpenAI) -> N
     assert [m.id for m in api.models.list()] == [MODEL]
 
 
-def test_a_body_that_is_not_json_is_400(tts: HttpService) -> None:
-    response = httpx.post(f"{tts.base_url}/v1/audio/speech", content=b"say hello", timeout=30)
+def test_a_body_that_is_not_json_is_400(tts_http: HttpService) -> None:
+    response = httpx.post(f"{tts_http.base_url}/v1/audio/speech", content=b"say hello", timeout=30)
     assert response.status_code == 400
     assert response.json()["error"]["type"] == "invalid_request_error"

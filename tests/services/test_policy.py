@@ -26,12 +26,6 @@ HOPPER = REPO_ROOT / "configs" / "models" / "policies" / "hopper.yaml"
 STEPS = 12  # a short closed loop: enough to leave the rest pose
 
 
-@pytest.fixture(scope="module")
-def policy() -> Iterator[RunningService]:
-    with running_service("policy") as service:
-        yield service
-
-
 @pytest.fixture
 def stub(policy: RunningService) -> policy_pb2_grpc.PolicyStub:
     return policy_pb2_grpc.PolicyStub(policy.channel)

@@ -24,16 +24,9 @@ from tests.support.services import RunningService, running_service
 STATE = [0.25, -1.5]
 
 
-@pytest.fixture(scope="module")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
-    folder = tmp_path_factory.mktemp("camera-policy")
-    with running_service("policy", {"model": str(declaration(folder))}) as running:
-        yield running
-
-
 @pytest.fixture
-def stub(service: RunningService) -> policy_pb2_grpc.PolicyStub:
-    return policy_pb2_grpc.PolicyStub(service.channel)
+def stub(camera_policy: RunningService) -> policy_pb2_grpc.PolicyStub:
+    return policy_pb2_grpc.PolicyStub(camera_policy.channel)
 
 
 def bgr(blue: int, green: int, red: int, size: tuple[int, int] = (48, 64)) -> np.ndarray:

@@ -7,7 +7,6 @@ camera that stops, or sends what is not an image, leaves the robot with the safe
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterator
 from typing import Any
 
 import cv2
@@ -24,18 +23,11 @@ from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.sources.control import ControlSource
 from tests.gateway.ros.gateway_node import wait_for
 from tests.gateway.sources.test_control import running
-from tests.support.camera_policy import CAMERA, declaration
-from tests.support.services import RunningService, running_service
+from tests.support.camera_policy import CAMERA
+from tests.support.services import RunningService
 
 STATE = [0.25, -1.5]
 SAFE = [0.0] * 5
-
-
-@pytest.fixture(scope="module")
-def policy(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
-    folder = tmp_path_factory.mktemp("camera-policy")
-    with running_service("policy", {"model": str(declaration(folder))}) as service:
-        yield service
 
 
 def camera_config(address: str, image_type: str, **settings: Any) -> PipelineConfig:
@@ -95,9 +87,9 @@ def colour(blue: int, green: int, red: int) -> np.ndarray:
 
 @pytest.mark.parametrize("image_type", ["sensor_msgs/Image", "sensor_msgs/CompressedImage"])
 def test_the_action_answers_the_newest_image_of_the_camera_with_the_state(
-        policy: RunningService, ros_context: Context, image_type: str) -> None:
+        camera_policy: RunningService, ros_context: Context, image_type: str) -> None:
     robot = CameraRobot(ros_context, image_type)
-    with running(camera_config(policy.address, image_type), ros_context, robot) as run:
+    with running(camera_config(camera_policy.address, image_type), ros_context, robot) as run:
         source = run.source
         wait_for(lambda: robot.camera.get_subscription_count() > 0
                  and robot.state.get_subscription_count() > 0)
@@ -110,9 +102,9 @@ def test_the_action_answers_the_newest_image_of_the_camera_with_the_state(
 
 
 def test_a_camera_that_stops_or_lies_leaves_the_robot_with_the_safe_action(
-        policy: RunningService, ros_context: Context) -> None:
+        camera_policy: RunningService, ros_context: Context) -> None:
     robot = CameraRobot(ros_context, "sensor_msgs/Image")
-    config = camera_config(policy.address, "sensor_msgs/Image", max_age_ms=150)
+    config = camera_config(camera_policy.address, "sensor_msgs/Image", max_age_ms=150)
     with running(config, ros_context, robot) as run:
         source = run.source
         wait_for(lambda: robot.camera.get_subscription_count() > 0)

@@ -27,7 +27,7 @@ DETECTOR = "oricf.v1.Detector"
 
 
 @pytest.fixture(scope="module")
-def detector(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
+def detector_metered(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningService]:
     tokens = tmp_path_factory.mktemp("auth") / "tokens"
     tokens.write_text(f"{TOKEN}\n")
     server = {"auth": {"file": str(tokens)}, "metrics": {"listen": "127.0.0.1:0"}}
@@ -65,11 +65,11 @@ def codes_after_calls(service: RunningService) -> dict[str, grpc.StatusCode]:
 
 
 @pytest.fixture(scope="module")
-def scraped(detector: RunningService) -> Scrape:
-    codes = codes_after_calls(detector)
+def scraped(detector_metered: RunningService) -> Scrape:
+    codes = codes_after_calls(detector_metered)
     assert codes == {"ok": grpc.StatusCode.OK, "bad": grpc.StatusCode.INVALID_ARGUMENT,
                      "no token": grpc.StatusCode.UNAUTHENTICATED}
-    return scrape(metrics_url(detector))
+    return scrape(metrics_url(detector_metered))
 
 
 def test_calls_are_counted_by_method_and_status_code(scraped: Scrape) -> None:
@@ -119,22 +119,22 @@ def test_model_load_and_the_call_limit(scraped: Scrape) -> None:
     assert scraped.value("process_resident_memory_bytes") > 0
 
 
-def test_a_stream_the_caller_cancels_is_counted_cancelled(detector: RunningService) -> None:
-    stub = detector_pb2_grpc.DetectorStub(detector.channel)
+def test_a_stream_the_caller_cancels_is_counted_cancelled(detector_metered: RunningService) -> None:
+    stub = detector_pb2_grpc.DetectorStub(detector_metered.channel)
     labels = {"grpc_method": "DetectStream", "grpc_code": "CANCELLED"}
-    assert scrape(metrics_url(detector)).find("grpc_server_handled_total", **labels) == []
+    assert scrape(metrics_url(detector_metered)).find("grpc_server_handled_total", **labels) == []
     # Cancelled while the service works on the frames sent: a cancel that meets a handler
     # which has just seen its request stream end is a race grpcio may report either way.
     stream = stub.DetectStream(iter([frame_request()] * 10), timeout=30,
                                metadata=(("authorization", f"Bearer {TOKEN}"),))
     next(stream)
     stream.cancel()
-    assert [s.value for s in wait_for(detector, **labels)] == [1]
+    assert [s.value for s in wait_for(detector_metered, **labels)] == [1]
 
 
 def test_a_stream_past_its_deadline_is_counted_deadline_exceeded(
-        detector: RunningService) -> None:
-    stub = detector_pb2_grpc.DetectorStub(detector.channel)
+        detector_metered: RunningService) -> None:
+    stub = detector_pb2_grpc.DetectorStub(detector_metered.channel)
     release = threading.Event()
 
     def requests() -> Iterator[detector_pb2.DetectRequest]:
@@ -147,7 +147,7 @@ def test_a_stream_past_its_deadline_is_counted_deadline_exceeded(
                                metadata=(("authorization", f"Bearer {TOKEN}"),)))
     release.set()
     assert error.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
-    assert [s.value for s in wait_for(detector, **labels)] == [1]
+    assert [s.value for s in wait_for(detector_metered, **labels)] == [1]
 
 
 def wait_for(service: RunningService, **labels: str) -> list[Sample]:
