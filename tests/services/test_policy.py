@@ -176,10 +176,15 @@ def test_a_bad_observation_in_a_stream_is_answered_with_an_error_and_the_stream_
     np.testing.assert_allclose(chunks[3].actions, expected(arrays, GOOD), atol=1e-5)
 
 
-def test_quiet_streams_leave_the_service_to_other_callers(
-        policy: RunningService, stub: policy_pb2_grpc.PolicyStub) -> None:
+def test_quiet_streams_leave_the_service_to_other_callers() -> None:
     """As many streams as the service takes calls, each quiet after one observation: a call
-    from another client is still answered, and one stream more is refused at once."""
+    from another client is still answered, and one stream more is refused at once. A service
+    of its own: it holds every slot."""
+    with running_service("policy") as policy:
+        streams_fill_the_service(policy, policy_pb2_grpc.PolicyStub(policy.channel))
+
+
+def streams_fill_the_service(policy: RunningService, stub: policy_pb2_grpc.PolicyStub) -> None:
     limit = policy.host.config.server.max_concurrent_rpcs
     released = threading.Event()
 
