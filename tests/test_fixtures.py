@@ -75,12 +75,12 @@ def definitions(path: Path, root: Path) -> Iterator[Definition]:
                     if isinstance(name, ast.Name):
                         factories[node.name] = scope
     for node in tree.body:
-        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and \
-                getattr(node.value.func, "id", None) in factories and node.value.args:
-            name = literal(node.value.args[0])
-            if name is not None:
-                scope = factories[node.value.func.id]  # type: ignore[attr-defined]
-                yield Definition(name, scope, path, node.lineno)
+        call = node.value if isinstance(node, ast.Assign) else None
+        if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and \
+                call.func.id in factories and call.args:
+            made = literal(call.args[0])
+            if made is not None:
+                yield Definition(made, factories[call.func.id], path, node.lineno)
 
 
 def suite(root: Path) -> list[Definition]:
