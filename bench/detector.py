@@ -23,8 +23,7 @@ import numpy as np
 from oricf.bench.common import load_frames, median_ms, print_table, served
 from oricf.config import load_config, shipped_service_config
 from oricf.models.declaration import DetectionTask
-from oricf.services.detector.config import DetectorConfig
-from oricf.services.detector.service import create_model
+from oricf.services.detector.service import Detector, DetectorConfig
 from oricf.store import ModelStore
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 
@@ -55,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     config = load_config(args.config, DetectorConfig)
-    model = create_model(config, ModelStore())
+    model = Detector(config, ModelStore()).model
     model.load()
     frames = load_frames(args.frames)
     task = model.declaration.task

@@ -33,7 +33,7 @@ from oricf.bench.common import load_frames, median_ms, print_table
 from oricf.config import load_config, shipped_service_config
 from oricf.models.declaration import DetectionTask, OnnxRuntimeBackend, load_declaration
 from oricf.models.declared import DeclaredModel, DetectArgs
-from oricf.services.detector.config import DetectorConfig
+from oricf.services.detector.service import DetectorConfig
 from oricf.stats import p90
 from oricf.store import ModelStore
 

@@ -97,7 +97,7 @@ def expected_actions() -> list[float]:
     from oricf.config import config_dir, load_config
     from oricf.models.declaration import load_declaration
     from oricf.models.policy import PolicyModel
-    from oricf.services.policy.config import PolicyConfig
+    from oricf.services.policy.service import PolicyConfig
     from oricf.store import ModelStore
 
     config = load_config(config_dir() / "services" / "policy.yaml", PolicyConfig)

@@ -1,6 +1,7 @@
 """The model services: `SERVICES` is the one list of them, which the command line, the
-launcher and the deployment files read. A service's code (servicer, model, heavy model
-libraries) is imported only when it is served (`load_spec`)."""
+launcher and the deployment files read. A service's code (its `Service` class or its
+`ServiceParts`, and the heavy model libraries) is imported only when it is served
+(`load_spec`)."""
 
 from __future__ import annotations
 
@@ -27,10 +28,16 @@ __all__ = ["SERVICES", "ServiceSpec", "load_spec"]
 
 
 def load_spec(name: str) -> ServiceParts:
-    """The parts of the service `name` (its config schema, model and servicer), imported."""
+    """The parts of the service `name` (its config schema, model and servicer), imported:
+    derived from the module's `SERVICE` class, or its `PARTS` as written."""
     try:
         spec = SERVICES[name]
     except KeyError:
         raise KeyError(f"unknown service '{name}' (known: {', '.join(SERVICES)})") from None
-    parts: ServiceParts = importlib.import_module(spec.module).PARTS
+    module = importlib.import_module(spec.module)
+    if hasattr(module, "SERVICE"):  # a Service class: the runtime derives its parts
+        from oricf.services.runtime.handlers import service_parts
+
+        return service_parts(module.SERVICE, spec)
+    parts: ServiceParts = module.PARTS
     return parts

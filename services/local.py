@@ -11,7 +11,9 @@ from typing import Any
 from oricf.config import deep_merge, read_with_overlays, shipped_service_config, validate
 from oricf.services import load_spec
 from oricf.services.runtime.config import ServiceConfig
+from oricf.services.runtime.handlers import service_parts
 from oricf.services.runtime.server import ServiceHost
+from oricf.services.runtime.service import Service
 from oricf.store import ModelStore
 
 LOCAL_LISTEN = "127.0.0.1:0"
@@ -30,10 +32,11 @@ def service_config(name: str, overrides: dict[str, Any] | None = None,
 
 
 @contextmanager
-def local_service(name: str, config: ServiceConfig, *, load: bool = True,
+def local_service(name: str | type[Service[Any]], config: ServiceConfig, *, load: bool = True,
                   store: ModelStore | None = None) -> Iterator[ServiceHost]:
-    """The service started (its model loaded unless load=False); stopped on exit."""
-    spec = load_spec(name)
+    """The service started (its model loaded unless load=False); stopped on exit. name: one
+    of SERVICES, or a Service class that is in no list."""
+    spec = load_spec(name) if isinstance(name, str) else service_parts(name)
     host = ServiceHost(spec, config, spec.create_model(config, store or ModelStore()))
     host.start()
     try:

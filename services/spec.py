@@ -2,8 +2,8 @@
 
 A `ServiceSpec` is read without importing the service: `oricf --help` and a deployment's
 validation load no gRPC servicer and no model library. The service's code is named by
-convention, `oricf.services.NAME.service`, whose `PARTS` (a `ServiceParts`) the runtime
-serves.
+convention, `oricf.services.NAME.service`, whose `SERVICE` (a `Service` class) or `PARTS`
+(a `ServiceParts`) the runtime serves.
 """
 
 from __future__ import annotations
@@ -28,5 +28,5 @@ class ServiceSpec:
 
     @property
     def module(self) -> str:
-        """The module whose `PARTS` are the service's config schema, model and servicer."""
+        """The module whose `SERVICE` class (or `PARTS`) the runtime serves."""
         return f"oricf.services.{self.name}.service"

@@ -30,6 +30,7 @@ from oricf.services.runtime.streams import (
     idle_bounded,
     per_message,
 )
+from oricf.v1 import common_pb2
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +59,17 @@ def status_for(exc: BaseException, method: str = "") -> tuple[grpc.StatusCode, s
             return code, message
     log.error("unexpected error in %s", method or "a call", exc_info=exc)
     return grpc.StatusCode.INTERNAL, INTERNAL_MESSAGE
+
+
+# What refuses one message of a stream without ending it: a bad frame or observation, or
+# one that does not fit the memory budget now.
+MESSAGE_REFUSALS = (InvalidInput, Overloaded)
+
+
+def refusal(exc: Exception) -> common_pb2.Error:
+    """A refused message's answer: the status code and message its call would have had."""
+    code, message = status_for(exc)
+    return common_pb2.Error(code=code.value[0], message=message)
 
 
 def check_deadline(context: grpc.ServicerContext,

@@ -214,10 +214,10 @@ def test_an_image_input_the_model_lacks_or_cannot_take_is_refused_at_load(
 
 
 def test_the_typed_detector_refuses_a_model_that_is_not_a_detector() -> None:
-    from oricf.services.detector.service import create_model
+    from oricf.services.detector.service import Detector
     from oricf.services.local import service_config
 
     config = service_config("detector", {"model": str(REPO_ROOT / "configs/models/"
                                                       "text-direction.yaml")})
     with pytest.raises(ConfigError, match=r"task\.kind: the detector serves detection models"):
-        create_model(config, ModelStore())
+        Detector(config, ModelStore())

@@ -11,7 +11,7 @@ import pytest
 
 from oricf.config import load_config
 from oricf.errors import ConfigError
-from oricf.services.detector.config import DetectorConfig
+from oricf.services.detector.service import DetectorConfig
 from oricf.v1 import common_pb2, detector_pb2, detector_pb2_grpc
 from tests.support.data import image, video_frames
 from tests.support.detections import count

@@ -110,7 +110,7 @@ def test_no_inference_runs_once_decoding_took_the_whole_deadline(
         monkeypatch: pytest.MonkeyPatch) -> None:
     service = detector if rpc == "Detect" else models
     model = service.host.slot.peek()
-    model = model if rpc == "Detect" else model.get("yolox-nano")
+    model = model.model if rpc == "Detect" else model.get("yolox-nano")
     method = "detect" if rpc == "Detect" else "infer"
     ran: list[str] = []
     real = getattr(model, method)

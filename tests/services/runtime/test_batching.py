@@ -189,7 +189,7 @@ def test_a_fixed_batch_size_runs_padded_batches_with_each_callers_own_answers(
     settings = batching(max_batch_size=8, fixed_size=True)
     settings["batching"]["max_queue_delay_ms"] = 200  # type: ignore[index]
     with running_service("detector", settings) as service:
-        assert service.host.slot.peek().pad_to == 8
+        assert service.host.slot.peek().model.pad_to == 8
         answers = detect_at_once(service, requests[:3])
     for got, alone in zip(answers, unbatched, strict=False):
         assert got.frame_id == alone.frame_id
