@@ -8,7 +8,7 @@ for a metaworld v3 task, a chunk policy behaviour-cloned from its scripted exper
 reacher-camera, a chunk policy that sees: the arm's joints and a top-down camera's image in
 (bench/train_camera_policy.py, 8 actions per answer, 60.6 Hz, trained once and cached), the
 image going with each request. Each runs through the gateway's control loop
-(oricf.gateway.actions) in simulated time: a round trip of `delay_ms` is
+(oricf.gateway.control) in simulated time: a round trip of `delay_ms` is
 `ceil(delay_ms / step_ms)` steps, and an answer to the observation of step `t` is delivered
 before the action for `t + d` (bench/control_run.py), so every figure but the CPU is the
 same on any machine for the same seed.

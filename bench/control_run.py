@@ -1,5 +1,5 @@
 """One episode of a declared policy in a simulator through the gateway's control loop
-(oricf.gateway.actions), in simulated time: the loop's own tick, its clock the simulator's
+(oricf.gateway.control), in simulated time: the loop's own tick, its clock the simulator's
 steps, its transport a wire that holds each answer for the round trip.
 
 A round trip of `d` steps: a request sent at step `t` (asked before the action for `t`) is
@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from oricf.bench.sims import Sim
-from oricf.gateway.actions.loop import ControlLoop, Request
-from oricf.gateway.actions.queue import ActionQueue, Counts, Late, Merge, Origin
+from oricf.gateway.control.loop import ControlLoop, Request
+from oricf.gateway.control.queue import ActionQueue, Counts, Late, Origin
 from oricf.gateway.endpoints.placement import MIN_SAMPLES, PlacementConfig
 from oricf.gateway.endpoints.placement import Placement as GatewayPlacement
 from oricf.models.policy import PolicyModel
@@ -36,7 +36,7 @@ class Setting:
     """How the loop is set for one mode at one delay."""
 
     late: Late
-    merge: Merge
+    merge: str                  # a merge mode's name (oricf.gateway.control.merge)
     request_at: int
     max_in_flight: int
     delay_steps: int
@@ -170,8 +170,8 @@ BLIND = "onboard-blind"  # onboard, the cameras' images blanked: added for a sim
 OPTIONAL_MODES = ("edge-committed",)
 # need a policy trained for the round trip: metaworld only
 TRAINED_MODES = ("edge-ahead", "edge-committed")
-MERGES: dict[str, Merge] = {"edge-latest": "latest", "edge-weighted": "weighted",
-                            "edge-ensemble": "ensemble"}
+MERGES: dict[str, str] = {"edge-latest": "latest", "edge-weighted": "weighted",
+                          "edge-ensemble": "ensemble"}
 
 
 def ask_ahead(chunk: int) -> int:

@@ -45,7 +45,7 @@ from oricf.bench.sims.metaworld import MetaworldSim, expert
 from oricf.bench.train_chunk_policy import Settings as ChunkSettings
 from oricf.bench.train_chunk_policy import cache_key, yaml_list
 from oricf.files import staged_folder
-from oricf.gateway.actions.queue import Origin
+from oricf.gateway.control.queue import Origin
 from oricf.models.mlp_source import dense_layers, model_bytes
 from oricf.models.policy import committed_window
 from oricf.store import default_root, sha256_of

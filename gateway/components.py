@@ -33,8 +33,8 @@ import grpc
 from pydantic import Field
 
 from oricf.config import Schema
-from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.channels.server import Channels
+from oricf.gateway.control.loop import ControlLoop
 from oricf.gateway.endpoints import Endpoint, Ready
 from oricf.gateway.products import ProductStore
 from oricf.gateway.speaking import Speaking

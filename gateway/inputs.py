@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import functools
 
-from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.channels.server import Channels
 from oricf.gateway.components import SOURCES, ComponentContext, OnEnd, Source, Submit, TopicIo
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.control.loop import ControlLoop
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.speaking import Speaking
 

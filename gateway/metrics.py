@@ -24,8 +24,8 @@ from prometheus_client.metrics_core import (
 )
 from prometheus_client.registry import Collector
 
-from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.control.loop import ControlLoop
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.endpoints.placement import REASONS
 from oricf.gateway.route import Route

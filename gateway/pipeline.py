@@ -10,9 +10,9 @@ import logging
 from collections.abc import Callable, Collection
 from typing import Any
 
-from oricf.gateway.actions.loop import ControlLoop
 from oricf.gateway.components import METHODS
 from oricf.gateway.config import PipelineConfig
+from oricf.gateway.control.loop import ControlLoop
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
@@ -48,7 +48,7 @@ class Pipeline:
                 if output.product is not None:
                     self.products.declare(output.product, output.max_age_s)
         self.metrics_server: MetricsServer | None = None
-        # Control inputs' loops by route (oricf.gateway.sources.control), for /metrics.
+        # Control inputs' loops by route (oricf.gateway.control), for /metrics.
         self.loops: dict[str, ControlLoop] = {}
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}

@@ -6,8 +6,10 @@ outputs that take its fields, before post steps (which run on the whole result).
 (oricf.gateway.speaking) ends such a stream: what it would still say is dropped.
 
 Every failure of one message is logged (throttled, per route and kind of failure) and
-counted, and told to whoever asked for the record (its `reply_to`, e.g. a text channel's
-client, which no output will answer now); the route goes on with the next message. Data
+counted, and told to whoever asked for the record (the item's asker, oricf.gateway.items:
+a text channel's client, which no output will answer now, or a control loop, which asks
+again); an item that went through is told its record (a control loop takes its chunk). The
+route goes on with the next message. Data
 products go to the ProductStore; every other output to `emit` (oricf.gateway.outlets.Outlets:
 files, text channels, and topics through the ROS node's publishers or a recording).
 """
@@ -18,7 +20,7 @@ import logging
 import time
 from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import grpc
 from opentelemetry import context as otel_context
@@ -28,6 +30,7 @@ from oricf.errors import InvalidInput
 from oricf.gateway.components import METHODS, Partial, Skip, chain, result_fields
 from oricf.gateway.config import OutputConfig, RouteConfig
 from oricf.gateway.endpoints import Endpoint
+from oricf.gateway.items import Asker, Loader, asker_of
 from oricf.gateway.products import ProductStore
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
@@ -41,25 +44,31 @@ log = logging.getLogger(__name__)
 
 # (output, its value, the whole record: e.g. the input header for an annotated image)
 Emit = Callable[[OutputConfig, Any, Record], None]
-Loader = Callable[[], Record]
 # Call errors whose details are meant for the caller (a client mistake), so they may be told.
 TOLD_IN_FULL = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.OUT_OF_RANGE,
                 grpc.StatusCode.FAILED_PRECONDITION}
 
 
-class TracedLoader:
+class TracedLoader(Asker):
     """A loader with the trace context it was submitted in: a route fed by another's
-    product (a transcript, an answer) joins that route's trace."""
+    product (a transcript, an answer) joins that route's trace. Its asker is the loader's."""
 
     def __init__(self, load: Loader, context: otel_context.Context) -> None:
         self.load = load
         self.trace_context = context
+        self._asker = asker_of(load)
 
     def __call__(self) -> Record:
         return self.load()
 
-    def __getattr__(self, name: str) -> Any:  # on_drop and the like, the loader's own
-        return getattr(self.load, name)
+    def answered(self, record: Record) -> None:
+        self._asker.answered(record)
+
+    def fail(self, message: str) -> None:
+        self._asker.fail(message)
+
+    def on_drop(self, reason: str) -> None:
+        self._asker.on_drop(reason)
 
 
 def with_trace_context(load: Loader) -> Loader:
@@ -67,14 +76,6 @@ def with_trace_context(load: Loader) -> Loader:
     if not tracing_active() or not get_current_span().get_span_context().is_valid:
         return load
     return TracedLoader(load, otel_context.get_current())
-
-
-class Asker(Protocol):
-    """Who asked for a record (its `reply_to` field): told when the record fails, and, if
-    it has an `answered(record)` method (a control loop), given the record once it went
-    through."""
-
-    def fail(self, message: str) -> None: ...
 
 
 @dataclass
@@ -170,13 +171,14 @@ class Route:
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised.
         While tracing is on, the message's trace: receive, the call, post steps, publish."""
-        with span(f"route {self.name}", context=getattr(load, "trace_context", None),
+        context = load.trace_context if isinstance(load, TracedLoader) else None
+        with span(f"route {self.name}", context=context,
                   attributes={"oricf.route": self.name}):
             self._process(load)
 
     def _process(self, load: Loader) -> None:
         started = time.perf_counter()
-        record: Record = {}
+        asker = asker_of(load)
         try:
             with span("receive"):
                 record = load()
@@ -184,14 +186,12 @@ class Route:
             with span("publish"):
                 self.send(record)
             self.latest = (time.monotonic(), record)
-            answered = getattr(record.get("reply_to"), "answered", None)
-            if answered is not None:
-                answered(record)
+            asker.answered(record)
         except Skip as exc:
             get_current_span().set_attribute("oricf.skipped", str(exc))
             self.stats.skipped += 1
             log.info("route %s: nothing to send on: %s", self.name, exc)
-            self._tell(record, f"nothing to answer: {exc}")
+            self._tell(asker, f"nothing to answer: {exc}")
             return
         except InvalidInput as exc:
             get_current_span().set_status(Status(StatusCode.ERROR, "bad input"))
@@ -199,19 +199,19 @@ class Route:
             self.stats.count_error("bad_input")
             self._throttle.warning(f"{self.name}:bad_input:{exc}",
                                    "route %s: bad input dropped: %s", self.name, exc)
-            self._tell(record, f"bad input: {exc}")
+            self._tell(asker, f"bad input: {exc}")
             return
         except grpc.RpcError as exc:
             get_current_span().set_status(Status(StatusCode.ERROR, exc.code().name))
             self._call_failed(exc)
             details = f": {exc.details()}" if exc.code() in TOLD_IN_FULL else ""
-            self._tell(record, f"{self.config.call.method} failed: {exc.code().name}{details}")
+            self._tell(asker, f"{self.config.call.method} failed: {exc.code().name}{details}")
             return
         except Exception:
             get_current_span().set_status(Status(StatusCode.ERROR, "internal"))
             self.stats.count_error("internal")
             log.exception("route %s: unexpected error (message dropped)", self.name)
-            self._tell(record, "internal error")
+            self._tell(asker, "internal error")
             return
         seconds = time.perf_counter() - started
         self.stats.ok += 1
@@ -229,7 +229,5 @@ class Route:
                              quoted(exc.details() or "", 300))  # the server's words
 
     @staticmethod
-    def _tell(record: Record, message: str) -> None:
-        asker: Asker | None = record.get("reply_to")
-        if asker is not None:
-            asker.fail(message[:500])
+    def _tell(asker: Asker, message: str) -> None:
+        asker.fail(message[:500])

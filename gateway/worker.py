@@ -3,9 +3,9 @@
 `latest` (camera routes): one pending item; a newer one replaces it and counts a drop, so
 the route always works on the newest frame. `queue` (text, audio): up to queue_size items
 in order; when full the oldest is dropped (and counted). Items are loaders (callables that
-build the record), so a dropped message is never even converted; an item with an `on_drop`
-method is told why, when the queue drops it and when the worker stops with it still waiting
-(a text channel's question, so that its client gets an `error:` line).
+build the record), so a dropped message is never even converted; an item that is an asker
+(oricf.gateway.items) is told why, when the queue drops it and when the worker stops with it
+still waiting (a text channel's question, so that its client gets an `error:` line).
 
 A camera route runs its items in its receive thread instead (`handle_here`): there DDS keeps
 the newest frame (history depth 1) while the route is busy, so the hand-off to another thread,
@@ -20,6 +20,8 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
+
+from oricf.gateway.items import asker_of
 
 log = logging.getLogger(__name__)
 
@@ -145,6 +147,4 @@ class RouteWorker(Generic[T]):
 def tell_dropped(items: list[T], reason: str) -> None:
     """Outside the worker's lock: telling may take a while."""
     for item in items:
-        on_drop = getattr(item, "on_drop", None)
-        if callable(on_drop):
-            on_drop(reason)
+        asker_of(item).on_drop(reason)

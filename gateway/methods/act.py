@@ -1,6 +1,6 @@
 """Act: an observation of the robot -> the chunk of actions a learned policy answers it with,
 on ORICF's policy service (oricf.v1.Policy, `oricf serve policy`). A control loop
-(oricf.gateway.sources.control) fills the record: `state` (the state vector), `step` (the
+(oricf.gateway.control.source) fills the record: `state` (the state vector), `step` (the
 robot's control step it was captured at), `capture_time_ns` (its clock then) and, for
 real-time chunking, `committed` (the actions already queued, from which step), and `images`
 (each camera's newest frame, by the policy's camera name; sent as the endpoint's `image`
@@ -21,8 +21,8 @@ from typing import Any, Literal
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.gateway.actions.queue import MAX_CHUNK
 from oricf.gateway.components import CallBase, Invoke, Method
+from oricf.gateway.control.queue import MAX_CHUNK
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.methods.base import health_check
 from oricf.gateway.products import ProductStore

@@ -1,7 +1,8 @@
 """Lines of text as route inputs: standard input (`text: "-"`), or a text channel of the
 pipeline (`text: NAME`, gateway.channels). Each non-empty line is one item of the route;
 an answer written to the same channel goes back to the client that asked (`reply_to`), and
-so does the error of a question the route could not answer (Route tells `reply_to`).
+so does the error of a question the route could not answer (the route tells the question,
+an oricf.gateway.items.Asker).
 Standard input ends the route at its end; a channel serves until the gateway stops.
 """
 
@@ -17,6 +18,7 @@ from pydantic import Field
 from oricf.config import Schema
 from oricf.gateway.channels.server import Channels, Client
 from oricf.gateway.components import ComponentContext
+from oricf.gateway.items import Asker
 from oricf.gateway.sources.base import OnEnd, Source, SourceKind, Submit
 from oricf.gateway.values import Record
 
@@ -26,8 +28,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-class Question:
-    """A line as the route's loader; its client is told if the route's queue drops it."""
+class Question(Asker):
+    """A line as the route's loader; its client is told if the route fails it or its
+    queue drops it (an answer goes back through the channel's output, to `reply_to`)."""
 
     def __init__(self, line: str, client: Client | None) -> None:
         self.line = line
@@ -36,9 +39,12 @@ class Question:
     def __call__(self) -> Record:
         return {"text": self.line, "reply_to": self.client}
 
-    def on_drop(self, reason: str) -> None:
+    def fail(self, message: str) -> None:
         if self.client is not None:
-            self.client.fail(reason)
+            self.client.fail(message)
+
+    def on_drop(self, reason: str) -> None:
+        self.fail(reason)
 
 
 class TextSource:

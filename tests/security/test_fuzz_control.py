@@ -19,12 +19,12 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from oricf.gateway.actions.loop import ControlLoop
-from oricf.gateway.actions.observation import CameraPart, MissingState, Observation, StatePart
-from oricf.gateway.actions.queue import MAX_AHEAD, MAX_CHUNK, ActionQueue, BadChunk, Origin
-from oricf.gateway.actions.target import ActionTarget, ActionTargetConfig
+from oricf.gateway.control.loop import ControlLoop
+from oricf.gateway.control.observation import CameraPart, MissingState, Observation, StatePart
+from oricf.gateway.control.parts import camera_frame
+from oricf.gateway.control.queue import MAX_AHEAD, MAX_CHUNK, ActionQueue, BadChunk, Origin
+from oricf.gateway.control.target import ActionTarget, ActionTargetConfig
 from oricf.gateway.methods.act import observation as observation_sent
-from oricf.gateway.sources.control import camera_frame
 from oricf.gateway.values import Frame
 
 DIM = 3

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from oricf.errors import InvalidInput
-from oricf.gateway.actions.queue import MAX_CHUNK
 from oricf.gateway.components import METHODS
+from oricf.gateway.control.queue import MAX_CHUNK
 from oricf.gateway.endpoints import Endpoint, EndpointConfig
 from oricf.gateway.methods.act import ActCall, Actions, actions
 from oricf.gateway.products import ProductStore

@@ -24,10 +24,10 @@ from trajectory_msgs.msg import JointTrajectory
 from oricf.bench.relay import DelayRelay
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, parse_pipeline
+from oricf.gateway.control.source import ControlSource
 from oricf.gateway.operations.view import PipelineView
 from oricf.gateway.ros.executor import make_executor, spin_until_shutdown
 from oricf.gateway.shells.ros_node import GatewayNode
-from oricf.gateway.sources.control import ControlSource
 from tests.gateway.ros.gateway_node import spinning, wait_for
 from tests.support.chunk_policy import chunk_policy
 from tests.support.hostile_edge import chunk, hostile_edge

@@ -20,7 +20,7 @@ from std_msgs.msg import Float64MultiArray
 
 from oricf.errors import ConfigError
 from oricf.gateway.config import PipelineConfig, parse_pipeline
-from oricf.gateway.sources.control import ControlSource
+from oricf.gateway.control.source import ControlSource
 from tests.gateway.ros.gateway_node import wait_for
 from tests.gateway.sources.test_control import running
 from tests.support.camera_policy import CAMERA

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from oricf.gateway.actions.loop import ControlLoop
-from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
+from oricf.gateway.control.loop import ControlLoop
+from oricf.gateway.control.queue import ActionQueue, BadChunk, Origin
 
 SAFE = np.array([0.0, 0.0])
 

@@ -1,18 +1,9 @@
 """A control loop's observation: the newest message of each of its state topics, each part
 no older than `max_age_ms`, joined into one state vector in the order the parts are listed,
-and the newest image of each of the policy's cameras, as old at most.
+and the newest image of each of the policy's cameras, as old at most (the parts and the
+message types they read: oricf.gateway.control.parts).
 
-    state:
-      - {topic: /arm/joint_states, type: sensor_msgs/JointState,
-         fields: [position, velocity], joints: [shoulder, elbow]}   # in this order
-      - {topic: /arm/goal, type: std_msgs/Float64MultiArray}
-    images:
-      - {name: wrist, topic: /arm/wrist/image_raw, type: sensor_msgs/Image}
-
-A JointState part takes the named joints' values (by name, so a driver that orders them
-otherwise is read right; a message that names a joint twice is refused: which of its values
-would be the joint's?), each field in turn; without `joints`, the message's own order. A
-part that has not arrived, is too old, has the wrong length or a value that is not finite
+A part that has not arrived, is too old, has the wrong length or a value that is not finite
 as the policy is sent it (float32: 1e300 is finite as float64, infinite there; such a
 message is refused as it arrives) makes the observation missing: the loop then asks nothing
 and runs out what it has queued. So does a camera whose newest image is missing, too old, or
@@ -26,44 +17,14 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import Field, model_validator
 
-from oricf.config import Schema
 from oricf.errors import InvalidInput
+from oricf.gateway.control.parts import CameraPart, StatePart, values_of
 
-StateType = Literal["sensor_msgs/JointState", "std_msgs/Float64MultiArray"]
-JointField = Literal["position", "velocity", "effort"]
-ImageType = Literal["sensor_msgs/Image", "sensor_msgs/CompressedImage"]
 ImageOf = Callable[[str, Any], Any]  # (a camera's message type, the message) -> its image
-CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"  # as a policy declares its cameras
-
-
-class StatePart(Schema):
-    topic: str = Field(description="a ROS topic")
-    type: StateType
-    fields: list[JointField] = Field(["position"], min_length=1,
-                                     description="JointState: the fields taken, in order")
-    joints: list[str] | None = Field(None, max_length=256,
-                                     description="JointState: the joints taken, by name")
-    size: int | None = Field(None, ge=1, le=4096,
-                             description="Float64MultiArray: values expected")
-
-    @model_validator(mode="after")
-    def _consistent(self) -> StatePart:
-        if self.type != "sensor_msgs/JointState" and self.joints is not None:
-            raise ValueError("joints: only for sensor_msgs/JointState")
-        return self
-
-
-class CameraPart(Schema):
-    """One camera of the policy: the topic its images come on."""
-
-    name: str = Field(pattern=CAMERA_NAME, description="the policy's camera it feeds")
-    topic: str = Field(description="a ROS topic")
-    type: ImageType = "sensor_msgs/Image"
 
 
 class MissingState(Exception):
@@ -95,41 +56,6 @@ def as_sent(values: np.ndarray, what: str = "state") -> np.ndarray:
     if bad.size:
         raise ValueError(f"{what}[{bad[0]}] is {values[bad[0]]}: not finite as float32")
     return sent
-
-
-def values_of(part: StatePart, msg: Any) -> np.ndarray:
-    """The part's values from one message (ValueError naming what is wrong)."""
-    if part.type == "std_msgs/Float64MultiArray":
-        values = np.asarray(msg.data, np.float64)
-        if part.size is not None and values.size != part.size:
-            raise ValueError(f"{values.size} values, not {part.size}")
-        return values
-    names = list(msg.name)
-    taken = None if part.joints is None else joint_positions(part.joints, names)
-    rows = []
-    for name in part.fields:
-        column = np.asarray(getattr(msg, name), np.float64)
-        if taken is not None:
-            if column.size != len(names):
-                raise ValueError(f"{name} has {column.size} values for {len(names)} joints")
-            column = column[taken]
-        rows.append(column)
-    return np.concatenate(rows)
-
-
-def joint_positions(joints: list[str], names: list[str]) -> list[int]:
-    """Where each of `joints` is among a JointState's names, or ValueError: one is absent,
-    or a name is given twice (which of its values would be the joint's?)."""
-    index: dict[str, int] = {}
-    for i, joint in enumerate(names):
-        if index.setdefault(joint, i) != i:
-            raise ValueError(f"joint {joint[:100]!r} is named twice (joints: "
-                             f"{', '.join(names)[:200]})")
-    absent = [joint for joint in joints if joint not in index]
-    if absent:
-        raise ValueError(f"no joint {', '.join(absent)[:200]} (joints: "
-                         f"{', '.join(names)[:200]})")
-    return [index[joint] for joint in joints]
 
 
 class Observation:

@@ -2,7 +2,7 @@
 whether to ask the policy for the next chunk with the observation just captured (`ask`),
 then take the action for the step from the queue, or the safe action (`act`). A policy that
 answers at once (onboard) is asked before the action is taken, so its answer is used on the
-same tick. The gateway's control input (oricf.gateway.sources.control) runs it
+same tick. The gateway's control input (oricf.gateway.control.source) runs it
 on the robot's clock; `oricf bench control` runs it on a simulator's steps.
 
     request_at   ask for the next chunk when this many actions (or fewer) are queued from
@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
+from oricf.gateway.control.queue import ActionQueue, BadChunk, Origin
 from oricf.metrics import LatencyHistogram
 from oricf.stats import percentile
 

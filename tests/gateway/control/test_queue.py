@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from oricf.gateway.actions.queue import ActionQueue, BadChunk, Origin
+from oricf.gateway.control.queue import ActionQueue, BadChunk, Origin
 
 
 def chunk(first: float, n: int, dim: int = 2) -> np.ndarray:

@@ -17,6 +17,8 @@ settings:
     merge: ensemble  every chunk that predicted the step, weighted exp(-k * i) with i = 0
                      for the oldest (ACT's temporal ensembling, k = 0.01)
 
+(each mode one entry of oricf.gateway.control.merge.MERGES, its settings keys of `merge:`).
+
 A chunk is planned from its observation, and the policy plans so far ahead (its horizon:
 its lead and chunk length): an action for a step further than `horizon` steps after the
 observation it answers, wherever `late` places it, is dropped, and a chunk whose first
@@ -31,7 +33,6 @@ actions where one chunk's actions give way to another's.
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -39,8 +40,9 @@ from typing import Literal
 
 import numpy as np
 
+from oricf.gateway.control.merge import MergeMode, merge_mode
+
 Late = Literal["skip", "shift"]
-Merge = Literal["latest", "weighted", "ensemble"]
 
 
 JUMPS_KEPT = 10_000
@@ -85,17 +87,15 @@ class Slot:
 class ActionQueue:
     """Thread-safe: the loop's tick thread takes, the thread that receives chunks puts."""
 
-    def __init__(self, action_dim: int, late: Late = "skip", merge: Merge = "latest",
-                 weight: float = 0.7, ensemble_k: float = 0.01,
-                 horizon: int = MAX_AHEAD) -> None:
+    def __init__(self, action_dim: int, late: Late = "skip",
+                 merge: MergeMode | str = "latest", horizon: int = MAX_AHEAD) -> None:
+        """`merge`: a mode, or a mode's name (its settings at their defaults)."""
         if not 0 <= horizon <= MAX_AHEAD:
             raise ValueError(f"a horizon of {horizon} steps (0 to {MAX_AHEAD})")
         self.action_dim = action_dim
         self.horizon = horizon      # steps after its observation an action may be for
         self.late = late
-        self.merge = merge
-        self.weight = weight
-        self.ensemble_k = ensemble_k
+        self.merge = merge_mode(merge)
         self.counts = Counts()
         self._slots: dict[int, Slot] = {}
         self._lock = threading.Lock()
@@ -213,12 +213,4 @@ class ActionQueue:
 
     def _combine(self, slot: Slot) -> np.ndarray:
         actions = slot.actions
-        if len(actions) == 1 or self.merge == "latest":
-            return actions[-1]
-        if self.merge == "weighted":
-            merged = actions[0]
-            for newer in actions[1:]:
-                merged = merged * (1 - self.weight) + newer * self.weight
-            return merged
-        weights = np.array([math.exp(-self.ensemble_k * i) for i in range(len(actions))])
-        return np.asarray((weights[:, None] * np.stack(actions)).sum(0) / weights.sum())
+        return actions[0] if len(actions) == 1 else self.merge.combine(actions)

@@ -9,7 +9,7 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from oricf.gateway.actions.observation import MissingState, Observation, StatePart
+from oricf.gateway.control.observation import MissingState, Observation, StatePart
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
