@@ -25,9 +25,10 @@ import dataclasses
 import importlib
 import pkgutil
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeAlias, TypeVar
+from typing import Any, ClassVar, Generic, Protocol, TypeAlias, TypeVar
 
 import grpc
 from pydantic import Field
@@ -184,8 +185,6 @@ class SourceKind:
 
 
 Result: TypeAlias = Any  # a method's result dataclass
-Invoke: TypeAlias = Callable[[Record], Result]
-Binder: TypeAlias = Callable[[Any, Endpoint, ProductStore], Invoke]
 
 
 class Skip(Exception):
@@ -208,21 +207,58 @@ class CallBase(Schema):
     service: str = Field(description="an endpoint name")
 
 
+CallT = TypeVar("CallT", bound=CallBase)
+
+
+class MethodCall(ABC, Generic[CallT]):
+    """A method bound to one route, with the lifecycle of Triton's python_backend model
+    (initialize / execute / finalize) and KServe's Model (load / predict): built once per
+    route from its validated call settings, the endpoint it calls and the pipeline's data
+    products; `execute` (also what calling it does) turns one record into a result; `close`
+    lets go of what it holds (shared memory registered with a server), before the endpoint
+    closes. Routes and the operations view call it from several threads at once, so what
+    it keeps between calls is made safe for that.
+
+    `result` is its typed result (a dataclass whose fields the record gains); a method whose
+    call settings choose the result overrides `result_type`."""
+
+    result: ClassVar[type]
+
+    def __init__(self, call: CallT, endpoint: Endpoint, products: ProductStore) -> None:
+        self.call = call
+        self.endpoint = endpoint
+        self.products = products
+
+    @classmethod
+    def result_type(cls, call: Any) -> type:
+        """The result dataclass of a call with these settings."""
+        return cls.result
+
+    @abstractmethod
+    def execute(self, record: Record) -> Result | Iterator[Partial | Result]:
+        """One record -> its result, or (a streaming call) Partials ending with it."""
+
+    def __call__(self, record: Record) -> Result | Iterator[Partial | Result]:
+        return self.execute(record)
+
+    def close(self) -> None:
+        """Lets go of what the call holds; most hold nothing."""
+
+
 @dataclass(frozen=True)
 class Method:
     """A method a route calls: `call: {method: NAME, service: ENDPOINT, ...}`. Its call
-    schema is a CallBase subclass whose `method` literal is its name; its typed result is a
-    dataclass whose fields the route's record gains (checked against post steps and outputs
-    when the pipeline loads); `bind` runs once per route and returns the function that
-    turns one record into a result."""
+    schema is a CallBase subclass whose `method` literal is its name; `calls` is its
+    MethodCall class, which each route builds once and runs every record through; its typed
+    result is a dataclass whose fields the route's record gains (checked against post steps
+    and outputs when the pipeline loads)."""
 
     name: str
     config: type[CallBase]                     # the schema of the route's `call:`
     service: str                               # the gRPC service the endpoint must serve
     stub: Callable[[grpc.Channel], Any]
     ready: Ready                               # the probe used to come back from a fallback
-    result: Callable[[Any], type]              # call config -> its result dataclass
-    bind: Binder                               # (call config, endpoint, products) -> invoke
+    calls: type[MethodCall[Any]]               # (call config, endpoint, products) -> the call
     image_transport: bool = False              # sends camera frames (endpoint.image applies)
     # What the control API and barge-in find a route by, so they name no method.
     answers: bool = False                      # answers a question in text (ask)
@@ -245,9 +281,17 @@ class Method:
         """Its name, as a route's `call.method` gives it."""
         return self.name
 
+    def result(self, call: Any) -> type:
+        """The result dataclass of a call with these settings."""
+        return self.calls.result_type(call)
+
     def fields(self, call: Any) -> tuple[str, ...]:
         """The record fields a call of this method adds."""
         return tuple(f.name for f in dataclasses.fields(self.result(call)))
+
+    def open(self, call: Any, endpoint: Endpoint, products: ProductStore) -> MethodCall[Any]:
+        """The method bound to a route: its call settings, the endpoint, the data products."""
+        return self.calls(call, endpoint, products)
 
 
 def result_fields(result: Result) -> Record:

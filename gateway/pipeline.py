@@ -109,6 +109,8 @@ class Pipeline:
     def stop(self) -> None:
         for worker in self.workers.values():
             worker.stop()
+        for route in self.routes.values():  # before the endpoints their methods call
+            route.close()
         for endpoint in self.endpoints.values():
             endpoint.close()
         self.log_stats()

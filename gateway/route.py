@@ -27,7 +27,7 @@ from opentelemetry import context as otel_context
 from opentelemetry.trace import Status, StatusCode, get_current_span
 
 from oricf.errors import InvalidInput
-from oricf.gateway.components import METHODS, Partial, Skip, chain, result_fields
+from oricf.gateway.components import METHODS, MethodCall, Partial, Skip, chain, result_fields
 from oricf.gateway.config import OutputConfig, RouteConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.items import Asker, Loader, asker_of
@@ -110,7 +110,9 @@ class Route:
         self._post = chain(config.post)
         self._throttle = throttle
         self._speaking = speaking or Speaking()
-        self._invoke = METHODS[config.call.method].bind(config.call, endpoint, products)
+        # The method bound to this route, built once (oricf.gateway.components.MethodCall).
+        method = METHODS[config.call.method]
+        self.method: MethodCall[Any] = method.open(config.call, endpoint, products)
 
     def run(self, record: Record) -> Record:
         """Call and post-process one record; returns it with every field filled in."""
@@ -119,7 +121,7 @@ class Route:
         # Spans of the route's trace (docs/tracing.md): the call carries the trace context
         # to the service; a streamed answer's first piece is an event on the call's span.
         with span(f"call {self.config.call.method}"):
-            result = self._invoke(record)
+            result = self.method.execute(record)
             if isinstance(result, Iterator):
                 result = self._stream(record, result, asked_at)
         record.update(result_fields(result))
@@ -217,6 +219,11 @@ class Route:
         self.stats.ok += 1
         self.stats.last_ms = seconds * 1000
         self.stats.latency.observe(seconds)
+
+    def close(self) -> None:
+        """Lets go of what its method holds: after its worker stopped, before its endpoint
+        closes."""
+        self.method.close()
 
     def _call_failed(self, exc: grpc.RpcError) -> None:
         code = exc.code()

@@ -70,7 +70,6 @@ class Endpoint:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._probe: threading.Thread | None = None
-        self._closers: list[Callable[[list[Any]], None]] = []
         self.placement = (Placement(name, config.placement, step_s)
                           if config.placement is not None else None)
         if self.placement is not None:
@@ -213,10 +212,6 @@ class Endpoint:
     def targets(self) -> list[Any]:
         return [self.primary] if self.fallback is None else [self.primary, self.fallback]
 
-    def on_close(self, closer: Callable[[list[Any]], None]) -> None:
-        """closer(targets) runs before the targets close (e.g. unregisters shared memory)."""
-        self._closers.append(closer)
-
     def _probe_placement(self) -> None:
         """Times the preferred target's readiness probe for the placement, all the time: its
         round trip while within budget tells what a call costs beyond it. With a CPU
@@ -233,8 +228,6 @@ class Endpoint:
             self.placement.probe_took(time.monotonic() - started if ok else None)
 
     def close(self) -> None:
-        for closer in self._closers:
-            closer(self.targets)
         self._stop.set()
         with self._lock:
             probe = self._probe

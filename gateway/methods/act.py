@@ -16,16 +16,16 @@ is made into an array.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Literal
 
 import numpy as np
 
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Invoke, Method
+from oricf.gateway.components import CallBase, Method, MethodCall
 from oricf.gateway.control.queue import MAX_CHUNK
-from oricf.gateway.endpoints import Endpoint, GrpcTarget
-from oricf.gateway.methods.base import health_check
-from oricf.gateway.products import ProductStore
+from oricf.gateway.endpoints import GrpcTarget
+from oricf.gateway.methods.base import ServingHealth
 from oricf.gateway.values import Frame, Record
 from oricf.v1 import policy_pb2, policy_pb2_grpc
 
@@ -90,22 +90,21 @@ def reply_bytes(input_config: Any) -> int | None:
     return MAX_CHUNK * int(control.action_dim) * 4 + REPLY_FIELDS_BYTES
 
 
-def bind(call: ActCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    def invoke(record: Record) -> Actions:
-        image = endpoint.config.image
+class Act(MethodCall[ActCall]):
+    """A route's Act: the observation as the endpoint's image settings say."""
+
+    result = Actions
+
+    def execute(self, record: Record) -> Actions:
+        image = self.endpoint.config.image
         request = observation(record, image.transport, image.jpeg_quality)
+        return self.endpoint.run({"grpc": partial(self._over_grpc, request)})
 
-        def over_grpc(target: GrpcTarget, timeout: float) -> Actions:
-            return actions(target.invoke("Act", request, timeout))
-
-        return endpoint.run({"grpc": over_grpc})
-
-    return invoke
-
-
-def result(call: Any) -> type:
-    return Actions
+    @staticmethod
+    def _over_grpc(request: policy_pb2.Observation, target: GrpcTarget, timeout: float
+                   ) -> Actions:
+        return actions(target.invoke("Act", request, timeout))
 
 
 METHOD = Method("Act", ActCall, "oricf.v1.Policy", policy_pb2_grpc.PolicyStub,
-                health_check("oricf.v1.Policy"), result, bind, reply_bytes=reply_bytes, rank=5)
+                ServingHealth("oricf.v1.Policy"), Act, reply_bytes=reply_bytes, rank=5)

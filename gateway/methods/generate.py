@@ -12,6 +12,7 @@ import logging
 import numbers
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Literal
 
 import numpy as np
@@ -19,11 +20,10 @@ from pydantic import Field, field_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Invoke, Method, Partial, Skip
+from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
-from oricf.gateway.endpoints.endpoint import Work
 from oricf.gateway.endpoints.openai import OpenAITarget, chat_completion
-from oricf.gateway.methods.base import health_check
+from oricf.gateway.methods.base import ServingHealth
 from oricf.gateway.methods.chat import ChatTemplates, ImageContext, image_url, messages
 from oricf.gateway.methods.sentences import SentenceCutter
 from oricf.gateway.products import ProductStore, Reading
@@ -137,63 +137,71 @@ def facts_text(facts: Iterable[common_pb2.Fact]) -> str:
     return ", ".join(parts) or "none"
 
 
-def bind(call: GenerateCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    text_only = _TextOnly(endpoint.name)
+class Generate(MethodCall[GenerateCall]):
+    """A route's Generate: one call per protocol the endpoint's targets speak, whole or
+    (sentences: true) cut into sentences as they come."""
 
-    def over_grpc(request: language_pb2.GenerateRequest) -> Work[str]:
-        def work(target: GrpcTarget, timeout: float) -> str:
-            if call.image is not None:
-                text_only.warn(target.address)
-            if not call.stream:
-                return str(target.invoke("Generate", request, timeout).text)
-            return "".join(r.text for r in target.invoke("GenerateStream", request, timeout))
-        return work
+    result = Answer  # SentencedAnswer when the call cuts sentences (result_type)
 
-    def over_openai(request: language_pb2.GenerateRequest, readings: list[Reading]
-                    ) -> Work[str]:
-        def work(target: OpenAITarget, timeout: float) -> str:
-            image = image_url(products, call.image) if call.image else None
-            templates = call.context.chat if call.context else ChatTemplates()
-            body: dict[str, Any] = {
-                "messages": messages(request.prompt, readings, templates, image)}
-            if call.max_tokens:
-                body["max_tokens"] = call.max_tokens
-            if call.temperature is not None:
-                body["temperature"] = call.temperature
-            if call.stop:
-                body["stop"] = call.stop
-            return chat_completion(target, body, timeout, call.stream)
-        return work
+    def __init__(self, call: GenerateCall, endpoint: Endpoint, products: ProductStore
+                 ) -> None:
+        super().__init__(call, endpoint, products)
+        self._text_only = _TextOnly(endpoint.name)
 
-    def pieces_over_grpc(request: language_pb2.GenerateRequest) -> Work[Iterator[str]]:
-        def work(target: GrpcTarget, timeout: float) -> Iterator[str]:
-            if call.image is not None:
-                text_only.warn(target.address)
-            replies = target.invoke("GenerateStream", request, timeout)
-            # The first piece is awaited here, so that a server that is down or busy is
-            # retried or failed over like any call; the rest streams.
-            first = next(replies, None)
-            return _pieces(replies, first)
-        return work
+    @classmethod
+    def result_type(cls, call: GenerateCall) -> type:
+        return SentencedAnswer if call.sentences else Answer
 
-    def pieces_over_openai(request: language_pb2.GenerateRequest, readings: list[Reading]
-                           ) -> Work[Iterator[str]]:
-        whole = over_openai(request, readings)
-        return lambda target, timeout: iter([whole(target, timeout)])
-
-    def invoke(record: Record) -> Answer | Iterator[Partial | SentencedAnswer]:
-        readings = context_readings(call, products)
-        request = generate_request(record, call, products, readings)
+    def execute(self, record: Record) -> Answer | Iterator[Partial | SentencedAnswer]:
+        readings = context_readings(self.call, self.products)
+        request = generate_request(record, self.call, self.products, readings)
         if log.isEnabledFor(logging.DEBUG):
             log.debug("Generate prompt %r facts %s", request.prompt, facts_text(request.facts))
-        if call.sentences:
-            return _sentences(endpoint.run({"grpc": pieces_over_grpc(request),
-                                            "openai": pieces_over_openai(request, readings)}))
-        text = endpoint.run({"grpc": over_grpc(request),
-                             "openai": over_openai(request, readings)})
+        if self.call.sentences:
+            return _sentences(self.endpoint.run({
+                "grpc": partial(self._pieces_over_grpc, request),
+                "openai": partial(self._pieces_over_openai, request, readings)}))
+        text = self.endpoint.run({"grpc": partial(self._over_grpc, request),
+                                  "openai": partial(self._over_openai, request, readings)})
         return Answer(text.strip())
 
-    return invoke
+    def _over_grpc(self, request: language_pb2.GenerateRequest, target: GrpcTarget,
+                   timeout: float) -> str:
+        if self.call.image is not None:
+            self._text_only.warn(target.address)
+        if not self.call.stream:
+            return str(target.invoke("Generate", request, timeout).text)
+        return "".join(r.text for r in target.invoke("GenerateStream", request, timeout))
+
+    def _over_openai(self, request: language_pb2.GenerateRequest, readings: list[Reading],
+                     target: OpenAITarget, timeout: float) -> str:
+        call = self.call
+        image = image_url(self.products, call.image) if call.image else None
+        templates = call.context.chat if call.context else ChatTemplates()
+        body: dict[str, Any] = {"messages": messages(request.prompt, readings, templates, image)}
+        if call.max_tokens:
+            body["max_tokens"] = call.max_tokens
+        if call.temperature is not None:
+            body["temperature"] = call.temperature
+        if call.stop:
+            body["stop"] = call.stop
+        return chat_completion(target, body, timeout, call.stream)
+
+    def _pieces_over_grpc(self, request: language_pb2.GenerateRequest, target: GrpcTarget,
+                          timeout: float) -> Iterator[str]:
+        if self.call.image is not None:
+            self._text_only.warn(target.address)
+        replies = target.invoke("GenerateStream", request, timeout)
+        # The first piece is awaited here, so that a server that is down or busy is
+        # retried or failed over like any call; the rest streams.
+        first = next(replies, None)
+        return _pieces(replies, first)
+
+    def _pieces_over_openai(self, request: language_pb2.GenerateRequest,
+                            readings: list[Reading], target: OpenAITarget, timeout: float
+                            ) -> Iterator[str]:
+        """The whole answer as one piece (the OpenAI API's stream is joined)."""
+        return iter([self._over_openai(request, readings, target, timeout)])
 
 
 def _pieces(replies: Any, first: Any) -> Iterator[str]:
@@ -239,10 +247,6 @@ class _TextOnly:
                         self._endpoint, address)
 
 
-def result(call: Any) -> type:
-    return SentencedAnswer if call.sentences else Answer
-
-
 def reads(call: GenerateCall) -> dict[str, set[str]]:
     """The record fields the prompt template names, by the key that names them."""
     return {"prompt": template_fields(call.prompt)}
@@ -254,6 +258,6 @@ def products(call: GenerateCall) -> dict[str, list[str]]:
 
 
 METHOD = Method("Generate", GenerateCall, "oricf.v1.LanguageModel",
-                language_pb2_grpc.LanguageModelStub, health_check("oricf.v1.LanguageModel"),
-                result, bind, reads=reads, products=products, answers=True,
+                language_pb2_grpc.LanguageModelStub, ServingHealth("oricf.v1.LanguageModel"),
+                Generate, reads=reads, products=products, answers=True,
                 protocols=frozenset({"grpc", "openai"}), rank=2)

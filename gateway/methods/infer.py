@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from typing import Any, Literal
 
 import grpc
@@ -19,7 +19,7 @@ from pydantic import Field, model_validator
 
 from oricf.config import FilePath
 from oricf.errors import ConfigError, InvalidInput
-from oricf.gateway.components import CallBase, Invoke, Method
+from oricf.gateway.components import CallBase, Method, MethodCall
 from oricf.gateway.endpoints import Endpoint, Metadata
 from oricf.gateway.endpoints.shared_memory import SHARED, SharedMemoryTransport
 from oricf.gateway.methods.base import input_frame
@@ -31,7 +31,7 @@ from oricf.imaging import Box, Detection, encoded_size
 from oricf.models.declaration import ModelDeclaration, load_declaration
 from oricf.models.heads import ClassificationHead, DetectionHead, Prepared, declared_head
 from oricf.models.image import geometry
-from oricf.models.shared_memory import BYTE_SIZE, OFFSET, REGION, SharedMemoryRef
+from oricf.models.shared_memory import BYTE_SIZE, OFFSET, REGION, OwnedRegion, SharedMemoryRef
 from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
@@ -145,92 +145,120 @@ def _decoded_detections(rows: np.ndarray, labels: list[str], min_score: float,
     return Detections(found)
 
 
-def bind(call: InferCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    head = declared_head(call.declaration)
-    output = head.output or ""
-    label_ids = {label: i for i, label in enumerate(head.labels)}
-    class_ids = (np.array(sorted(label_ids[label] for label in call.labels), np.int64)
-                 if call.labels else None)
-    transport = endpoint.config.image
-    shared = (SharedMemoryTransport(f"oricf-{endpoint.name}", transport.transport)
-              if transport.transport in SHARED else None)
-    if shared is not None:
-        endpoint.on_close(shared.close)
-    wanted: dict[str, dict[str, object]] = {output: {}} if output else {}
-    if call.decoded and isinstance(head, DetectionHead):
-        if not output:
-            raise ConfigError(f"{call.model}: decoded: name the task's output (task.output)")
-        wanted[output] = {"decoded": True, "min_score": call.min_score or head.task.min_score,
-                          **({"class_ids": ",".join(map(str, class_ids))}
-                             if class_ids is not None else {})}
+class Infer(MethodCall[InferCall]):
+    """A route's Infer: the declared model's head (its pre- and post-processing) resolved
+    once; the input tensor on the wire, or through shared memory with room in the slot
+    for the output too (image.transport: shm or auto)."""
 
-    def prepare(frame: Frame) -> Prepared:
-        if transport.transport == "jpeg":
-            return _encoded_input(frame, head, transport.jpeg_quality)
-        return _pixels_input(frame, head) if call.decoded else head.prepare(frame.pixels())
+    result = Detections  # Classes for a classification model (result_type)
 
-    def finish(outputs: dict[str, np.ndarray], prepared: Prepared) -> Detections | Classes:
+    def __init__(self, call: InferCall, endpoint: Endpoint, products: ProductStore) -> None:
+        super().__init__(call, endpoint, products)
+        self._head = head = declared_head(call.declaration)
+        self._output = output = head.output or ""
+        label_ids = {label: i for i, label in enumerate(head.labels)}
+        self._class_ids = (np.array(sorted(label_ids[label] for label in call.labels),
+                                    np.int64) if call.labels else None)
+        self._min_score = call.min_score or (  # a detection's
+            head.task.min_score if isinstance(head, DetectionHead) else 0.0)
+        self._transport = endpoint.config.image
+        self._wanted: dict[str, dict[str, object]] = {output: {}} if output else {}
+        if call.decoded and isinstance(head, DetectionHead):
+            if not output:
+                raise ConfigError(f"{call.model}: decoded: name the task's output (task.output)")
+            self._wanted[output] = {
+                "decoded": True, "min_score": self._min_score,
+                **({"class_ids": ",".join(map(str, self._class_ids))}
+                   if self._class_ids is not None else {})}
+        self._encoding = {head.input_name: {"encoding": "bgr8"}} if call.decoded else {}
+        self._shared = (SharedMemoryTransport(f"oricf-{endpoint.name}", self._transport.transport)
+                        if self._transport.transport in SHARED else None)
+        # Per target: the output's bytes, for its room in a slot (None: it comes on the wire).
+        self._output_sizes: dict[str, int | None] = {}
+
+    @classmethod
+    def result_type(cls, call: InferCall) -> type:
+        task = call.declaration.task
+        return Detections if task is None or task.kind == "detection" else Classes
+
+    def execute(self, record: Record) -> Detections | Classes:
+        prepared = self._prepare(input_frame(record, "Infer"))
+        if self._shared is None:
+            response = self.endpoint.call("ModelInfer", self._request(prepared, {}, None))
+            return self._finish(response_outputs(response), prepared)
+        return self.endpoint.run({"grpc": partial(self._through_shared_memory, prepared)})
+
+    def close(self) -> None:
+        """Unregisters the shared-memory regions from the endpoint's servers."""
+        if self._shared is not None:
+            self._shared.close(self.endpoint.targets)
+
+    def _prepare(self, frame: Frame) -> Prepared:
+        if self._transport.transport == "jpeg":
+            return _encoded_input(frame, self._head, self._transport.jpeg_quality)
+        if self.call.decoded:
+            return _pixels_input(frame, self._head)
+        return self._head.prepare(frame.pixels())
+
+    def _request(self, prepared: Prepared, asked: dict[str, SharedMemoryRef],
+                 refs: list[SharedMemoryRef] | None) -> oip.ModelInferRequest:
+        """The request, its input in the slot at refs[0] (the wire if refs is None) and its
+        output at refs[1] if there is room; `asked` learns where the output was asked for
+        (Triton's answer does not say)."""
+        outputs = self._wanted
+        asked.clear()
+        if refs and len(refs) > 1:  # the output into the slot too
+            asked[self._output] = refs[1]
+            outputs = {self._output: {REGION: refs[1].region, OFFSET: refs[1].offset,
+                                      BYTE_SIZE: refs[1].byte_size}}
+        return infer_request(self.call.server_model, prepared.feeds, outputs,
+                             placed={self._head.input_name: refs[0]} if refs else None,
+                             input_parameters=self._encoding)
+
+    def _through_shared_memory(self, prepared: Prepared, target: Any, timeout: float
+                               ) -> Detections | Classes:
+        assert self._shared is not None
+        room = self._output_room(target)
+        data = np.ascontiguousarray(prepared.feeds[self._head.input_name]).data.cast("B")
+        asked: dict[str, SharedMemoryRef] = {}
+        return self._shared.call(target, "ModelInfer", timeout,
+                                 [data, *([room] if room else [])],
+                                 partial(self._request, prepared, asked),
+                                 partial(self._placed_answer, prepared, asked))
+
+    def _output_room(self, target: Any) -> int | None:
+        """The output's bytes on this target, asked once (None: it comes on the wire)."""
+        if target.address not in self._output_sizes:
+            with contextlib.suppress(NotNow):  # unknown yet: the wire this time
+                self._output_sizes[target.address] = (
+                    output_bytes(target, self.call.server_model, self._output)
+                    if self._output and not self.call.decoded else None)
+        return self._output_sizes.get(target.address)
+
+    def _placed_answer(self, prepared: Prepared, asked: dict[str, SharedMemoryRef],
+                       response: oip.ModelInferResponse, region: OwnedRegion | None
+                       ) -> Detections | Classes:
+        outputs = response_outputs(response, asked)
+        if region is not None:
+            outputs |= placed_outputs(response, region, asked)
+        return self._finish(outputs, prepared)
+
+    def _finish(self, outputs: dict[str, np.ndarray], prepared: Prepared
+                ) -> Detections | Classes:
+        head = self._head
         if isinstance(head, ClassificationHead):
-            classes = head.decode(outputs, prepared, call.top_k)
+            classes = head.decode(outputs, prepared, self.call.top_k)
             return Classes(list(zip(classes.labels, classes.scores, strict=True)),
                            classes.labels[0], classes.scores[0])
-        if call.decoded:
-            return _decoded_detections(outputs[output], head.labels,
-                                       call.min_score or head.task.min_score, class_ids)
-        found = head.decode(outputs, prepared, call.min_score or head.task.min_score,
-                            class_ids)
+        if self.call.decoded:
+            return _decoded_detections(outputs[self._output], head.labels, self._min_score,
+                                       self._class_ids)
+        found = head.decode(outputs, prepared, self._min_score, self._class_ids)
         return Detections([Detection(head.labels[c], int(c), float(s), Box(*map(float, b)))
                            for b, s, c in zip(found.boxes, found.scores, found.class_ids,
                                               strict=True)])
 
-    # Per target: the output's bytes, for its room in a slot (None: it comes on the wire).
-    output_sizes: dict[str, int | None] = {}
-
-    def invoke(record: Record) -> Detections | Classes:
-        prepared = prepare(input_frame(record, "Infer"))
-        feeds = prepared.feeds
-        encoding = {head.input_name: {"encoding": "bgr8"}} if call.decoded else {}
-        asked: dict[str, SharedMemoryRef] = {}  # the output's place: Triton does not say
-
-        def build(refs: list[SharedMemoryRef] | None) -> oip.ModelInferRequest:
-            outputs = wanted
-            asked.clear()
-            if refs and len(refs) > 1:  # the output into the slot too
-                asked[output] = refs[1]
-                outputs = {output: {REGION: refs[1].region, OFFSET: refs[1].offset,
-                                    BYTE_SIZE: refs[1].byte_size}}
-            return infer_request(call.server_model, feeds, outputs,
-                                 placed={head.input_name: refs[0]} if refs else None,
-                                 input_parameters=encoding)
-
-        def on_target(target: Any, timeout: float) -> Detections | Classes:
-            assert shared is not None
-            if target.address not in output_sizes:
-                with contextlib.suppress(NotNow):  # unknown yet: the wire this time
-                    output_sizes[target.address] = (
-                        output_bytes(target, call.server_model, output)
-                        if output and not call.decoded else None)
-            room = output_sizes.get(target.address)
-            data = np.ascontiguousarray(feeds[head.input_name]).data.cast("B")
-            return shared.call(target, "ModelInfer", timeout, [data, *([room] if room else [])],
-                               build, lambda response, region: finish(
-                                   {**response_outputs(response, asked),
-                                    **(placed_outputs(response, region, asked)
-                                       if region else {})},
-                                   prepared))
-
-        if shared is None:
-            return finish(response_outputs(endpoint.call("ModelInfer", build(None))), prepared)
-        return endpoint.run({"grpc": on_target})
-
-    return invoke
-
-
-def result(call: InferCall) -> type:
-    task = call.declaration.task
-    return Detections if task is None or task.kind == "detection" else Classes
-
 
 METHOD = Method("Infer", InferCall, "inference.GRPCInferenceService",
-                oip_grpc.GRPCInferenceServiceStub, server_ready, result, bind,
+                oip_grpc.GRPCInferenceServiceStub, server_ready, Infer,
                 image_transport=True, takes_tensors=True, rank=3)

@@ -14,16 +14,16 @@ import logging
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
 from oricf.audio import check_format
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Invoke, Method, Partial, Skip
-from oricf.gateway.endpoints import Endpoint, GrpcTarget
-from oricf.gateway.methods.base import health_check
-from oricf.gateway.products import ProductStore
+from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip
+from oricf.gateway.endpoints import GrpcTarget
+from oricf.gateway.methods.base import ServingHealth
 from oricf.gateway.values import Record, SpokenAudio, template_fields
 from oricf.logs import quoted
 from oricf.v1 import synthesis_pb2, synthesis_pb2_grpc
@@ -77,22 +77,24 @@ def spoken_audio(reply: synthesis_pb2.SynthesizedAudio, asked_at: float) -> Spok
                        text=reply.text, asked_at=asked_at)
 
 
-def bind(call: SynthesizeCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    def over_grpc(request: synthesis_pb2.SynthesizeRequest) -> Any:
-        def work(target: GrpcTarget, timeout: float) -> tuple[Any, Any]:
-            # The first reply is awaited here, so that a server that is down or busy is
-            # retried or failed over like any call; the rest streams.
-            replies = target.invoke("SynthesizeStream", request, timeout)
-            return replies, next(replies, None)
-        return work
+class Synthesize(MethodCall[SynthesizeCall]):
+    """A route's Synthesize: SynthesizeStream, each sentence's audio handed on as it comes."""
 
-    def invoke(record: Record) -> Iterator[Partial | Speech]:
-        request = synthesize_request(record, call)
+    result = Speech
+
+    def execute(self, record: Record) -> Iterator[Partial | Speech]:
+        request = synthesize_request(record, self.call)
         asked_at = time.monotonic()
-        replies, first = endpoint.run({"grpc": over_grpc(request)})
+        replies, first = self.endpoint.run({"grpc": partial(self._first_over_grpc, request)})
         return _stream(replies, first, asked_at)
 
-    return invoke
+    @staticmethod
+    def _first_over_grpc(request: synthesis_pb2.SynthesizeRequest, target: GrpcTarget,
+                         timeout: float) -> tuple[Any, Any]:
+        """The stream and its first reply: awaited here, so that a server that is down or
+        busy is retried or failed over like any call; the rest streams."""
+        replies = target.invoke("SynthesizeStream", request, timeout)
+        return replies, next(replies, None)
 
 
 def _stream(replies: Any, first: Any, asked_at: float) -> Iterator[Partial | Speech]:
@@ -110,15 +112,11 @@ def _stream(replies: Any, first: Any, asked_at: float) -> Iterator[Partial | Spe
     yield Speech(None, " ".join(t for t in spoken if t))
 
 
-def result(call: Any) -> type:
-    return Speech
-
-
 def reads(call: SynthesizeCall) -> dict[str, set[str]]:
     return {"text": template_fields(call.text)}
 
 
 METHOD = Method("Synthesize", SynthesizeCall, "oricf.v1.SpeechSynthesizer",
                 synthesis_pb2_grpc.SpeechSynthesizerStub,
-                health_check("oricf.v1.SpeechSynthesizer"), result, bind, reads=reads,
+                ServingHealth("oricf.v1.SpeechSynthesizer"), Synthesize, reads=reads,
                 speaks=True, rank=4)

@@ -6,17 +6,17 @@ the utterance as a WAV file: faster-whisper-server, LocalAI, vLLM, ORICF's own w
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from functools import partial
+from typing import Literal
 
 import numpy as np
 
 from oricf.audio import encode_wav
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Invoke, Method, Skip
-from oricf.gateway.endpoints import Endpoint, GrpcTarget
+from oricf.gateway.components import CallBase, Method, MethodCall, Skip
+from oricf.gateway.endpoints import GrpcTarget
 from oricf.gateway.endpoints.openai import OpenAITarget, transcription
-from oricf.gateway.methods.base import health_check
-from oricf.gateway.products import ProductStore
+from oricf.gateway.methods.base import ServingHealth
 from oricf.gateway.values import AudioClip, Record
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 
@@ -41,31 +41,30 @@ def utterance(record: Record) -> AudioClip:
     return clip
 
 
-def bind(call: TranscribeCall, endpoint: Endpoint, products: ProductStore) -> Invoke:
-    def invoke(record: Record) -> Transcript:
+class Transcribe(MethodCall[TranscribeCall]):
+    """A route's Transcribe: one call per protocol the endpoint's targets speak."""
+
+    result = Transcript
+
+    def execute(self, record: Record) -> Transcript:
         clip = utterance(record)
-
-        def over_grpc(target: GrpcTarget, timeout: float) -> str:
-            request = speech_pb2.TranscribeRequest(audio=clip.to_proto(), language=call.language)
-            return str(target.invoke("Transcribe", request, timeout).text)
-
-        def over_openai(target: OpenAITarget, timeout: float) -> str:
-            samples = np.frombuffer(clip.pcm, "<i2").reshape(-1, clip.channels)
-            return transcription(target, encode_wav(samples, clip.sample_rate),
-                                     call.language, timeout)
-
-        text = endpoint.run({"grpc": over_grpc, "openai": over_openai}).strip()
+        text = self.endpoint.run({"grpc": partial(self._over_grpc, clip),
+                                  "openai": partial(self._over_openai, clip)}).strip()
         if not text:
             raise Skip("the audio transcribed to no words")
         return Transcript(text, clip.duration_s)
 
-    return invoke
+    def _over_grpc(self, clip: AudioClip, target: GrpcTarget, timeout: float) -> str:
+        request = speech_pb2.TranscribeRequest(audio=clip.to_proto(),
+                                               language=self.call.language)
+        return str(target.invoke("Transcribe", request, timeout).text)
 
-
-def result(call: Any) -> type:
-    return Transcript
+    def _over_openai(self, clip: AudioClip, target: OpenAITarget, timeout: float) -> str:
+        samples = np.frombuffer(clip.pcm, "<i2").reshape(-1, clip.channels)
+        return transcription(target, encode_wav(samples, clip.sample_rate),
+                             self.call.language, timeout)
 
 
 METHOD = Method("Transcribe", TranscribeCall, "oricf.v1.SpeechRecognizer",
-                speech_pb2_grpc.SpeechRecognizerStub, health_check("oricf.v1.SpeechRecognizer"),
-                result, bind, protocols=frozenset({"grpc", "openai"}), hears=True, rank=1)
+                speech_pb2_grpc.SpeechRecognizerStub, ServingHealth("oricf.v1.SpeechRecognizer"),
+                Transcribe, protocols=frozenset({"grpc", "openai"}), hears=True, rank=1)

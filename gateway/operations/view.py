@@ -55,8 +55,6 @@ class PipelineView:
         self.audit = audit or (actuation.audit if actuation else AuditLog())
         self._writers = {o.product: name for name, r in pipeline.config.routes.items()
                          for o in r.outputs if o.product}
-        self._invokes = {name: METHODS[r.config.call.method].bind(
-            r.config.call, r.endpoint, pipeline.products) for name, r in pipeline.routes.items()}
 
     # reads
 
@@ -228,7 +226,7 @@ class PipelineView:
 
     def _run(self, route: Route, record: Record) -> Json:
         try:
-            result = self._invokes[route.name](record)
+            result = route.method.execute(record)  # without the route's post steps
         except Skip as exc:
             return {"route": route.name, "nothing": str(exc)}
         except KeyError as exc:

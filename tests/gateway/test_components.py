@@ -36,7 +36,7 @@ METHOD_MODULE = """
 from dataclasses import dataclass
 from typing import Literal
 
-from oricf.gateway.components import CallBase, Method
+from oricf.gateway.components import CallBase, Method, MethodCall
 
 class Call(CallBase):
     method: Literal[{key!r}]
@@ -46,11 +46,14 @@ class Call(CallBase):
 class Said:
     said: str
 
-def bind(call, endpoint, products):
-    return lambda record: Said(str(record["text"]))
+class Echo(MethodCall[Call]):
+    result = Said
+
+    def execute(self, record):
+        return Said(str(record["text"]))
 
 METHOD = Method({key!r}, Call, "test.Echo", lambda channel: None,
-                lambda channel, timeout, metadata=(): True, lambda call: Said, bind, rank={rank})
+                lambda channel, timeout, metadata=(): True, Echo, rank={rank})
 """
 
 

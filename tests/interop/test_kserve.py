@@ -16,7 +16,7 @@ import pytest
 from oricf.bench.common import stop
 from oricf.gateway.components import METHODS
 from oricf.gateway.endpoints import GrpcTarget, TargetConfig
-from oricf.gateway.methods.base import health_check
+from oricf.gateway.methods.base import ServingHealth
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.store import ModelStore
@@ -82,5 +82,5 @@ def test_gateway_fails_over_to_kserve_and_probes_it_without_grpc_health(
     assert probe.serving()
     probe.close()
     with pytest.raises(grpc.RpcError) as error:  # KServe lacks grpc.health.v1
-        health_check("inference.GRPCInferenceService")(grpc.insecure_channel(kserve_address), 5)
+        ServingHealth("inference.GRPCInferenceService")(grpc.insecure_channel(kserve_address), 5)
     assert error.value.code() == grpc.StatusCode.UNIMPLEMENTED

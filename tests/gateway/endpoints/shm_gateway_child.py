@@ -17,7 +17,7 @@ def main(address: str) -> None:
     endpoint = Endpoint("detector", EndpointConfig(address=address, deadline_ms=30_000,
                                                    image={"transport": "shm"}), METHOD)
     products: Any = None  # Detect reads no data products
-    invoke = METHOD.bind(DetectCall(method="Detect", service="detector", labels=["person"]),
+    invoke = METHOD.open(DetectCall(method="Detect", service="detector", labels=["person"]),
                          endpoint, products)
     frame = Frame.from_pixels(video_frames([0])[0])
     print(len(invoke({"image": frame}).detections), flush=True)

@@ -43,7 +43,7 @@ def act(pipeline_config: PipelineConfig, state: np.ndarray) -> tuple[Endpoint, A
     endpoint = Endpoint("hopper", pipeline_config.endpoints["hopper"], METHODS["Act"],
                         pipeline_config.step_of("hopper"))
     call = pipeline_config.routes["hopper"].call
-    invoke = METHODS["Act"].bind(call, endpoint, ProductStore())
+    invoke = METHODS["Act"].open(call, endpoint, ProductStore())
     return endpoint, lambda step: invoke({"state": state, "step": step})
 
 

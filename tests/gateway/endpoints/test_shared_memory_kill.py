@@ -77,7 +77,7 @@ def test_a_detector_killed_mid_stream_leaves_nothing() -> None:
         endpoint = Endpoint("detector", EndpointConfig(address=address, deadline_ms=30_000,
                                                        image={"transport": "shm"}), METHOD)
         products: Any = None
-        invoke = METHOD.bind(DetectCall(method="Detect", service="detector"), endpoint,
+        invoke = METHOD.open(DetectCall(method="Detect", service="detector"), endpoint,
                              products)
         frame = Frame.from_pixels(video_frames([0])[0])
         try:
@@ -90,6 +90,7 @@ def test_a_detector_killed_mid_stream_leaves_nothing() -> None:
             assert caught.value.code() in (grpc.StatusCode.UNAVAILABLE,
                                            grpc.StatusCode.DEADLINE_EXCEEDED)
         finally:
+            invoke.close()
             endpoint.close()
     after = sorted(p.name for p in Path("/dev/shm").iterdir()
                    if p.name.startswith((OWN_PREFIX, "triton")))
@@ -103,7 +104,7 @@ def test_a_detector_restarted_gets_the_regions_registered_again(
     endpoint = Endpoint("detector", EndpointConfig(address=address, deadline_ms=30_000,
                                                    image={"transport": "shm"}), METHOD)
     products: Any = None
-    invoke = METHOD.bind(DetectCall(method="Detect", service="detector"), endpoint, products)
+    invoke = METHOD.open(DetectCall(method="Detect", service="detector"), endpoint, products)
     try:
         with oricf_process("serve", "detector", "--listen", address) as server:
             wait_serving(address, process=server)
@@ -121,4 +122,5 @@ def test_a_detector_restarted_gets_the_regions_registered_again(
             assert len(stub.SystemSharedMemoryStatus(
                 oip.SystemSharedMemoryStatusRequest(), timeout=10).regions) == 2
     finally:
+        invoke.close()
         endpoint.close()

@@ -32,7 +32,7 @@ def act(policy: RunningService) -> Iterator[object]:
     endpoint = Endpoint("policy", EndpointConfig(address=policy.address, deadline_ms=2000),
                         METHODS["Act"])
     try:
-        yield METHODS["Act"].bind(ActCall(method="Act", service="policy"), endpoint,
+        yield METHODS["Act"].open(ActCall(method="Act", service="policy"), endpoint,
                                   ProductStore())
     finally:
         endpoint.close()
@@ -103,7 +103,7 @@ def test_an_answer_larger_than_a_chunk_is_refused_as_it_arrives() -> None:
         endpoint = Endpoint("hopper", config.endpoints["hopper"], METHODS["Act"],
                             reply_bytes=config.reply_bytes_of("hopper"))
         try:
-            act = METHODS["Act"].bind(config.routes["hopper"].call, endpoint, ProductStore())
+            act = METHODS["Act"].open(config.routes["hopper"].call, endpoint, ProductStore())
             with peak_growth() as grown, pytest.raises(grpc.RpcError) as refused:
                 act({"state": np.zeros(15), "step": 1})
             assert refused.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
