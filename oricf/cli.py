@@ -29,7 +29,6 @@ from oricf.errors import ConfigError, ModelMissing
 from oricf.lifeline import follow_parent
 from oricf.logs import setup_logging
 from oricf.services import SERVICES
-from oricf.tls import check_token_sources
 
 log = logging.getLogger("oricf")
 
@@ -84,6 +83,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from oricf.services import load_spec
     from oricf.services.runtime import serve
     from oricf.store import ModelStore
+    from oricf.tls import check_token_sources  # grpc: loaded once a service is chosen
 
     spec = load_spec(args.service)
     data = deep_merge(data, security_overrides(args))

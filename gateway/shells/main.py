@@ -31,7 +31,6 @@ from oricf.errors import ConfigError
 from oricf.gateway.ros.params import Settings, read_parameters
 from oricf.gateway.ros.process import poll_in_calling_thread
 from oricf.logs import setup_logging
-from oricf.tls import check_token_sources
 
 if TYPE_CHECKING:
     from oricf.gateway.config import PipelineConfig
@@ -130,6 +129,8 @@ def main(argv: list[str] | None = None) -> int:
         sets.append(f"foxglove.listen={json.dumps(args.foxglove)}")
     path, overlays = settings.files()
     config = load_pipeline(path, overlays, sets=sets)
+    from oricf.tls import check_token_sources  # grpc: after its polling is set
+
     check_token_sources(config, config.origin)  # --check as the start: every token read
     if args.check:
         print(f"{path}: OK ({len(config.routes)} routes, "
