@@ -1,5 +1,6 @@
 """The control API over HTTP: JSON on loopback TCP or a Unix socket (mode 0600), bearer
-tokens, TLS; Starlette on uvicorn in a thread of its own.
+tokens, TLS; Starlette on uvicorn in a thread of its own. Its paths are the operations'
+(oricf.gateway.operations.api.PATHS, which the client calls too):
 
     GET  /v1/products            GET /v1/products/{name}      GET /v1/look?route=R
     GET  /v1/status              GET /v1/policy
@@ -40,7 +41,7 @@ from starlette.types import ASGIApp
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.actuation.policy import Refused
 from oricf.gateway.listeners import ControlConfig
-from oricf.gateway.operations.api import Json, Operations
+from oricf.gateway.operations.api import PATHS, Json, Operations
 from oricf.hosts import Address
 from oricf.http_connections import guarded_h11
 from oricf.tokens import APPROVER, BearerTokens
@@ -135,28 +136,26 @@ def control_app(gateway: Operations, config: ControlConfig) -> Starlette:
         return {**info, "image": base64.b64encode(jpeg).decode()}
 
     g = gateway
-    reads: dict[str, Callable[[Request, Json], Any]] = {
-        "/v1/products": lambda r, d: {"products": g.products()},
-        "/v1/products/{name:path}": lambda r, d: g.read_product(r.path_params["name"]),
-        "/v1/look": look,
-        "/v1/status": lambda r, d: g.status(),
-        "/v1/policy": lambda r, d: g.policy(),
-    }
-    calls: dict[str, Callable[[Request, Json], Any]] = {
-        "/v1/detect": lambda r, d: g.detect(b64(d.get("image"), "image"), d.get("route")),
-        "/v1/infer": lambda r, d: g.infer(
+    # Each operation's handler, served at its path in PATHS.
+    work: dict[str, Callable[[Request, Json], Any]] = {
+        "products": lambda r, d: {"products": g.products()},
+        "read_product": lambda r, d: g.read_product(r.path_params["name"]),
+        "look": look,
+        "status": lambda r, d: g.status(),
+        "policy": lambda r, d: g.policy(),
+        "detect": lambda r, d: g.detect(b64(d.get("image"), "image"), d.get("route")),
+        "infer": lambda r, d: g.infer(
             str(d.get("route", "")),
             None if d.get("image") is None else b64(d.get("image"), "image"),
             d.get("tensors")),
-        "/v1/ask": lambda r, d: g.ask(d.get("question")),  # type: ignore[arg-type]
-        "/v1/transcribe": lambda r, d: g.transcribe(b64(d.get("audio"), "audio")),
-        "/v1/say": lambda r, d: g.say(d.get("text")),  # type: ignore[arg-type]
-        "/v1/check": lambda r, d: g.check(str(d.get("target", "")), d.get("message")),
-        "/v1/publish": publish,
+        "ask": lambda r, d: g.ask(d.get("question")),  # type: ignore[arg-type]
+        "transcribe": lambda r, d: g.transcribe(b64(d.get("audio"), "audio")),
+        "say": lambda r, d: g.say(d.get("text")),  # type: ignore[arg-type]
+        "check": lambda r, d: g.check(str(d.get("target", "")), d.get("message")),
+        "publish": publish,
     }
-    routes = [Route(path, endpoint(work)) for path, work in reads.items()]
-    routes += [Route(path, endpoint(work, post=True), methods=["POST"])
-               for path, work in calls.items()]
+    routes = [Route(api.path, endpoint(work[name], post=api.http == "POST"), methods=[api.http])
+              for name, api in PATHS.items()]
     return Starlette(routes=routes)
 
 

@@ -5,17 +5,52 @@ and the tests do not care which it is.
 Values are JSON-able dicts; images travel as JPEG or PNG bytes, audio as WAV bytes. Errors:
 InvalidInput (a caller's mistake: unknown product or route, bad image), NotReady (nothing to
 show yet, a service down), Refused (the agent policy said no, with its reason).
+
+Over HTTP each operation has one path, written once in PATHS: the control API's server
+(oricf.gateway.api.server) serves them and the client calls them.
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+import re
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol
 
 MAX_IMAGE_BYTES = 8 * 1024 * 1024
 MAX_AUDIO_BYTES = 16 * 1024 * 1024
 MAX_TEXT_CHARS = 4000
 
 Json = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class ApiPath:
+    """An operation's HTTP method and path; `{name}` in a path is a parameter (Starlette's
+    syntax, `{name:path}` taking one that may hold '/')."""
+
+    http: Literal["GET", "POST"]
+    path: str
+
+    def url(self, **params: str) -> str:
+        """The path with its parameters filled in (each already escaped by the caller)."""
+        return re.sub(r"\{(\w+)(?::\w+)?\}", lambda m: params[m.group(1)], self.path)
+
+
+# Operation (a method of Operations) -> its path. GET reads, POST runs a model or acts.
+PATHS: dict[str, ApiPath] = {
+    "products": ApiPath("GET", "/v1/products"),
+    "read_product": ApiPath("GET", "/v1/products/{name:path}"),
+    "look": ApiPath("GET", "/v1/look"),
+    "status": ApiPath("GET", "/v1/status"),
+    "policy": ApiPath("GET", "/v1/policy"),
+    "detect": ApiPath("POST", "/v1/detect"),
+    "infer": ApiPath("POST", "/v1/infer"),
+    "ask": ApiPath("POST", "/v1/ask"),
+    "transcribe": ApiPath("POST", "/v1/transcribe"),
+    "say": ApiPath("POST", "/v1/say"),
+    "check": ApiPath("POST", "/v1/check"),
+    "publish": ApiPath("POST", "/v1/publish"),
+}
 
 
 class Operations(Protocol):

@@ -19,7 +19,7 @@ import httpx
 
 from oricf.errors import ConfigError, InvalidInput, NotReady, OricfError
 from oricf.gateway.actuation.policy import Refused
-from oricf.gateway.operations.api import Json
+from oricf.gateway.operations.api import PATHS, Json
 from oricf.gateway.operations.names import known_product
 from oricf.tls import TokenSource
 from oricf.yamlfile import read_limited
@@ -70,9 +70,13 @@ class ControlClient:
             raise ConfigError(f"--attach {address}: give unix:PATH or http(s)://HOST:PORT")
         self.address = address
 
-    def _call(self, method: str, path: str, **kwargs: Any) -> Any:
+    def _call(self, operation: str, path: dict[str, str] | None = None, **kwargs: Any
+              ) -> Any:
+        """The operation at its path in PATHS, `path` filling the path's parameters; kwargs
+        are httpx's (json, params)."""
+        api = PATHS[operation]
         try:
-            response = self._http.request(method, path, **kwargs)
+            response = self._http.request(api.http, api.url(**(path or {})), **kwargs)
         except httpx.HTTPError as exc:
             raise NotReady(f"gateway control API at {self.address}: {exc}") from None
         try:
@@ -87,18 +91,18 @@ class ControlClient:
         return data
 
     def products(self) -> list[Json]:
-        return list(self._call("GET", "/v1/products")["products"])
+        return list(self._call("products")["products"])
 
     def read_product(self, name: str) -> Json:
         known_product(name, (p["name"] for p in self.products()))
-        return dict(self._call("GET", f"/v1/products/{path_segment(name)}"))
+        return dict(self._call("read_product", path={"name": path_segment(name)}))
 
     def look(self, route: str | None = None) -> tuple[Json, bytes]:
-        data = self._call("GET", "/v1/look", params={"route": route} if route else None)
+        data = self._call("look", params={"route": route} if route else None)
         return data, base64.b64decode(data.pop("image"))
 
     def detect(self, image: bytes, route: str | None = None) -> Json:
-        return dict(self._call("POST", "/v1/detect", json={
+        return dict(self._call("detect", json={
             "image": base64.b64encode(image).decode(), "route": route}))
 
     def infer(self, route: str, image: bytes | None = None,
@@ -106,30 +110,30 @@ class ControlClient:
         body: Json = {"route": route, "tensors": tensors}
         if image is not None:
             body["image"] = base64.b64encode(image).decode()
-        return dict(self._call("POST", "/v1/infer", json=body))
+        return dict(self._call("infer", json=body))
 
     def ask(self, question: str) -> Json:
-        return dict(self._call("POST", "/v1/ask", json={"question": question}))
+        return dict(self._call("ask", json={"question": question}))
 
     def transcribe(self, audio: bytes) -> Json:
-        return dict(self._call("POST", "/v1/transcribe",
+        return dict(self._call("transcribe",
                                json={"audio": base64.b64encode(audio).decode()}))
 
     def say(self, text: str) -> Json:
-        return dict(self._call("POST", "/v1/say", json={"text": text}))
+        return dict(self._call("say", json={"text": text}))
 
     def status(self) -> Json:
-        return dict(self._call("GET", "/v1/status"))
+        return dict(self._call("status"))
 
     def policy(self) -> Json:
-        return dict(self._call("GET", "/v1/policy"))
+        return dict(self._call("policy"))
 
     def check(self, target: str, message: Json) -> Json:
-        return dict(self._call("POST", "/v1/check", json={"target": target,
+        return dict(self._call("check", json={"target": target,
                                                           "message": message}))
 
     def publish(self, target: str, message: Json, approved: bool = False) -> Json:
-        return dict(self._call("POST", "/v1/publish", json={
+        return dict(self._call("publish", json={
             "target": target, "message": message, "approved": approved}))
 
     def close(self) -> None:
