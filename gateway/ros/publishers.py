@@ -1,13 +1,14 @@
-"""Topic outputs, the pipeline's ROS outputs: one publisher per output topic; each value
-converted to its message (oricf.gateway.ros.messages, from the codec's fields) and
-published, and recorded with --record."""
+"""Topic outputs, the pipeline's ROS outputs: one lifecycle publisher per output topic (it
+publishes while the node is active); each value converted to its message
+(oricf.gateway.ros.messages, from the codec's fields) and published, and recorded with
+--record."""
 
 from __future__ import annotations
 
 import logging
 from typing import Any
 
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.publisher import Publisher
 
 from oricf.errors import InvalidInput
@@ -25,7 +26,7 @@ class TopicPublishers:
     """Called with each topic output of the pipeline's routes (oricf.gateway.outlets.Outlets
     hands them on)."""
 
-    def __init__(self, node: Node, config: PipelineConfig,
+    def __init__(self, node: LifecycleNode, config: PipelineConfig,
                  recorder: Recorder | None = None) -> None:
         self._node = node
         self._recorder = recorder  # --record: every topic output into a file
@@ -36,7 +37,7 @@ class TopicPublishers:
                 if output.topic is not None and output.topic not in self._publishers:
                     assert output.type is not None
                     # Reliable publishers match both reliable and best-effort subscribers.
-                    self._publishers[output.topic] = node.create_publisher(
+                    self._publishers[output.topic] = node.create_lifecycle_publisher(
                         messages.message_type(output.type), output.topic,
                         TYPES[output.type].depth)
 

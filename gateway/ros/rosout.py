@@ -76,6 +76,11 @@ class RosoutLogging(Node):
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        self.attach_rosout()
+
+    def attach_rosout(self) -> None:
+        """For a class whose __init__ does not reach this one's (rclpy's LifecycleNode calls
+        Node.__init__ by name): to call once the node exists."""
         logger = logging.getLogger(ROOT)
         self._saved_logging = logger.level, logger.propagate
         self._rosout = RosoutHandler(self.get_logger().name, self.context)

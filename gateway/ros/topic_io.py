@@ -1,7 +1,8 @@
 """The gateway node's topics for components that read and write their own (a control
 loop's state and actions, oricf.gateway.components.TopicIo): subscriptions keep the newest
 message only and match reliable and best-effort publishers alike; publishers are reliable
-(matched by either kind of subscriber) and build each message from nested fields."""
+(matched by either kind of subscriber), lifecycle publishers (they publish while the node is
+active), and build each message from nested fields."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from oricf.gateway.ros import messages
@@ -32,7 +33,7 @@ def fill(msg: Any, fields: Mapping[str, Any]) -> Any:
 
 
 class NodeTopics:
-    def __init__(self, node: Node) -> None:
+    def __init__(self, node: LifecycleNode) -> None:
         self._node = node
 
     def subscribe(self, topic: str, type_: str, take: Callable[[Any], None]) -> None:
@@ -42,7 +43,7 @@ class NodeTopics:
 
     def publisher(self, topic: str, type_: str) -> Callable[[dict[str, Any]], None]:
         message = messages.message_type(type_)
-        publisher = self._node.create_publisher(message, topic, QoSProfile(depth=10))
+        publisher = self._node.create_lifecycle_publisher(message, topic, QoSProfile(depth=10))
         context = self._node.context
 
         def publish(fields: dict[str, Any]) -> None:

@@ -4,7 +4,7 @@
         [--overlay configs/pipelines/placement/edge.yaml ...] \\
         [--set routes.people.input.url=rtsp://camera.local/stream ...] \\
         [--record run.mcap] [--replay run.mcap [--rate 0]] [--foxglove 127.0.0.1:8765] \\
-        [--ros-args -r __node:=my_gateway ...]
+        [--lifecycle managed] [--ros-args -r __node:=my_gateway ...]
 
 Also runnable as a plain ROS node: `python -m oricf.gateway.shells.main --config FILE`, and as the
 ROS 2 package ros/oricf_gateway: `ros2 run oricf_gateway gateway --ros-args -p config:=...`,
@@ -12,6 +12,8 @@ ROS 2 package ros/oricf_gateway: `ros2 run oricf_gateway gateway --ros-args -p c
 the node's parameters config, placement, overlays and sets (oricf.gateway.ros.params); given
 after --ros-args, a parameter wins. --config and the placement parameter also take the name
 of a shipped file (people_qa, edge). The node's log goes to /rosout (oricf.gateway.ros.rosout).
+It is a managed (lifecycle) node that configures and activates itself; with --lifecycle
+managed it waits for `ros2 lifecycle set`, a launch file's events or a lifecycle manager.
 
 Where rclpy comes from (PyPI wheels, or a robot's own ROS 2): docs/ros.md. The audio
 convention of std_msgs/Int16MultiArray inputs: docs/gateway.md.
@@ -36,6 +38,10 @@ if TYPE_CHECKING:
     from oricf.gateway.config import PipelineConfig
 
 log = logging.getLogger(__name__)
+
+# --lifecycle: who takes the node's configure and activate transitions.
+LIFECYCLES = ("auto", "managed")
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="oricf gateway", description=__doc__,
@@ -66,6 +72,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="take topic inputs from this MCAP recording instead of ROS, "
                              "without ROS; topic outputs go to --record, else to standard "
                              "output as JSON lines")
+    parser.add_argument("--lifecycle", choices=LIFECYCLES, default="auto",
+                        help="auto (default): the node configures and activates itself; "
+                             "managed: it waits unconfigured for `ros2 lifecycle set`, "
+                             "launch's lifecycle events or a lifecycle manager (docs/ros.md)")
     parser.add_argument("--rate", type=replay_rate, default=None,
                         help="--replay: 1 plays at the recorded pace (default), 2 twice as "
                              "fast (0.01 to 1000); 0 as fast as the routes take every "
@@ -146,6 +156,10 @@ def main(argv: list[str] | None = None) -> int:
 def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
           settings: Settings | None = None) -> int:
     """With ROS if the pipeline has topics, unless they are replayed from a recording."""
+    managed = args.lifecycle == "managed"
+    if managed and (args.replay is not None or not config.uses_ros):
+        raise ConfigError("--lifecycle managed: only for a ROS node, and this pipeline runs "
+                          "without ROS (it reads and writes no topic, or --replay)")
     if args.replay is not None:
         return replay(config, args)
     from oricf.gateway.recording.recorder import RecordingError
@@ -161,7 +175,7 @@ def start(config: PipelineConfig, args: argparse.Namespace, ros_args: list[str],
         return standalone.run(config)
     from oricf.gateway.shells.ros import run
 
-    return run(config, ros_args, args.record, settings)
+    return run(config, ros_args, args.record, settings, autostart=not managed)
 
 
 def ros_main() -> int:

@@ -1,5 +1,6 @@
-"""The gateway as a ROS 2 process: rclpy started, the node configured, activated and spun
-until SIGINT or SIGTERM, and everything closed in order."""
+"""The gateway as a ROS 2 process: rclpy started, the node configured, activated (or left
+for a lifecycle manager to) and spun until SIGINT, SIGTERM or its shutdown transition, and
+everything closed in order."""
 
 from __future__ import annotations
 
@@ -40,16 +41,23 @@ def gateway_ros_node(config: PipelineConfig, recorder: Recorder | None = None,
     from oricf.gateway.shells.ros_node import GatewayNode
 
     class GatewayRosNode(GatewayNode, RosoutLogging):
-        """GatewayNode's super().__init__ reaches RosoutLogging before Node."""
+        """RosoutLogging's destroy_node comes before Node's; its __init__ is not reached
+        (rclpy's LifecycleNode calls Node.__init__ by name), so it is attached here."""
 
-    return GatewayRosNode(config, context=context, recorder=recorder)
+        def __init__(self) -> None:
+            GatewayNode.__init__(self, config, context=context, recorder=recorder)
+            self.attach_rosout()
+
+    return GatewayRosNode()
 
 
 def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
-        settings: Settings | None = None) -> int:
-    """Spins the node until SIGINT/SIGTERM, then stops in order: the control API and the
-    agent's actuation first (the zero command goes out while ROS still runs), the node's
-    inputs and routes, the recording, and ROS last.
+        settings: Settings | None = None, autostart: bool = True) -> int:
+    """Spins the node until SIGINT/SIGTERM, or until a lifecycle manager shuts it down
+    (finalized), then stops in order: the control API and the agent's actuation first (the
+    zero command goes out while ROS still runs), the node's inputs and routes, the
+    recording, and ROS last. With `autostart` the node configures and activates itself;
+    without, it waits unconfigured for `ros2 lifecycle set` or a lifecycle manager.
 
     The signals are ORICF's, not rclpy's: rclpy's handlers shut every context down the
     moment a signal arrives, before the actuation could publish its zero command."""
@@ -71,22 +79,27 @@ def run(config: PipelineConfig, ros_args: list[str], record: Path | None = None,
         executor = make_executor(config.executor_threads, kind=config.executor)
         node = gateway_ros_node(config, recorder)
         try:
-            node.configure()
-            if stop.is_set():  # SIGINT or SIGTERM came while the node was being configured
-                log.info("gateway stopped while starting")
-                return 0
             if settings is not None:
                 declare_settings(node, settings)
-            node.activate()
+            if autostart:
+                node.configure()
+                if stop.is_set():  # SIGINT or SIGTERM came while the node was configured
+                    log.info("gateway stopped while starting")
+                    return 0
+                node.activate()
+            else:
+                log.info("gateway node %s: unconfigured, for its lifecycle manager to "
+                         "configure and activate", node.get_name())
             executor.add_node(node)
             try:
-                spin_until_shutdown(executor, lambda: not stop.is_set() and rclpy.ok())
+                spin_until_shutdown(executor, lambda: not stop.is_set() and rclpy.ok()
+                                    and node.state != "finalized")
             finally:
                 log.info("gateway stopping")
-                node.gateway.deactivate()
+                node.deactivate()
                 executor.shutdown()
         finally:
-            node.gateway.cleanup()
+            node.shutdown()
             if recorder is not None:  # complete on disk before DDS is torn down
                 recorder.close()
             node.destroy_node()

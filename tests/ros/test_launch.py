@@ -19,17 +19,26 @@ from tests.ros.conftest import PACKAGE
 LAUNCH = PACKAGE / "launch" / "people_qa.launch.py"
 
 
-def module() -> ast.Module:
-    return ast.parse(LAUNCH.read_text(), str(LAUNCH))
+def module(path: Path = LAUNCH) -> ast.Module:
+    return ast.parse(path.read_text(), str(path))
 
 
-def assigned(name: str) -> ast.expr:
+def assigned(name: str, path: Path = LAUNCH) -> ast.expr:
     """The value the launch file's top level assigns to `name`."""
-    for node in module().body:
+    for node in module(path).body:
         if isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] \
                 == [name]:
             return node.value
-    raise AssertionError(f"{LAUNCH}: no {name} = ...")
+    raise AssertionError(f"{path}: no {name} = ...")
+
+
+def imported(path: Path = LAUNCH) -> set[str]:
+    """The top-level packages the launch file imports."""
+    tree = module(path)
+    names = {(n.module or "").split(".")[0] for n in ast.walk(tree)
+             if isinstance(n, ast.ImportFrom)}
+    return names | {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import)
+                    for a in n.names}
 
 
 def test_it_compiles(tmp_path: Path) -> None:
@@ -38,11 +47,7 @@ def test_it_compiles(tmp_path: Path) -> None:
 
 def test_it_imports_only_launch_and_launch_ros() -> None:
     """`ros2 launch` runs with the ROS install's Python, which may not see `oricf`."""
-    imported = {(n.module or "").split(".")[0] for n in ast.walk(module())
-                if isinstance(n, ast.ImportFrom)}
-    imported |= {a.name.split(".")[0] for n in ast.walk(module()) if isinstance(n, ast.Import)
-                 for a in n.names}
-    assert imported == {"launch", "launch_ros"}
+    assert imported() == {"launch", "launch_ros"}
 
 
 def test_its_parameters_are_the_nodes_and_its_arguments_those_and_ross_own() -> None:

@@ -34,7 +34,8 @@ def test_the_manifest_is_a_valid_format_3_ament_python_package() -> None:
     assert manifest.get_build_type() == "ament_python"
     assert manifest.version == importlib.metadata.version("oricf")
     assert {d.name for d in manifest.exec_depends} >= {
-        "rclpy", "rcl_interfaces", "std_msgs", "sensor_msgs", "launch", "launch_ros"}
+        "rclpy", "rcl_interfaces", "lifecycle_msgs", "std_msgs", "sensor_msgs", "launch",
+        "launch_ros"}
     assert manifest.maintainers and manifest.licenses == ["Apache-2.0"]
     # format 3's element order: name, version, description, maintainer, license
     tags = [e.tag for e in ElementTree.parse(PACKAGE / "package.xml").getroot()]
@@ -46,7 +47,7 @@ def test_colcon_installs_the_marker_manifest_launch_file_and_executable(
     prefix = workspace.prefix
     assert (workspace.install / "setup.sh").is_file()
     assert (prefix / "share/ament_index/resource_index/packages/oricf_gateway").is_file()
-    for name in ("package.xml", "launch/people_qa.launch.py"):
+    for name in ("package.xml", "launch/people_qa.launch.py", "launch/lifecycle.launch.py"):
         assert (prefix / "share/oricf_gateway" / name).read_bytes() == \
             (PACKAGE / name).read_bytes()
     executable = prefix / "lib/oricf_gateway/gateway"
@@ -115,7 +116,7 @@ def test_the_installed_gateway_runs_as_a_ros_node_and_logs_to_rosout(
         with rosout_reader(ros_context) as lines:
             started = next_line(lines, "robot7.oricf_gateway",
                                 "gateway node oricf_gateway: 4 routes", timeout=60)
-            assert (started.level, started.function) == (Log.INFO, "activate")
+            assert (started.level, started.function) == (Log.INFO, "_activate")
             assert started.file.endswith("gateway/shells/ros_node.py")
             assert get_parameters(ros_context, "/robot7/oricf_gateway",
                                   ["config", "placement", "overlays", "sets"]) == [

@@ -33,18 +33,24 @@ ARGUMENTS = {
 PARAMETER_TYPES = {"config": str, "placement": str, "overlays": list[str], "sets": list[str]}
 
 
-def generate_launch_description() -> LaunchDescription:
-    gateway = Node(
-        package="oricf_gateway",
-        executable="gateway",
-        namespace=LaunchConfiguration("namespace"),
+def gateway_node_options() -> dict[str, object]:
+    """The node's executable, namespace, parameters and log level from the arguments (also
+    lifecycle.launch.py's)."""
+    return {
+        "package": "oricf_gateway",
+        "executable": "gateway",
+        "namespace": LaunchConfiguration("namespace"),
         # Typed, so that `[]` stays an empty list and a path is never read as YAML.
-        parameters=[{name: ParameterValue(LaunchConfiguration(name), value_type=kind)
-                     for name, kind in PARAMETER_TYPES.items()}],
-        ros_arguments=["--log-level", LaunchConfiguration("log_level")],
-        output="screen",
-        emulate_tty=True,
-    )
+        "parameters": [{name: ParameterValue(LaunchConfiguration(name), value_type=kind)
+                        for name, kind in PARAMETER_TYPES.items()}],
+        "ros_arguments": ["--log-level", LaunchConfiguration("log_level")],
+        "output": "screen",
+        "emulate_tty": True,
+    }
+
+
+def generate_launch_description() -> LaunchDescription:
+    gateway = Node(**gateway_node_options())
     return LaunchDescription([
         *(DeclareLaunchArgument(name, default_value=default, description=description)
           for name, (default, description) in ARGUMENTS.items()),

@@ -44,7 +44,7 @@ def test_the_gateway_log_reaches_rosout_once_with_level_and_place(
         between = [line.msg for line in lines_until(lines, "rosout_gw", "marker")
                    if line.name == "rosout_gw"]
     assert between == ["marker"]
-    assert (started.level, started.function) == (Log.INFO, "activate")
+    assert (started.level, started.function) == (Log.INFO, "_activate")
     assert started.file.endswith("gateway/shells/ros_node.py")
     assert (warned.level, warned.function) == (Log.WARN, "test_the_gateway_log_reaches_rosout_"
                                                          "once_with_level_and_place")
