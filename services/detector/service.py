@@ -35,6 +35,7 @@ from oricf.services.runtime.batch_calls import run_batched
 from oricf.services.runtime.batching import BatchingSettings
 from oricf.services.runtime.errors import MESSAGE_REFUSALS, check_deadline, refusal
 from oricf.services.runtime.shared_memory import SharedMemoryRegistry, SharedMemorySettings
+from oricf.services.runtime.streams import hand_over
 from oricf.services.runtime.tracing import spans_ending_now
 from oricf.store import ModelStore
 from oricf.tracing import span
@@ -154,13 +155,7 @@ class Detector(Service[DetectorConfig]):
     def _read_stream(self, requests: Iterator[detector_pb2.DetectRequest],
                      ready: queue.Queue[StreamItem], done: threading.Event) -> None:
         def put(item: StreamItem) -> bool:
-            while not done.is_set():
-                try:
-                    ready.put(item, timeout=0.1)
-                    return True
-                except queue.Full:
-                    continue
-            return False
+            return hand_over(ready, item, done)
 
         try:
             for request in requests:

@@ -93,18 +93,24 @@ def idle_bounded(requests: Iterator[T], idle_s: float, key: str) -> Iterator[T]:
         done.set()  # the call is over: the reader must not wait for room in the queue
 
 
+def hand_over(ready: queue.Queue[T], item: T, done: threading.Event) -> bool:
+    """Puts `item` for the call's thread, waiting for room while the call lasts; False once
+    the call is over (`done`), so a stream's reader never waits on a queue nobody empties."""
+    while not done.is_set():
+        try:
+            ready.put(item, timeout=0.1)
+            return True
+        except queue.Full:
+            continue
+    return False
+
+
 def _read(requests: Iterator[Any], ready: queue.Queue[tuple[str, Any]],
           done: threading.Event) -> None:
     """Hands each request over; the end of the stream or its error last. Once the call has
     ended, gRPC ends the request iterator too, so the thread never outlives it for long."""
     def put(item: tuple[str, Any]) -> bool:
-        while not done.is_set():
-            try:
-                ready.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                continue
-        return False
+        return hand_over(ready, item, done)
 
     try:
         for request in requests:
