@@ -15,6 +15,7 @@ import time
 from typing import Any
 
 from oricf.bench.common import JPEG_QUALITY, load_frames
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
@@ -36,7 +37,7 @@ def route(detector: str, deadline_ms: int) -> dict[str, Any]:
     }
 
 
-class Answers:
+class Answers(Emitter):
     """The latency of each answered frame captured inside the window."""
 
     def __init__(self, start: float, end: float) -> None:
@@ -44,7 +45,7 @@ class Answers:
         self.latencies: list[float] = []
         self._lock = threading.Lock()
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         captured = record["captured"]
         if self.start <= captured < self.end:
             with self._lock:

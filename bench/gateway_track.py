@@ -17,7 +17,7 @@ from typing import Any
 from oricf.bench.common import print_table
 from oricf.bench.gateway_report import InputResult
 from oricf.bench.tracking import TRACK_MIN_SCORE
-from oricf.gateway.components import chain
+from oricf.gateway.components import PostSteps
 from oricf.gateway.config import PostStep
 from oricf.gateway.methods.detect import detections
 from oricf.gateway.values import Record
@@ -38,12 +38,12 @@ def tracking_overlay(overlay: dict[str, Any]) -> dict[str, Any]:
 
 
 def _per_frame_us(steps: list[dict[str, Any]], frames: list[list[Detection]]) -> float:
-    run = chain([PostStep.model_validate(s) for s in steps])
+    post = PostSteps([PostStep.model_validate(s) for s in steps])
     times = []
     for found in frames:
         record: Record = {"detections": found}
         started = time.perf_counter()
-        run(record)
+        post.run(record)
         times.append(time.perf_counter() - started)
     return statistics.median(times) * 1e6
 

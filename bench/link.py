@@ -33,6 +33,7 @@ from oricf.bench.common import load_frames, print_table, stop
 from oricf.bench.gateway import cpu_seconds
 from oricf.bench.netns import EdgeHost, edge_host
 from oricf.config import deep_merge
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
@@ -62,13 +63,13 @@ RELAY = ("import sys, threading\nfrom oricf.bench.relay import DelayRelay\n"
 
 
 @dataclass
-class Counts:
+class Counts(Emitter):
     times: list[float] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
     frames: int = 0  # fed while the robot's CPU was measured
     robot_cpu_s: float = 0.0  # over those frames
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         now = time.monotonic()
         self.times.append(now)
         self.latencies.append(now - record["sent_at"])

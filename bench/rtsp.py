@@ -25,6 +25,7 @@ from oricf.bench.entry import need_tools
 from oricf.bench.rtsp_camera import PACKAGES, SYSTEM_PYTHON, RtspCamera
 from oricf.bench.stamp import age_ms
 from oricf.config import config_dir, read_yaml
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sinks.jsonl import JsonLines
@@ -36,14 +37,14 @@ WARMUP_S = 5.0
 
 
 @dataclass
-class Lines:
+class Lines(Emitter):
     """The JSON-lines sink, noting when each count was written and how old its frame was."""
 
     sink: JsonLines = field(default_factory=JsonLines)
     ages_ms: list[float] = field(default_factory=list)
     measuring: bool = False
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         self.sink.write(str(record.get("route")), output, value)
         if self.measuring:
             self.ages_ms.append(age_ms(record["image"].pixels(), time.time()))

@@ -27,7 +27,7 @@ import numpy as np
 
 from oricf.bench.common import print_table, shipped_detector_model
 from oricf.config import REPO_ROOT
-from oricf.gateway.components import chain
+from oricf.gateway.components import PostSteps
 from oricf.gateway.config import PostStep
 from oricf.gateway.methods.detect import detections
 from oricf.gateway.post import track as track_step
@@ -124,13 +124,13 @@ def tracked_counts(found: list[list[Detection]], fps: float,
     """The `track` and `count_tracks` steps as a route runs them, on the video's clock."""
     now = [0.0]
     tracking = track_step.build(track or TrackStep(labels=["person"]), clock=lambda: now[0])
-    counting = chain([PostStep(count_tracks=count or CountTracksStep(label="person"))])
+    counting = PostSteps([PostStep(count_tracks=count or CountTracksStep(label="person"))])
     counts: list[int] = []
     for index, frame in enumerate(found):
         now[0] = index / fps
         record: Record = {"detections": frame}
         tracking.run(record)
-        counting(record)
+        counting.run(record)
         counts.append(record["count"])
     return counts
 

@@ -44,6 +44,7 @@ import numpy as np
 from oricf.audio import MODEL_RATE, synthesize
 from oricf.bench.common import print_table, served
 from oricf.config import config_dir
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
@@ -85,8 +86,9 @@ class Turn:
         return dict(zip(STAGES, np.diff(times), strict=False))
 
 
-class Voice:
-    """The example pipeline for one voice, its timeline seams, fed like a microphone."""
+class Voice(Emitter):
+    """The example pipeline for one voice, its timeline seams, fed like a microphone; its
+    pipeline's emitter, marking when the speech leaves for the outlets."""
 
     def __init__(self, voice: str, addresses: dict[str, str], device: str | None,
                  folder: Path, min_silence_ms: int | None = None) -> None:
@@ -103,7 +105,7 @@ class Voice:
         self.config: PipelineConfig = load_pipeline(PIPELINE, sets=sets)
         self.turn = Turn()
         self.outlets = Outlets(self.config)
-        self.pipeline = Pipeline(self.config, self._emit, speaking=self.outlets.speaking)
+        self.pipeline = Pipeline(self.config, self, speaking=self.outlets.speaking)
         for product, mark in (("transcript", "transcript"), ("answer_sentence", "sentence")):
             self.pipeline.products.subscribe(product, lambda _v, m=mark: self.turn.mark(m))
         people = self.config.routes["people"].input
@@ -114,15 +116,15 @@ class Voice:
         self.cutter = Utterances(shared_vad(), vad)
         self.cutter.begin(MODEL_RATE)
 
-    def _emit(self, output: Any, value: Any, record: Any) -> None:
+    def emit(self, output: Any, value: Any, record: Any) -> None:
         if output.source == "speech" and "audio" not in self.turn.marks:
             self.turn.mark("audio")
             # Read before the audio is handed over: the speaker's thread may start it at once.
             self.turn.sound_before = _last_start(self._speaker())
-            self.outlets(output, value, record)
+            self.outlets.emit(output, value, record)
             self.turn.done.set()  # the route goes on at once, as it does in the gateway
         else:
-            self.outlets(output, value, record)
+            self.outlets.emit(output, value, record)
 
     def _speaker(self) -> Any:
         return next(iter(self.outlets.speakers.values()), None)

@@ -26,8 +26,9 @@ import importlib
 import pkgutil
 import threading
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any, ClassVar, Generic, Protocol, TypeAlias, TypeVar
 
 import grpc
@@ -72,15 +73,16 @@ class Builds(Protocol):
     def build(self) -> Step: ...
 
 
-def chain(steps: Iterable[Builds]) -> Run:
-    """All steps in order, as one."""
-    runs = [step.build().run for step in steps]
+class PostSteps:
+    """A route's post steps, built once from its `post:` list, run in order on each record
+    (after its call, before its outputs)."""
 
-    def run(record: Record) -> None:
-        for step in runs:
-            step(record)
+    def __init__(self, steps: Iterable[Builds]) -> None:
+        self.steps = [step.build() for step in steps]
 
-    return run
+    def run(self, record: Record) -> None:
+        for step in self.steps:
+            step.run(record)
 
 
 class TopicIo(Protocol):
@@ -94,6 +96,27 @@ class TopicIo(Protocol):
         """A function that publishes a message given as nested fields."""
 
 
+class Emitter:
+    """Where a pipeline's outputs go, one value at a time: its outlets
+    (oricf.gateway.outlets.Outlets), the ROS node's topic publishers, a replay's recording,
+    or what a test or a benchmark collects. This one sends nowhere; `speaking` is the state of
+    the speech its outputs play, if they play any, and `speakers` what they play it on."""
+
+    speaking: Speaking | None = None
+
+    def emit(self, output: Any, value: Any, record: Record) -> None:
+        """Sends `value` to `output` (an OutputConfig); `record` is the whole record it came
+        from (an annotated image takes the input's header from it)."""
+
+    @property
+    def speakers(self) -> Mapping[str, Any]:
+        """The speakers its outputs play on, by device (for /metrics)."""
+        return NO_SPEAKERS
+
+
+NO_SPEAKERS: Mapping[str, Any] = MappingProxyType({})
+
+
 @dataclass
 class ComponentContext:
     """What a pipeline gives the components it builds (its sources and sinks)."""
@@ -102,17 +125,22 @@ class ComponentContext:
     channels: Channels       # the pipeline's text channels
     speaking: Speaking       # whether a speaker plays, and barge-in
     # Where topic outputs go: the ROS node's publishers, or in a replay the recording.
-    ros: Callable[[Any, Any, Record], None] | None = None
+    ros: Emitter | None = None
     topics: TopicIo | None = None    # the ROS node's topics, for sources that use them
     # The pipeline's control loops by route (its /metrics and status read them).
     loops: dict[str, ControlLoop] = dataclasses.field(default_factory=dict)
 
 
-class Sink(Protocol):
+class Sink(ABC):
     """Where an output's values go (one object per output key in a pipeline)."""
 
+    # The speakers it plays on, by device (a speech output's, for /metrics).
+    speakers: Mapping[str, Any] = NO_SPEAKERS
+
+    @abstractmethod
     def send(self, output: Any, value: Any, record: Record) -> None: ...
 
+    @abstractmethod
     def close(self) -> None: ...
 
 
@@ -201,6 +229,11 @@ class Partial:
     fields: dict[str, Any]
 
 
+# A streaming call's Partials, ending with its result: a generator, which the route closes
+# when it stops reading early (a barge-in, an error), so the call's stream ends too.
+Stream: TypeAlias = Generator[Partial | Result, None, None]
+
+
 class CallBase(Schema):
     """The keys every call has: the endpoint it goes to."""
 
@@ -235,10 +268,10 @@ class MethodCall(ABC, Generic[CallT]):
         return cls.result
 
     @abstractmethod
-    def execute(self, record: Record) -> Result | Iterator[Partial | Result]:
+    def execute(self, record: Record) -> Result | Stream:
         """One record -> its result, or (a streaming call) Partials ending with it."""
 
-    def __call__(self, record: Record) -> Result | Iterator[Partial | Result]:
+    def __call__(self, record: Record) -> Result | Stream:
         return self.execute(record)
 
     def close(self) -> None:

@@ -1,22 +1,23 @@
 """A whole pipeline without ROS: endpoints, data products, routes and their workers.
 
 The ROS node (oricf.gateway.shells.ros_node) only subscribes to input topics, submits loaders here,
-and publishes what `emit` receives. Tests and benchmarks drive this class directly too.
+and publishes what the emitter receives (oricf.gateway.components.Emitter: the pipeline's
+outlets). Tests and benchmarks drive this class directly too, with emitters of their own.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
-from oricf.gateway.components import METHODS
+from oricf.gateway.components import METHODS, Emitter
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.control.loop import ControlLoop
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.metrics import pipeline_registry
 from oricf.gateway.products import ProductStore
-from oricf.gateway.route import Emit, Loader, Route, with_trace_context
+from oricf.gateway.route import Loader, Route, with_trace_context
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
@@ -28,16 +29,16 @@ ERROR_LOG_INTERVAL_S = 10.0
 
 
 class Pipeline:
-    def __init__(self, config: PipelineConfig, emit: Emit,
+    def __init__(self, config: PipelineConfig, emitter: Emitter,
                  products: ProductStore | None = None, speaking: Speaking | None = None
                  ) -> None:
         self.config = config
         self.products = products or ProductStore()
         # Outlets that play speech hold the speaking state; routes that mute or barge in
         # must see that one, so it is taken from them unless given.
-        self.speaking = speaking or getattr(emit, "speaking", None) or Speaking()
+        self.speaking = speaking or emitter.speaking or Speaking()
         # The speakers those outlets play on, for /metrics (device -> Speaker).
-        self.speakers: dict[str, Any] = getattr(emit, "speakers", {})
+        self.speakers: Mapping[str, Any] = emitter.speakers
         throttle = ThrottledLog(logging.getLogger("oricf.gateway.route"), ERROR_LOG_INTERVAL_S)
         used = {route.call.service for route in config.routes.values()}
         self.endpoints = {name: Endpoint(name, cfg, METHODS[config.method_of(name)],
@@ -53,7 +54,7 @@ class Pipeline:
         self.routes: dict[str, Route] = {}
         self.workers: dict[str, RouteWorker[Loader]] = {}
         for name, rc in config.routes.items():
-            route = Route(name, rc, self.endpoints[rc.call.service], self.products, emit,
+            route = Route(name, rc, self.endpoints[rc.call.service], self.products, emitter,
                           throttle, self.speaking)
             self.routes[name] = route
             self.workers[name] = RouteWorker(name, route.process, rc.input.mode,

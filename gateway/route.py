@@ -10,25 +10,36 @@ counted, and told to whoever asked for the record (the item's asker, oricf.gatew
 a text channel's client, which no output will answer now, or a control loop, which asks
 again); an item that went through is told its record (a control loop takes its chunk). The
 route goes on with the next message. Data
-products go to the ProductStore; every other output to `emit` (oricf.gateway.outlets.Outlets:
-files, text channels, and topics through the ROS node's publishers or a recording).
+products go to the ProductStore; every other output to the pipeline's emitter
+(oricf.gateway.components.Emitter: its outlets, oricf.gateway.outlets.Outlets, send them to
+files, text channels, and topics through the ROS node's publishers or a recording). Then each
+of the route's watchers (the live view) is shown the record.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Collection, Iterator
+from collections.abc import Collection, Generator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import grpc
 from opentelemetry import context as otel_context
 from opentelemetry.trace import Status, StatusCode, get_current_span
 
 from oricf.errors import InvalidInput
-from oricf.gateway.components import METHODS, MethodCall, Partial, Skip, chain, result_fields
-from oricf.gateway.config import OutputConfig, RouteConfig
+from oricf.gateway.components import (
+    METHODS,
+    Emitter,
+    MethodCall,
+    Partial,
+    PostSteps,
+    Skip,
+    Stream,
+    result_fields,
+)
+from oricf.gateway.config import RouteConfig
 from oricf.gateway.endpoints import Endpoint
 from oricf.gateway.items import Asker, Loader, asker_of
 from oricf.gateway.products import ProductStore
@@ -42,8 +53,6 @@ from oricf.tracing import span
 
 log = logging.getLogger(__name__)
 
-# (output, its value, the whole record: e.g. the input header for an annotated image)
-Emit = Callable[[OutputConfig, Any, Record], None]
 # Call errors whose details are meant for the caller (a client mistake), so they may be told.
 TOLD_IN_FULL = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.OUT_OF_RANGE,
                 grpc.StatusCode.FAILED_PRECONDITION}
@@ -78,6 +87,13 @@ def with_trace_context(load: Loader) -> Loader:
     return TracedLoader(load, otel_context.get_current())
 
 
+class Watcher(Protocol):
+    """Shown each record a route finished, after its outputs (the live view,
+    oricf.gateway.live_view.view.LiveView), in the route's thread: it must not block."""
+
+    def show(self, route: str, record: Record) -> None: ...
+
+
 @dataclass
 class RouteStats:
     ok: int = 0
@@ -94,7 +110,7 @@ class RouteStats:
 
 class Route:
     def __init__(self, name: str, config: RouteConfig, endpoint: Endpoint,
-                 products: ProductStore, emit: Emit, throttle: ThrottledLog,
+                 products: ProductStore, emitter: Emitter, throttle: ThrottledLog,
                  speaking: Speaking | None = None) -> None:
         self.name = name
         self.config = config
@@ -104,10 +120,9 @@ class Route:
         # (time.monotonic() when done, the record): the newest one that went through, for
         # readers such as the control API's `look` (oricf.gateway.api)
         self.latest: tuple[float, Record] | None = None
-        # Called with each record after its outputs (the live view): they must not block.
-        self.watchers: list[Callable[[str, Record], None]] = []
-        self._emit = emit
-        self._post = chain(config.post)
+        self.watchers: list[Watcher] = []
+        self.emitter = emitter
+        self.post = PostSteps(config.post)
         self._throttle = throttle
         self._speaking = speaking or Speaking()
         # The method bound to this route, built once (oricf.gateway.components.MethodCall).
@@ -122,14 +137,14 @@ class Route:
         # to the service; a streamed answer's first piece is an event on the call's span.
         with span(f"call {self.config.call.method}"):
             result = self.method.execute(record)
-            if isinstance(result, Iterator):
+            if isinstance(result, Generator):
                 result = self._stream(record, result, asked_at)
         record.update(result_fields(result))
         with span("post"):
-            self._post(record)
+            self.post.run(record)
         return record
 
-    def _stream(self, record: Record, items: Iterator[Any], asked_at: float) -> Any:
+    def _stream(self, record: Record, items: Stream, asked_at: float) -> Any:
         """Sends each Partial on as it comes; the result that ends the stream."""
         result = None
         first = True
@@ -145,10 +160,8 @@ class Route:
                     if not self._speaking.current(asked_at):
                         raise Skip("interrupted by a new utterance (barge-in)")
                     self.send({**record, **item.fields}, item.fields.keys())
-        finally:
-            close = getattr(items, "close", None)
-            if close is not None:
-                close()
+        finally:  # a stream left early is closed now, ending the call's stream too
+            items.close()
         if result is None:
             raise RuntimeError(f"{self.config.call.method} stream ended without a result")
         if not self._speaking.current(asked_at):  # its last piece was cut off
@@ -166,9 +179,9 @@ class Route:
             if output.product is not None:
                 self.products.put(output.product, value)
             else:
-                self._emit(output, value, record)
-        for watch in self.watchers:
-            watch(self.name, record)
+                self.emitter.emit(output, value, record)
+        for watcher in self.watchers:
+            watcher.show(self.name, record)
 
     def process(self, load: Loader) -> None:
         """Worker entry point: one message, every failure logged and counted, never raised.

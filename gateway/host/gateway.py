@@ -25,12 +25,12 @@ from typing import TYPE_CHECKING
 
 from oricf.gateway.actuation.audit import AuditLog
 from oricf.gateway.actuation.senders import MakeSender
-from oricf.gateway.components import OnEnd, Source, TopicIo
+from oricf.gateway.components import Emitter, OnEnd, Source, TopicIo
 from oricf.gateway.config import PipelineConfig
 from oricf.gateway.host.surfaces import make_view, serve_control, start_live_view
 from oricf.gateway.inputs import pipeline_sources
 from oricf.gateway.operations.view import PipelineView
-from oricf.gateway.outlets import Outlets, RosOutputs
+from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
 from oricf.tracing import setup_tracing
 
@@ -92,7 +92,7 @@ class Gateway:
             raise LifecycleError("the gateway is not configured")
         return self._outlets
 
-    def configure(self, ros: RosOutputs | None = None, on_end: OnEnd = no_end,
+    def configure(self, ros: Emitter | None = None, on_end: OnEnd = no_end,
                   topics: TopicIo | None = None) -> None:
         """Builds every part; `ros` takes topic outputs, `on_end` hears of ended sources,
         `topics` are the ROS node's for sources that use their own (a control loop)."""

@@ -38,7 +38,7 @@ def start_live_view(pipeline: Pipeline, config: LiveViewConfig) -> LiveView:
         view.declare(topic, kind)
     view.start(lambda: states(pipeline))
     for route in pipeline.routes.values():
-        route.watchers.append(view.show)
+        route.watchers.append(view)
     for product in pipeline.products.declared():
         pipeline.products.subscribe(product, functools.partial(view.show_product, product))
     return view

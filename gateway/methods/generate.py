@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import numbers
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from dataclasses import dataclass
 from functools import partial
 from typing import Any, Literal
@@ -20,7 +20,7 @@ from pydantic import Field, field_validator
 
 from oricf.config import Schema
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip
+from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip, Stream
 from oricf.gateway.endpoints import Endpoint, GrpcTarget
 from oricf.gateway.endpoints.openai import OpenAITarget, chat_completion
 from oricf.gateway.methods.base import ServingHealth
@@ -152,7 +152,7 @@ class Generate(MethodCall[GenerateCall]):
     def result_type(cls, call: GenerateCall) -> type:
         return SentencedAnswer if call.sentences else Answer
 
-    def execute(self, record: Record) -> Answer | Iterator[Partial | SentencedAnswer]:
+    def execute(self, record: Record) -> Answer | Stream:
         readings = context_readings(self.call, self.products)
         request = generate_request(record, self.call, self.products, readings)
         if log.isEnabledFor(logging.DEBUG):
@@ -214,7 +214,8 @@ def _pieces(replies: Any, first: Any) -> Iterator[str]:
         replies.cancel()  # stopped early (barge-in): the model stops generating
 
 
-def _sentences(pieces: Iterator[str]) -> Iterator[Partial | SentencedAnswer]:
+def _sentences(pieces: Iterator[str]
+               ) -> Generator[Partial | SentencedAnswer, None, None]:
     """Each sentence as soon as it is complete, then the whole answer."""
     cutter = SentenceCutter()
     text = []

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Generator
 from dataclasses import dataclass
 from functools import partial
 from typing import Any, Literal
@@ -21,7 +21,7 @@ from pydantic import Field, field_validator
 
 from oricf.audio import check_format
 from oricf.errors import InvalidInput
-from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip
+from oricf.gateway.components import CallBase, Method, MethodCall, Partial, Skip, Stream
 from oricf.gateway.endpoints import GrpcTarget
 from oricf.gateway.methods.base import ServingHealth
 from oricf.gateway.values import Record, SpokenAudio, template_fields
@@ -82,7 +82,7 @@ class Synthesize(MethodCall[SynthesizeCall]):
 
     result = Speech
 
-    def execute(self, record: Record) -> Iterator[Partial | Speech]:
+    def execute(self, record: Record) -> Stream:
         request = synthesize_request(record, self.call)
         asked_at = time.monotonic()
         replies, first = self.endpoint.run({"grpc": partial(self._first_over_grpc, request)})
@@ -97,7 +97,8 @@ class Synthesize(MethodCall[SynthesizeCall]):
         return replies, next(replies, None)
 
 
-def _stream(replies: Any, first: Any, asked_at: float) -> Iterator[Partial | Speech]:
+def _stream(replies: Any, first: Any, asked_at: float
+            ) -> Generator[Partial | Speech, None, None]:
     spoken = []
     try:
         reply = first

@@ -20,6 +20,6 @@ one module here with its schema, a `build` and `COMPONENT = StepKind(key, schema
 
 from __future__ import annotations
 
-from oricf.gateway.components import Step, StepKind, chain
+from oricf.gateway.components import PostSteps, Step, StepKind
 
-__all__ = ["Step", "StepKind", "chain"]
+__all__ = ["PostSteps", "Step", "StepKind"]

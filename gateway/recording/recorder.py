@@ -39,6 +39,7 @@ from mcap.well_known import MessageEncoding, Profile, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from oricf.errors import InvalidInput, OricfError
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig
 from oricf.gateway.route import Loader
 from oricf.gateway.sinks.jsonl import jsonable
@@ -200,7 +201,7 @@ class Recorder:
                  if self.dropped else "")
 
 
-class TopicOutputs:
+class TopicOutputs(Emitter):
     """The pipeline's ROS outputs when no ROS node publishes them (a replay): each topic
     output serialized by the topic codec into the recording, or
     without one to standard output as JSON lines (the jsonl sink's objects plus "topic" and
@@ -211,7 +212,7 @@ class TopicOutputs:
         self._lock = threading.Lock()
         self._throttle = ThrottledLog(log)
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         assert output.topic is not None and output.type is not None
         topic = ros_name(output.topic)
         if self._recorder is None:

@@ -30,7 +30,7 @@ import copy
 import logging
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from rclpy.callback_groups import CallbackGroup
@@ -40,11 +40,11 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from oricf.gateway.config import InputConfig
+from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.recording.recorder import Recorder, message_times
 from oricf.gateway.ros.frame_loss import FrameLoss, camera_side_fix, replaceable
 from oricf.gateway.ros.messages import message_type
-from oricf.gateway.route import Loader
-from oricf.gateway.topics.codec import image_loader, timed
+from oricf.gateway.topics.codec import input_loader, timed
 
 log = logging.getLogger(__name__)
 
@@ -70,18 +70,14 @@ class OwnThreadGroup(CallbackGroup):
         pass
 
 
-# Runs a route on one item in the calling thread: (route, loader, frames missed before it).
-RunHere = Callable[[str, Loader, int], None]
-
-
 class CameraReceiver:
-    """Takes serialized frames from one topic and runs the route on each (`run_here`, the
+    """Takes serialized frames from one topic and runs the route on each in this thread (the
     pipeline's handle_here), with the number of frames missed since the previous one; with
     a recorder, each frame is recorded first. `qos` gives the depth and the reliability to
     start with, until publishers are found."""
 
     def __init__(self, node: Node, route: str, config: InputConfig, qos: QoSProfile,
-                 run_here: RunHere, recorder: Recorder | None = None) -> None:
+                 pipeline: Pipeline, recorder: Recorder | None = None) -> None:
         assert config.topic is not None and config.type is not None
         self.route = route
         self.loss = FrameLoss()
@@ -91,7 +87,7 @@ class CameraReceiver:
         self._topic = config.topic
         self._name = node.resolve_topic_name(config.topic)
         self._qos = qos
-        self._run_here = run_here
+        self._pipeline = pipeline
         self._recorder = recorder
         self._context = node.context
         self.subscription = self._subscribe(qos.reliability)
@@ -141,11 +137,11 @@ class CameraReceiver:
 
     def _receive(self, serialized: bytes, missed: int, info: dict[str, Any]) -> None:
         # Taken when stamped, or else when it arrived (as a recording logs it).
-        load = timed(image_loader(self._type, serialized), message_times(info)[0])
+        load = timed(input_loader(self._type, serialized), message_times(info)[0])
         if self._recorder is not None:
             load = self._recorder.input(self._name, self._type, serialized,
                                         *message_times(info), load)
-        self._run_here(self.route, load, missed)
+        self._pipeline.handle_here(self.route, load, missed)
 
     def _take(self, wait_set: Any) -> tuple[Any, bool]:
         """The next frame, if one came within the wait, and whether the receiver was idle
@@ -262,7 +258,7 @@ def _name(reliability: ReliabilityPolicy) -> str:
 
 
 def _type_name(msg_type: Any) -> str:
-    """sensor_msgs/msg/Image, as the ROS graph names types."""
+    """package/msg/Type, as the ROS graph names types."""
     package = msg_type.__module__.split(".")[0]
     return f"{package}/msg/{msg_type.__name__}"
 

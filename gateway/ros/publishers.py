@@ -1,6 +1,6 @@
 """Topic outputs, the pipeline's ROS outputs: one lifecycle publisher per output topic (it
 publishes while the node is active); each value converted to its message
-(oricf.gateway.ros.messages, from the codec's fields) and published, and recorded with
+(oricf.gateway.ros.messages, from its type's fields) and published, and recorded with
 --record."""
 
 from __future__ import annotations
@@ -12,19 +12,20 @@ from rclpy.lifecycle import LifecycleNode
 from rclpy.publisher import Publisher
 
 from oricf.errors import InvalidInput
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, PipelineConfig
 from oricf.gateway.recording.recorder import Recorder
 from oricf.gateway.ros import messages
 from oricf.gateway.throttle import ThrottledLog
-from oricf.gateway.topics.codec import TYPES
+from oricf.gateway.topics.types import ros_type
 from oricf.gateway.values import Record
 
 log = logging.getLogger(__name__)
 
 
-class TopicPublishers:
-    """Called with each topic output of the pipeline's routes (oricf.gateway.outlets.Outlets
-    hands them on)."""
+class TopicPublishers(Emitter):
+    """Emits each topic output of the pipeline's routes (oricf.gateway.outlets.Outlets hands
+    them on)."""
 
     def __init__(self, node: LifecycleNode, config: PipelineConfig,
                  recorder: Recorder | None = None) -> None:
@@ -39,9 +40,9 @@ class TopicPublishers:
                     # Reliable publishers match both reliable and best-effort subscribers.
                     self._publishers[output.topic] = node.create_lifecycle_publisher(
                         messages.message_type(output.type), output.topic,
-                        TYPES[output.type].depth)
+                        ros_type(output.type).depth)
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         assert output.topic is not None and output.type is not None
         try:
             msg = messages.to_message(output.type, value, record.get("header"))

@@ -55,13 +55,14 @@ from oricf.gateway.ros.camera import CameraReceiver
 from oricf.gateway.ros.commands import RosSender
 from oricf.gateway.ros.publishers import TopicPublishers
 from oricf.gateway.ros.topic_io import NodeTopics
-from oricf.gateway.topics.types import IMAGE_INPUTS
+from oricf.gateway.topics import codec
+from oricf.gateway.topics.types import ros_type
 
 log = logging.getLogger(__name__)
 
 
 def input_qos(config: InputConfig) -> QoSProfile:
-    if config.type in IMAGE_INPUTS:
+    if ros_type(str(config.type)).frames:
         qos = QoSProfile(depth=1)
         qos.reliability = qos_profile_sensor_data.reliability
         qos.durability = qos_profile_sensor_data.durability
@@ -277,9 +278,9 @@ class GatewayNode(LifecycleNode):
 
     def _subscribe(self, route: str, config: InputConfig) -> None:
         assert config.topic is not None and config.type is not None
-        if config.type in IMAGE_INPUTS:
+        if ros_type(str(config.type)).frames:
             self._cameras.append(CameraReceiver(self, route, config, input_qos(config),
-                                                self.pipeline.handle_here, self._recorder))
+                                                self.pipeline, self._recorder))
         else:
             self._subscribe_queued(route, config)
         log.info("route %s: %s (%s) -> %s", route, config.topic, config.type,
@@ -293,7 +294,8 @@ class GatewayNode(LifecycleNode):
         def on_message(msg: Any, info: dict[str, Any]) -> None:
             if not self._active:  # inactive: nothing taken, nothing answered later
                 return
-            load = messages.loader(config, msg)
+            load = codec.input_loader(str(config.type), msg, config.sample_rate,
+                                      config.channels)
             if recorder is not None:
                 load = recorder.input(name, str(config.type), serialize_message(msg),
                                       *message_times(info), load)

@@ -31,7 +31,7 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 DEFAULT_FPS = 10.0
 
 
-class FrameFiles:
+class FrameFiles(Sink):
     """Every frames output of a pipeline; one writer per path."""
 
     def __init__(self, fps: dict[str, float | None] | None = None) -> None:

@@ -39,7 +39,7 @@ def jsonable(value: Any) -> Any:
     return value
 
 
-class JsonLines:
+class JsonLines(Sink):
     """Every jsonl output of a pipeline; a file is opened once and appended to."""
 
     def __init__(self) -> None:

@@ -226,7 +226,7 @@ class Speaker:
         self._thread.join(timeout=5)
 
 
-class Speakers:
+class Speakers(Sink):
     """A Speaker per device that the pipeline's `audio:` outputs name, opened (checked) at
     once: a device that is not there is a ConfigError naming the file and the key."""
 

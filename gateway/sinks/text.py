@@ -26,7 +26,7 @@ def as_line(value: Any) -> str:
     return json.dumps(jsonable(value))
 
 
-class TextLines:
+class TextLines(Sink):
     def __init__(self, channels: Channels) -> None:
         self._channels = channels
         self._lock = threading.Lock()

@@ -23,7 +23,7 @@ def check(output: Any) -> None:
         raise ValueError("type: required with topic")
 
 
-class RosOutputs:
+class RosOutputs(Sink):
     """Topic outputs to the ROS side, which a pipeline without ROS does not have."""
 
     def __init__(self, context: ComponentContext) -> None:
@@ -32,7 +32,7 @@ class RosOutputs:
     def send(self, output: Any, value: Any, record: Record) -> None:
         if self._ros is None:
             raise RuntimeError(f"output topic {output.topic} needs the ROS node")
-        self._ros(output, value, record)
+        self._ros.emit(output, value, record)
 
     def close(self) -> None:
         """The ROS side closes its own publishers."""

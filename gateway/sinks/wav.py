@@ -20,7 +20,7 @@ from oricf.gateway.values import AudioClip, Record
 log = logging.getLogger(__name__)
 
 
-class WavFiles:
+class WavFiles(Sink):
     """Every wav output of a pipeline; one writer per path."""
 
     def __init__(self) -> None:

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from oricf.config import deep_merge
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
 from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
@@ -36,11 +37,11 @@ def pipeline_config(address: str, change: dict[str, Any] | None = None) -> Pipel
     return parse_pipeline(deep_merge(data, change or {}), "test pipeline")
 
 
-class Outputs:
+class Outputs(Emitter):
     def __init__(self) -> None:
         self.sent: list[tuple[str, Any]] = []
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         self.sent.append((str(output.topic), value))
 
 
@@ -63,7 +64,7 @@ def test_the_routes_see_the_speaking_state_of_the_outlets_that_play_speech() -> 
     outlets = Outlets(config)
     try:
         assert Pipeline(config, outlets).speaking is outlets.speaking
-        assert Pipeline(config, lambda *a: None).speaking is not outlets.speaking
+        assert Pipeline(config, Emitter()).speaking is not outlets.speaking
     finally:
         outlets.close()
 

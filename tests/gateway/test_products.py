@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
 from oricf.gateway.methods.generate import GenerateCall, fact, generate_request
 from oricf.gateway.pipeline import Pipeline
@@ -130,11 +131,11 @@ def services(detector: RunningService, llm: RunningService
     return detector, llm
 
 
-class Answers:
+class Answers(Emitter):
     def __init__(self) -> None:
         self.sent: list[str] = []
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         if output.topic == "/answer":
             self.sent.append(value)
 

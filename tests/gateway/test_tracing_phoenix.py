@@ -30,6 +30,7 @@ from opentelemetry.sdk.trace import TracerProvider
 from opentelemetry.sdk.trace.export import BatchSpanProcessor
 
 from oricf.audio import encode_wav, synthesize
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import PipelineConfig, parse_pipeline
 from oricf.gateway.host.gateway import Gateway
 from oricf.gateway.pipeline import Pipeline
@@ -242,7 +243,7 @@ def test_a_call_over_http_carries_the_trace_to_the_services_openai_api(
                 "outputs": [{"jsonl": str(tmp_path / "said.jsonl"), "from": "transcript"}]}}},
             "asr over HTTP")
         with gateway_traced_over_http(base):
-            pipeline = Pipeline(config, lambda *sent: None)
+            pipeline = Pipeline(config, Emitter())
             pipeline.start()
             try:
                 clip = AudioClip(synthesize(QUESTION).astype("<i2").tobytes(), 16000, 1)

@@ -12,7 +12,7 @@ import pytest
 
 from oricf.gateway.host.gateway import Gateway, LifecycleError
 from oricf.gateway.values import Record
-from tests.gateway.live_view.support import video_pipeline
+from tests.gateway.live_view.support import Kept, video_pipeline
 from tests.support.services import RunningService
 from tests.support.waiting import wait_for
 
@@ -31,7 +31,7 @@ def test_nothing_runs_before_activate_and_nothing_after_deactivate(
     gateway.configure()
     records: list[Record] = []
     route = gateway.pipeline.routes["people"]
-    route.watchers.append(lambda name, record: records.append(record))
+    route.watchers.append(Kept(records))
     time.sleep(0.5)  # a started source would have read frames by now
     assert (our_threads(), records, gateway.live_view) == ([], [], None)
     gateway.activate()

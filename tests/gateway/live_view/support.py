@@ -56,20 +56,27 @@ class Running:
         return self.gateway.live_view.url
 
 
+class Kept:
+    """A route watcher keeping a copy of each record it is shown."""
+
+    def __init__(self, records: list[Record]) -> None:
+        self.records = records
+        self._lock = threading.Lock()
+
+    def show(self, route: str, record: Record) -> None:
+        with self._lock:
+            self.records.append(dict(record))
+
+
 @contextmanager
 def running(config: PipelineConfig) -> Iterator[Running]:
     """The pipeline started with its sources; every record the route finished is kept."""
     gateway = Gateway(config)
     gateway.configure()
     run = Running(gateway)
-    lock = threading.Lock()
-
-    def keep(route: str, record: Record) -> None:
-        with lock:
-            run.records.append(dict(record))
-
+    kept = Kept(run.records)
     for route in gateway.pipeline.routes.values():
-        route.watchers.append(keep)
+        route.watchers.append(kept)
     gateway.activate()
     try:
         yield run

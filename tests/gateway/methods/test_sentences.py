@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.methods.sentences import SentenceCutter, sentences
 from oricf.gateway.pipeline import Pipeline
@@ -52,14 +53,14 @@ def test_a_sentence_that_ends_beyond_doubt_goes_without_waiting_for_more() -> No
         assert cutter.flush() == [held]
 
 
-class Outputs:
+class Outputs(Emitter):
     """Collects what the routes send; `on` runs on each value (a barge-in in the test)."""
 
     def __init__(self) -> None:
         self.sent: list[tuple[str, Any]] = []
         self.on: Any = None
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         self.sent.append((output.source, value))
         if self.on is not None:
             self.on(output.source)

@@ -25,13 +25,14 @@ def record() -> Record:
 
 
 def test_map_filter_count_template_in_order() -> None:
-    run = post.chain([step(map_labels={"person": "human"}),
-                      step(filter={"labels": ["human"], "min_score": 0.5}),
-                      step(count={"label": "human", "into": "humans"}),
-                      step(count={}),
-                      step(template={"text": "I see {humans} human(s).", "into": "said"})])
+    steps = post.PostSteps([step(map_labels={"person": "human"}),
+                            step(filter={"labels": ["human"], "min_score": 0.5}),
+                            step(count={"label": "human", "into": "humans"}),
+                            step(count={}),
+                            step(template={"text": "I see {humans} human(s).",
+                                           "into": "said"})])
     result = record()
-    run(result)
+    steps.run(result)
     assert [d.label for d in result["detections"]] == ["human"]
     assert (result["humans"], result["count"], result["said"]) == (1, 1, "I see 1 human(s).")
 
@@ -48,15 +49,15 @@ def test_counts_always_agree_with_the_detections(steps: list[dict[str, object]],
     """A label counted after steps that rename or drop detections counts what is left
     (0 when none is)."""
     result = record()
-    post.chain([*(step(**s) for s in steps),
-                *(step(count={"label": label, "into": label}) for label in counts)])(result)
+    post.PostSteps([*(step(**s) for s in steps),
+                    *(step(count={"label": label, "into": label}) for label in counts)]).run(result)
     assert {label: result[label] for label in counts} == counts
     assert sum(counts.values()) == len(result["detections"])
 
 
 def test_annotate_draws_on_the_input_image() -> None:
     result = record()
-    post.chain([step(annotate={})])(result)
+    post.PostSteps([step(annotate={})]).run(result)
     annotated = result["annotated"]
     original = result["image"].pixels()
     assert (annotated.width, annotated.height, annotated.encoding) == (768, 576, "bgr8")
@@ -67,4 +68,4 @@ def test_annotate_draws_on_the_input_image() -> None:
 
 def test_template_with_a_missing_field_is_an_input_error() -> None:
     with pytest.raises(InvalidInput, match="cannot fill 'nobody'"):
-        post.chain([step(template={"text": "{nobody}"})])(record())
+        post.PostSteps([step(template={"text": "{nobody}"})]).run(record())

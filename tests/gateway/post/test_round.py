@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 from oricf.errors import ConfigError, InvalidInput
-from oricf.gateway.components import chain
+from oricf.gateway.components import PostSteps
 from oricf.gateway.config import PostStep, parse_pipeline
 
 PIPELINE: dict[str, Any] = {
@@ -27,17 +27,17 @@ def pipeline(post: list[dict[str, Any]]) -> dict[str, Any]:
 
 def test_rounds_into_a_field_or_in_place() -> None:
     record: dict[str, Any] = {"speed": 1.26, "count": 3}
-    chain([PostStep.model_validate({"round": {"field": "speed", "digits": 1,
-                                              "into": "shown"}}),
-           PostStep.model_validate({"round": {"field": "speed"}})])(record)
+    PostSteps([PostStep.model_validate({"round": {"field": "speed", "digits": 1,
+                                                  "into": "shown"}}),
+               PostStep.model_validate({"round": {"field": "speed"}})]).run(record)
     assert record == {"speed": 1, "shown": 1.3, "count": 3}
     assert isinstance(record["speed"], int)
 
 
 def test_a_value_that_is_no_number_is_bad_input() -> None:
-    run = chain([PostStep.model_validate({"round": {"field": "label"}})])
+    steps = PostSteps([PostStep.model_validate({"round": {"field": "label"}})])
     with pytest.raises(InvalidInput, match="round: label is not a number"):
-        run({"label": "person"})
+        steps.run({"label": "person"})
 
 
 def test_a_pipeline_takes_the_key_and_checks_its_fields(tmp_path: Path) -> None:

@@ -30,7 +30,7 @@ def walker(x: float) -> Detection:
 def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> None:
     now = [0.0]
     tracking = track_step.build(TrackStep(labels=["person"]), clock=lambda: now[0])
-    measures = post.chain([
+    measures = post.PostSteps([
         step(count_tracks={"label": "person", "into": "now"}),
         step(seen_tracks={"label": "person", "window_s": 60, "into": "last_minute"}),
         step(zone={"polygon": [[200, 0], [400, 0], [400, 300], [200, 300]],
@@ -44,7 +44,7 @@ def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> N
         now[0] = i / 10
         record: Record = {"detections": [walker(100 + 10 * i)]}
         tracking.run(record)
-        measures(record)
+        measures.run(record)
         records.append(record)
     assert {d.track_id for r in records for d in r["detections"]} == {1}
     assert records[-1]["detections"][0].velocity == pytest.approx((100, 0), abs=5)
@@ -66,13 +66,13 @@ def test_a_still_weak_post_leaves_the_tracked_count_after_still_s(
     track = step(track={"labels": ["person"], **settings}).track
     assert track is not None
     tracking = track_step.build(track, clock=lambda: now[0])
-    count = post.chain([step(count_tracks={"label": "person", "into": "now"})])
+    count = post.PostSteps([step(count_tracks={"label": "person", "into": "now"})])
     post_box = Detection("person", 0, 0.62, Box(30, 110, 48, 142))
     for i in range(80):  # 8 s: a post that never moves, and a person walking
         now[0] = i / 10
         record: Record = {"detections": [post_box, walker(100 + 3 * i)]}
         tracking.run(record)
-        count(record)
+        count.run(record)
     assert record["now"] == counted
     assert len(record["detections"]) == counted
 

@@ -25,14 +25,14 @@ def frames(times: list[float], clock_s: float = 0.0) -> list[Record]:
     within `clock_s` of each other (a replay as fast as it goes)."""
     step = track_step.build(TrackStep(labels=["person"], max_age_s=1.0),
                             clock=lambda: clock_s)
-    seen = post.chain([PostStep.model_validate(
+    seen = post.PostSteps([PostStep.model_validate(
         {"seen_tracks": {"label": "person", "window_s": 2, "into": "seen"}})])
     records = []
     for i, taken in enumerate(times):
         record: Record = {"route": "people", FRAME_TIME: taken,
                           "detections": [walker(100 + 10 * i)]}
         step.run(record)
-        seen(record)
+        seen.run(record)
         records.append(record)
     return records
 
