@@ -15,6 +15,7 @@ from rclpy.context import Context
 
 from oricf.config import config_dir
 from oricf.errors import InvalidInput
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.route import Loader
@@ -40,7 +41,7 @@ def pipeline(primary: str, fallback: str) -> Pipeline:
             "queued": {"input": {"url": "not-opened.mp4", "keep": "queue", "queue_size": 2},
                        "call": DETECT, "outputs": [{"product": "queued", "from": "detections"}]}},
         "metrics": {"listen": "127.0.0.1:0"}}
-    return Pipeline(parse_pipeline(data, "metrics test"), lambda o, v, r: None)
+    return Pipeline(parse_pipeline(data, "metrics test"), Emitter())
 
 
 @pytest.fixture()
@@ -160,7 +161,7 @@ def test_metrics_are_off_without_the_key() -> None:
                                               "outputs": [{"product": "p",
                                                            "from": "detections"}]}}},
                             "no metrics")
-    p = Pipeline(config, lambda o, v, r: None)
+    p = Pipeline(config, Emitter())
     p.start()
     p.stop()
     assert config.metrics is None and p.metrics_server is None

@@ -20,6 +20,7 @@ import openai
 import pytest
 
 from oricf.errors import ConfigError
+from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, PipelineConfig, parse_pipeline
 from oricf.gateway.endpoints.openai import retry_after_ms
 from oricf.gateway.methods.chat import ChatTemplates, ImageContext, image_url, messages
@@ -36,11 +37,11 @@ from tests.support.speech import speech
 QUESTION = "How many people do you see?"
 
 
-class Outputs:
+class Outputs(Emitter):
     def __init__(self) -> None:
         self.sent: list[tuple[str, Any]] = []
 
-    def __call__(self, output: OutputConfig, value: Any, record: Record) -> None:
+    def emit(self, output: OutputConfig, value: Any, record: Record) -> None:
         self.sent.append((output.source, value))
 
     def values(self, field: str) -> list[Any]:
