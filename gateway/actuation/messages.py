@@ -1,4 +1,6 @@
-"""The message types an agent may send, as flat fields: `linear.x` of a geometry_msgs/Twist.
+"""The messages an agent may send, as flat fields (`linear.x` of a Twist): the types of the
+table of types (oricf.gateway.topics.types) that an agent's target may name (`command`),
+their fields read from their definitions, each of a kind: float, int, bool or text.
 
 An agent gives a message as JSON (`{"linear": {"x": 0.2}}`); it is flattened, every field
 checked against the type's table (unknown fields refused, numbers finite, text bounded), and
@@ -13,16 +15,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from oricf.errors import InvalidInput
+from oricf.gateway.topics import definitions
+from oricf.gateway.topics.convert import nested
 
-# type -> its fields and their kind: "float", "int", "bool" or "text"
-FIELDS: dict[str, dict[str, str]] = {
-    "geometry_msgs/Twist": {f"{part}.{axis}": "float" for part in ("linear", "angular")
-                            for axis in "xyz"},
-    "std_msgs/Float64": {"data": "float"},
-    "std_msgs/Int32": {"data": "int"},
-    "std_msgs/Bool": {"data": "bool"},
-    "std_msgs/String": {"data": "text"},
-}
+# a primitive ROS type -> the kind of value an agent gives for it
+KINDS = {"float32": "float", "float64": "float", "bool": "bool", "string": "text",
+         **{f"{sign}int{bits}": "int" for sign in ("", "u") for bits in (8, 16, 32, 64)}}
 MAX_TEXT = 2000
 FLOAT_MAX = sys.float_info.max
 MAX_DEPTH = 4
@@ -45,10 +43,16 @@ def flatten(message: Any, prefix: str = "", depth: int = 0) -> dict[str, Any]:
     return flat
 
 
+def fields_of(type_: str) -> dict[str, str]:
+    """A type's fields by dotted name and their kind ({"linear.x": "float", ...})."""
+    return {name: KINDS[primitive]
+            for name, primitive in definitions.primitive_fields(type_).items()}
+
+
 def check_fields(type_: str, flat: dict[str, Any]) -> dict[str, Any]:
     """The message's fields, each of the kind its type says; every field of the type
     present (missing ones zero, false or empty)."""
-    fields = FIELDS[type_]
+    fields = fields_of(type_)
     unknown = sorted(set(flat) - set(fields))
     if unknown:
         raise InvalidInput(f"{type_} has no field {', '.join(map(repr, unknown))[:200]} "
@@ -89,27 +93,4 @@ def zero(type_: str) -> dict[str, Any]:
     return check_fields(type_, {})
 
 
-def nested(flat: dict[str, Any]) -> dict[str, Any]:
-    """{"linear.x": 0.2} -> {"linear": {"x": 0.2}}: for the audit log and the agent."""
-    out: dict[str, Any] = {}
-    for name, value in flat.items():
-        *parents, leaf = name.split(".")
-        node = out
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
-    return out
-
-
-def ros_message(type_: str, flat: dict[str, Any]) -> Any:
-    """The rclpy message of a checked message (ROS imported here, on first use)."""
-    package, name = type_.split("/")
-    module = __import__(f"{package}.msg", fromlist=[name])
-    message = getattr(module, name)()
-    for path, value in flat.items():
-        *parents, leaf = path.split(".")
-        node = message
-        for part in parents:
-            node = getattr(node, part)
-        setattr(node, leaf, value)
-    return message
+__all__ = ["check_fields", "fields_of", "flatten", "nested", "zero"]

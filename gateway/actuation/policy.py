@@ -20,14 +20,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from oricf.config import FilePath, Schema
 from oricf.errors import OricfError
-from oricf.gateway.actuation.messages import FIELDS, check_fields, flatten
+from oricf.gateway.actuation.messages import check_fields, fields_of, flatten
+from oricf.gateway.topics import types
 
-MessageType = Literal["geometry_msgs/Twist", "std_msgs/Float64", "std_msgs/Int32",
-                      "std_msgs/Bool", "std_msgs/String"]
 NUMERIC = {"float", "int"}
 
 
@@ -40,7 +39,8 @@ class TargetPolicy(Schema):
 
     topic: str | None = Field(None, description="a ROS topic")
     channel: str | None = Field(None, description="a text channel of the pipeline")
-    type: MessageType = "std_msgs/String"
+    type: str = Field(types.TEXT, description="the message type: an agent command type of "
+                      "oricf.gateway.topics.types")
     description: str = Field("", max_length=500, description="what the target does, for "
                                                              "the agent")
     bounds: dict[str, tuple[float, float]] = Field(
@@ -54,13 +54,18 @@ class TargetPolicy(Schema):
     deadman_ms: int | None = Field(None, ge=10, le=60_000, description="send the zero "
                                    "command this long after the last one unless renewed")
 
+    @field_validator("type")
+    @classmethod
+    def _known(cls, type_: str) -> str:
+        return types.check(type_, "command", "an agent command type")
+
     @model_validator(mode="after")
     def _consistent(self) -> TargetPolicy:
         if (self.topic is None) == (self.channel is None):
             raise ValueError("give exactly one of topic or channel")
-        if self.channel is not None and self.type != "std_msgs/String":
-            raise ValueError("a channel carries text: type std_msgs/String")
-        fields = FIELDS[self.type]
+        if self.channel is not None and self.type != types.TEXT:
+            raise ValueError(f"a channel carries text: type {types.TEXT}")
+        fields = fields_of(self.type)
         for name, (low, high) in self.bounds.items():
             if fields.get(name) not in NUMERIC:
                 numeric = [f for f, kind in fields.items() if kind in NUMERIC]
@@ -85,7 +90,7 @@ class TargetPolicy(Schema):
         except OricfError as exc:
             raise Refused(f"{name}: {exc}") from None
         clamped: list[str] = []
-        for field, kind in FIELDS[self.type].items():
+        for field, kind in fields_of(self.type).items():
             if kind not in NUMERIC:
                 continue
             low, high = self.bounds.get(field, (0.0, 0.0))

@@ -31,7 +31,7 @@ from pydantic import Field, model_validator
 
 from oricf.config import Schema
 from oricf.gateway.control.merge import Latest, Merge
-from oricf.gateway.control.parts import STATE_TYPES, CameraPart, StatePart
+from oricf.gateway.control.parts import CameraPart, StatePart
 from oricf.gateway.control.queue import MAX_AHEAD, Late
 from oricf.gateway.control.target import ActionTargetConfig
 
@@ -99,5 +99,5 @@ class ControlSettings(Schema):
     def state_size(self) -> int:
         """The state's length as the parts say, or -1 when a part does not say (checked on
         the first observation against what arrives)."""
-        sizes = [STATE_TYPES[part.type].size(part) for part in self.state]
+        sizes = [part.expected() for part in self.state]
         return -1 if None in sizes else sum(size or 0 for size in sizes)

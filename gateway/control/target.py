@@ -23,23 +23,24 @@ from collections.abc import Callable
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from oricf.config import Schema
 from oricf.gateway.actuation.actuation import Deadman
-from oricf.gateway.actuation.messages import FIELDS, nested
+from oricf.gateway.actuation.messages import fields_of
+from oricf.gateway.topics import codec, types
+from oricf.gateway.topics.convert import Action
 
 log = logging.getLogger(__name__)
 
-ActionType = Literal["std_msgs/Float64MultiArray", "trajectory_msgs/JointTrajectory",
-                     "geometry_msgs/Twist"]
-# A message as nested fields: the ROS layer makes it (oricf.gateway.ros.topic_io).
+# A message as nested fields: the ROS layer fills its message (oricf.gateway.ros.messages).
 Publish = Callable[[dict[str, Any]], None]
 
 
 class ActionTargetConfig(Schema):
     topic: str = Field(description="the ROS topic the actions are published on")
-    type: ActionType = "std_msgs/Float64MultiArray"
+    type: str = Field(types.NUMBERS, description="an action type of "
+                      "oricf.gateway.topics.types")
     joints: list[str] | None = Field(None, max_length=256, description="JointTrajectory: "
                                      "the joint of each action value, in order")
     fields: list[str] | None = Field(None, description="Twist: the field of each action "
@@ -53,16 +54,21 @@ class ActionTargetConfig(Schema):
     deadman_ms: int | None = Field(None, ge=5, le=60_000, description="the safe action "
                                    "when none was sent for this long")
 
+    @field_validator("type")
+    @classmethod
+    def _known(cls, type_: str) -> str:
+        return types.check(type_, "action", "an action type")
+
     @model_validator(mode="after")
     def _consistent(self) -> ActionTargetConfig:
-        if (self.type == "trajectory_msgs/JointTrajectory") != (self.joints is not None):
-            raise ValueError("joints: given with trajectory_msgs/JointTrajectory, and only "
-                             "with it")
-        if (self.type == "geometry_msgs/Twist") != (self.fields is not None):
-            raise ValueError("fields: given with geometry_msgs/Twist, and only with it")
-        unknown = set(self.fields or ()) - set(FIELDS["geometry_msgs/Twist"])
+        names = types.ros_type(self.type).names  # the key that names each value, if one
+        for key in ("joints", "fields"):
+            if (names == key) != (getattr(self, key) is not None):
+                named = [t for t in types.names("action") if types.ros_type(t).names == key]
+                raise ValueError(f"{key}: given with {', '.join(named)}, and only with it")
+        unknown = set(self.fields or ()) - set(fields_of(self.type) if self.fields else ())
         if unknown:
-            raise ValueError(f"fields: geometry_msgs/Twist has no {', '.join(sorted(unknown))}")
+            raise ValueError(f"fields: {self.type} has no {', '.join(sorted(unknown))}")
         for i, (low, high) in enumerate(self.bounds or ()):
             if not low <= high:
                 raise ValueError(f"bounds[{i}]: min {low} is above max {high}")
@@ -75,19 +81,10 @@ class ActionTargetConfig(Schema):
 
 
 def message(config: ActionTargetConfig, action: np.ndarray) -> dict[str, Any]:
-    """The nested fields of the message that carries `action`."""
-    values = [float(v) for v in action]
-    if config.type == "std_msgs/Float64MultiArray":
-        return {"data": values}
-    if config.type == "geometry_msgs/Twist":
-        assert config.fields is not None
-        return nested({**{f: 0.0 for f in FIELDS["geometry_msgs/Twist"]},
-                       **dict(zip(config.fields, values, strict=True))})
-    seconds, rest = divmod(config.time_from_start_ms / 1000, 1)
-    return {"joint_names": list(config.joints or ()),
-            "points": [{"positions": values,
-                        "time_from_start": {"sec": int(seconds),
-                                            "nanosec": round(rest * 1e9)}}]}
+    """The nested fields of the message that carries `action` (its type's entry writes it)."""
+    value = Action([float(v) for v in action], config.joints or config.fields,
+                   config.time_from_start_ms / 1000)
+    return codec.message_fields(config.type, value)
 
 
 class ActionTarget:

@@ -5,10 +5,10 @@
 The file is a rosbag2 recording (`ros2 bag record -s mcap`), or one the gateway wrote with
 --record. Its messages are read in file order; each on a topic some route reads (the
 route's topic as a ROS name: camera/image_raw is /camera/image_raw) goes to that route, the
-rest are skipped. Camera frames are read by the topic codec (oricf.gateway.topics.codec) as
-the ROS node reads them; text, numbers and audio are decoded by mcap-ros2-support from the
-definition in the file (or the gateway's own, oricf.gateway.topics.definitions, if the file
-has none), and their `data` read by the codec.
+rest are skipped. Each message becomes its route's record through the topic codec
+(oricf.gateway.topics.codec) as the ROS node's do: camera frames from their serialized bytes,
+the others once mcap-ros2-support has decoded them with the definition in the file (or the
+gateway's own, oricf.gateway.topics.definitions, if the file has none).
 
 A camera frame's time (values.FRAME_TIME, what the track step measures time by) is its
 header's stamp, when the camera took it, or the log time, when it was recorded, for a
@@ -51,8 +51,8 @@ from oricf.gateway.route import Loader
 from oricf.gateway.sources.base import OnEnd, Source
 from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.topics import definitions as msgdefs
-from oricf.gateway.topics.codec import data_loader, image_loader, timed
-from oricf.gateway.topics.types import IMAGE_INPUTS
+from oricf.gateway.topics.codec import input_loader, timed
+from oricf.gateway.topics.types import ros_type
 from oricf.logs import quoted
 
 log = logging.getLogger(__name__)
@@ -151,7 +151,7 @@ class Replay:
             raise RecordingError(f"{self.path}: topic {channel.topic} is encoded "
                                  f"{quoted(channel.message_encoding)}, not cdr")
         assert schema is not None
-        decode = None if type_ in IMAGE_INPUTS else self._decoder(channel, schema, type_)
+        decode = None if ros_type(type_).frames else self._decoder(channel, schema, type_)
         return Feed(channel.topic, type_, routes, decode)
 
     def _decoder(self, channel: Channel, schema: Schema, type_: str) -> Callable[[bytes], Any]:
@@ -257,17 +257,18 @@ class Replay:
         """A loader per route for one message, None if it cannot be decoded (logged)."""
         data = message.data
         if feed.decode is None:  # frames taken when stamped, else when recorded
-            return {route: timed(image_loader(feed.type, data), message.log_time)
+            return {route: timed(input_loader(feed.type, data), message.log_time)
                     for route in feed.routes}
         try:
-            decoded = feed.decode(data).data
+            decoded = feed.decode(data)
         except Exception as exc:  # mcap-ros2-support raises whatever its reader meets
             self.undecodable += 1
             self._throttle.warning(f"decode:{feed.topic}", "%s: a message on %s (%s) cannot "
                                    "be decoded (%s); skipped", self.path, feed.topic,
                                    feed.type, quoted(exc or type(exc).__name__))
             return None
-        return {route: data_loader(config, decoded) for route, config in feed.routes.items()}
+        return {route: input_loader(feed.type, decoded, config.sample_rate, config.channels)
+                for route, config in feed.routes.items()}
 
     def close(self) -> int:
         """Ends the replay and closes its recorder; the exit code: 1 if the file was damaged

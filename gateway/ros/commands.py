@@ -9,19 +9,12 @@ import threading
 from typing import Any
 
 from oricf.errors import ConfigError
-from oricf.gateway.actuation.messages import ros_message
+from oricf.gateway.actuation.messages import nested
 from oricf.gateway.actuation.policy import AgentPolicy
 from oricf.gateway.ros.dds import use_dds_profile
+from oricf.gateway.ros.messages import filled, message_type
 
 log = logging.getLogger(__name__)
-
-
-def message_class(type_: str) -> Any:
-    try:
-        return type(ros_message(type_, {}))
-    except ImportError as exc:
-        raise ConfigError(f"agent target of type {type_}: its ROS message package is not "
-                          f"installed ({exc})") from None
 
 
 class RosSender:
@@ -42,9 +35,10 @@ class RosSender:
         self._context = Context()
         rclpy.init(context=self._context)
         self._node = Node(node_name, context=self._context)
-        self._types = {name: t.type for name, t in policy.targets.items() if t.topic}
+        self._types = {name: message_type(t.type) for name, t in policy.targets.items()
+                       if t.topic}
         self._publishers = {
-            name: self._node.create_publisher(message_class(t.type), t.topic,
+            name: self._node.create_publisher(self._types[name], t.topic,
                                               QoSProfile(depth=10))
             for name, t in policy.targets.items() if t.topic}
         self._lock = threading.Lock()
@@ -54,7 +48,7 @@ class RosSender:
 
     def send(self, target: str, fields: dict[str, Any]) -> None:
         with self._lock:
-            self._publishers[target].publish(ros_message(self._types[target], fields))
+            self._publishers[target].publish(filled(self._types[target], nested(fields)))
 
     def subscribers(self, target: str) -> int:
         return int(self._publishers[target].get_subscription_count())

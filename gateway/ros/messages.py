@@ -1,11 +1,12 @@
-"""Topic messages as rclpy's message objects: the classes of the topic types, and route
-values filled into them from oricf.gateway.topics.codec, the one table of what each type's
-messages hold (recordings write the same fields without ROS).
+"""Topic messages as rclpy's message objects: the class of a type, and a message filled from
+its fields by name, the form in which the table of types (oricf.gateway.topics) gives every
+message the gateway writes (recordings serialize the same fields without ROS). Every
+publisher of the node fills its messages here: topic outputs, a control loop's actions and
+an agent's commands.
 
-Incoming messages become loaders: conversion runs when the route takes the message, so a
-queued message that is dropped is never converted. Camera frames arrive serialized and are
-read by the codec (oricf.gateway.topics.cdr); the other inputs arrive as rclpy messages,
-read from their `data`.
+A message package is imported when a pipeline first names one of its types; a package that
+is not installed (vision_msgs comes with a robot's ROS, not with the PyPI wheels) refuses the
+pipeline at start, saying what to install.
 """
 
 from __future__ import annotations
@@ -14,35 +15,33 @@ import importlib
 from collections.abc import Mapping
 from typing import Any
 
-from oricf.gateway.config import InputConfig
-from oricf.gateway.ros import vision
-from oricf.gateway.route import Loader
+from oricf.errors import ConfigError
 from oricf.gateway.topics import cdr, codec
 
 
 def message_type(type_: str) -> Any:
-    """The rclpy message class of a topic type, "package/Type" (vision_msgs imported only
-    when asked for, ConfigError if it cannot be)."""
+    """The rclpy message class of a type, "package/Type" (ConfigError naming what to
+    install if its package cannot be imported)."""
     package, _, name = type_.partition("/")
-    if package == "vision_msgs":
-        return getattr(vision.vision_msgs(), name)
-    return getattr(importlib.import_module(f"{package}.msg"), name)
-
-
-def loader(config: InputConfig, msg: Any) -> Loader:
-    """One incoming message (not a camera frame) -> the loader of the route's input record."""
-    return codec.data_loader(config, msg.data)
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except ImportError as exc:
+        raise ConfigError(f"{type_} needs the ROS package {package}, which cannot be "
+                          f"imported here ({exc}): install the {package} package of your ROS "
+                          f"distribution (e.g. apt install ros-jazzy-"
+                          f"{package.replace('_', '-')}) and source its setup") from None
 
 
 def to_message(type_: str, value: Any, header: cdr.Stamp | None = None) -> Any:
-    """A route value -> the output message of the given type (TypeError or ValueError for a
-    value that does not fit it)."""
+    """A value -> the message of the given type (TypeError or ValueError for a value that
+    does not fit it)."""
     return filled(message_type(type_), codec.message_fields(type_, value, header))
 
 
 def filled(cls: Any, fields: Mapping[str, Any]) -> Any:
     """A message of class `cls` with the given fields (nested messages as mappings, sequences
-    of messages as lists of them); the fields left out keep their defaults."""
+    of messages as lists of them); the fields left out keep their defaults. ValueError for a
+    value that does not fit its field."""
     msg = cls()
     types = cls.get_fields_and_field_types()
     for name, value in fields.items():

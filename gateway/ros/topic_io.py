@@ -1,12 +1,14 @@
 """The gateway node's topics for components that read and write their own (a control
-loop's state and actions, oricf.gateway.components.TopicIo): subscriptions keep the newest
-message only and match reliable and best-effort publishers alike; publishers are reliable
-(matched by either kind of subscriber), lifecycle publishers (they publish while the node is
-active), and build each message from nested fields."""
+loop's state, cameras and actions, oricf.gateway.components.TopicIo): subscriptions keep the
+newest message only and match reliable and best-effort publishers alike, and hand on each
+message in the form its type is read (oricf.gateway.topics.types: camera frames serialized,
+the rest as rclpy's messages); publishers are reliable (matched by either kind of
+subscriber), lifecycle publishers (they publish while the node is active), and fill each
+message from its fields (oricf.gateway.ros.messages)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -14,22 +16,7 @@ from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from oricf.gateway.ros import messages
-
-
-def fill(msg: Any, fields: Mapping[str, Any]) -> Any:
-    """Sets `fields` on `msg`: a mapping fills a message field, a list of mappings a
-    sequence of messages (of the type the field declares)."""
-    types = msg.get_fields_and_field_types()
-    for name, value in fields.items():
-        if isinstance(value, Mapping):
-            fill(getattr(msg, name), value)
-        elif isinstance(value, list) and value and isinstance(value[0], Mapping):
-            element = messages.message_type(types[name].removeprefix("sequence<")
-                                            .removesuffix(">"))
-            setattr(msg, name, [fill(element(), item) for item in value])
-        else:
-            setattr(msg, name, value)
-    return msg
+from oricf.gateway.topics.types import ros_type
 
 
 class NodeTopics:
@@ -39,7 +26,8 @@ class NodeTopics:
     def subscribe(self, topic: str, type_: str, take: Callable[[Any], None]) -> None:
         qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
         self._node.create_subscription(messages.message_type(type_), topic, take, qos,
-                                       callback_group=MutuallyExclusiveCallbackGroup())
+                                       callback_group=MutuallyExclusiveCallbackGroup(),
+                                       raw=ros_type(type_).parse is not None)
 
     def publisher(self, topic: str, type_: str) -> Callable[[dict[str, Any]], None]:
         message = messages.message_type(type_)
@@ -48,6 +36,6 @@ class NodeTopics:
 
         def publish(fields: dict[str, Any]) -> None:
             if context.ok():  # the context shuts down before the loop's last safe action
-                publisher.publish(fill(message(), fields))
+                publisher.publish(messages.filled(message, fields))
 
         return publish

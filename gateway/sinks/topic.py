@@ -1,5 +1,6 @@
-"""topic: {topic: /human_counter, type: std_msgs/Int32, from: count} publishes on a ROS
-topic. The ROS node's publishers (oricf.gateway.ros.publishers) or, in a replay, the recording
+"""topic: {topic: /human_counter, type: TYPE, from: count} publishes on a ROS topic, in a
+type the table of types lets outputs name (oricf.gateway.topics.types). The ROS node's
+publishers (oricf.gateway.ros.publishers) or, in a replay, the recording
 (oricf.gateway.recording.recorder.TopicOutputs) send it; each converts the value to the
 topic's message through the topic codec (oricf.gateway.topics.codec)."""
 
@@ -7,15 +8,23 @@ from __future__ import annotations
 
 from typing import Any
 
+from pydantic import Field, field_validator
+
 from oricf.config import Schema
 from oricf.gateway.components import ComponentContext, Sink, SinkKind
-from oricf.gateway.topics.types import OutputType
+from oricf.gateway.topics import types
 from oricf.gateway.values import Record
 
 
 class TopicOutput(Schema):
     topic: str | None = None
-    type: OutputType | None = None
+    type: str | None = Field(None, description="the message type: a topic output type of "
+                             "oricf.gateway.topics.types")
+
+    @field_validator("type")
+    @classmethod
+    def _known(cls, type_: str | None) -> str | None:
+        return None if type_ is None else types.check(type_, "output", "a topic output type")
 
 
 def check(output: Any) -> None:

@@ -9,9 +9,9 @@ and slicing the pixels out once is cheaper. No ROS import.
 Layout (the ROS 2 IDL mapped to plain CDR): a 4-byte encapsulation header whose second byte
 says the byte order, then every field aligned to its own size, counted from the end of that
 header. Strings are a uint32 length including a final NUL, then the bytes; sequences of
-uint8 are a uint32 count, then the bytes. These messages have no 8-byte fields, so the CDR
-and plain CDR2 encodings lay them out alike. Writing produces little-endian XCDR1, as rclpy
-does on x86-64 and ARM.
+uint8 are a uint32 count, then the bytes. The images read have no 8-byte fields, so the CDR
+and plain CDR2 encodings lay them out alike. Writing produces little-endian XCDR1 (8-byte
+fields aligned to 8), as rclpy does on x86-64 and ARM.
 """
 
 from __future__ import annotations

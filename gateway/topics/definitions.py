@@ -8,7 +8,9 @@ from the installed ROS packages' share/PACKAGE/msg/TYPE.msg when they are found 
 wheels install them under the virtual environment, apt ROS under /opt/ros/DISTRO, named by
 AMENT_PREFIX_PATH), comments and all as rosbag2 writes them, else from DEFINITIONS below:
 the same fields without the comments (a test compares the two, so the table cannot drift).
-The same table lays out the messages cdr.py writes (`layout`).
+The same table lays out the messages cdr.py writes (`layout`). It holds the types that topic
+types use; the topic types' own definitions are their entries' (oricf.gateway.topics.types,
+which this package imports first, adds them).
 """
 
 from __future__ import annotations
@@ -19,21 +21,22 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+# The types that topic types' fields use; each topic type's own definition is its entry's in
+# oricf.gateway.topics.types, which adds it here (`register`).
 DEFINITIONS: dict[str, str] = {
     "builtin_interfaces/Time": "int32 sec\nuint32 nanosec\n",
+    "builtin_interfaces/Duration": "int32 sec\nuint32 nanosec\n",
     "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
-    "std_msgs/String": "string data\n",
-    "std_msgs/Int32": "int32 data\n",
     "std_msgs/MultiArrayDimension": "string label\nuint32 size\nuint32 stride\n",
     "std_msgs/MultiArrayLayout": "MultiArrayDimension[] dim\nuint32 data_offset\n",
-    "std_msgs/Int16MultiArray": "MultiArrayLayout layout\nint16[] data\n",
-    "sensor_msgs/Image": ("std_msgs/Header header\nuint32 height\nuint32 width\n"
-                          "string encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data\n"),
-    "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data\n",
     "geometry_msgs/Point": "float64 x\nfloat64 y\nfloat64 z\n",
+    "geometry_msgs/Vector3": "float64 x\nfloat64 y\nfloat64 z\n",
     "geometry_msgs/Quaternion": "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
     "geometry_msgs/Pose": "Point position\nQuaternion orientation\n",
     "geometry_msgs/PoseWithCovariance": "Pose pose\nfloat64[36] covariance\n",
+    "trajectory_msgs/JointTrajectoryPoint": (
+        "float64[] positions\nfloat64[] velocities\nfloat64[] accelerations\n"
+        "float64[] effort\nbuiltin_interfaces/Duration time_from_start\n"),
     # vision_msgs 4.1.1 (ROS 2 Jazzy); no wheel installs these, a robot's apt does.
     "vision_msgs/Point2D": "float64 x\nfloat64 y\n",
     "vision_msgs/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
@@ -43,7 +46,6 @@ DEFINITIONS: dict[str, str] = {
                                              "geometry_msgs/PoseWithCovariance pose\n"),
     "vision_msgs/Detection2D": ("std_msgs/Header header\nObjectHypothesisWithPose[] results\n"
                                 "BoundingBox2D bbox\nstring id\n"),
-    "vision_msgs/Detection2DArray": "std_msgs/Header header\nDetection2D[] detections\n",
 }
 SEPARATOR = "=" * 80
 PRIMITIVES = frozenset({"bool", "byte", "char", "float32", "float64", "int8", "uint8",
@@ -115,18 +117,36 @@ class Field:
     default: float | None
 
 
-@functools.cache
 def layout(type_: str) -> tuple[Field, ...]:
     """The fields of a type of DEFINITIONS, in order (KeyError for another type)."""
+    return _layout(type_, DEFINITIONS[type_])
+
+
+@functools.cache
+def _layout(type_: str, text: str) -> tuple[Field, ...]:
     package = type_.partition("/")[0]
     fields = []
-    for line in DEFINITIONS[type_].splitlines():
+    for line in text.splitlines():
         kind, name, *default = line.split()
         base, bracket, size = kind.partition("[")
         count = None if not bracket else int(size[:-1] or -1)
         fields.append(Field(name, _full_type(package, base), count,
                             float(default[0]) if default else None))
     return tuple(fields)
+
+
+def primitive_fields(type_: str, prefix: str = "") -> dict[str, str]:
+    """The single primitive fields of a type of DEFINITIONS by dotted name, nested messages
+    walked ({"linear.x": "float64", ...} for geometry_msgs/Twist); arrays left out."""
+    fields: dict[str, str] = {}
+    for field in layout(type_):
+        if field.count is not None:
+            continue
+        if field.type in PRIMITIVES:
+            fields[prefix + field.name] = field.type
+        else:
+            fields.update(primitive_fields(field.type, f"{prefix}{field.name}."))
+    return fields
 
 
 @functools.cache

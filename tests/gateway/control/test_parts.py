@@ -1,36 +1,36 @@
-"""The robot's message types a control loop reads: each one entry of STATE_TYPES or
-CAMERA_TYPES, so a new one is taken by the settings and the observation alike."""
+"""The robot's message types a control loop reads: each one entry of the table of types
+(oricf.gateway.topics.types) that may be a state part or a camera, so a new one is taken by
+the settings and the observation alike."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from types import SimpleNamespace
-from typing import Any
 
 import numpy as np
 import pytest
 from pydantic import ValidationError
 
 from oricf.gateway.control.observation import Observation
-from oricf.gateway.control.parts import STATE_TYPES, CameraPart, StatePart
+from oricf.gateway.control.parts import CameraPart, StatePart
+from oricf.gateway.topics.types import RosType, register, unregister
+
+POINT32 = RosType("geometry_msgs/Point32", "float32 x\nfloat32 y\nfloat32 z\n",
+                  frozenset({"state"}), lambda msg: np.array([msg.x, msg.y, msg.z]))
 
 
-class Vector3:
-    """geometry_msgs/Vector3 as three state values, a type only this test knows."""
-
-    names_joints = False
-
-    def values(self, part: StatePart, msg: Any) -> np.ndarray:
-        return np.array([msg.x, msg.y, msg.z], np.float64)
-
-    def size(self, part: StatePart) -> int | None:
-        return 3
+@pytest.fixture
+def point32() -> Iterator[None]:
+    """geometry_msgs/Point32 as three state values, a type only this test knows."""
+    register(POINT32)
+    yield
+    unregister(POINT32.name)
 
 
-def test_a_state_type_added_to_the_table_is_read_into_the_observation(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(STATE_TYPES, "geometry_msgs/Vector3", Vector3())
-    part = StatePart(topic="/arm/goal", type="geometry_msgs/Vector3")
-    observation = Observation([part], STATE_TYPES[part.type].size(part) or -1, max_age_ms=1e6)
+@pytest.mark.usefixtures("point32")
+def test_a_state_type_added_to_the_table_is_read_into_the_observation() -> None:
+    part = StatePart(topic="/arm/goal", type="geometry_msgs/Point32", size=3)
+    observation = Observation([part], part.expected() or -1, max_age_ms=1e6)
     observation.take(0, SimpleNamespace(x=1.0, y=2.0, z=3.0), received_ns=1)
     assert observation.assemble(2).state.tolist() == [1.0, 2.0, 3.0]
 

@@ -19,7 +19,8 @@ from std_msgs.msg import Int16MultiArray, Int32, MultiArrayDimension, String
 from oricf.gateway.ros import messages as convert
 from oricf.gateway.topics import cdr
 from oricf.gateway.topics import definitions as msgdefs
-from oricf.gateway.topics.codec import TYPES, serialize
+from oricf.gateway.topics.codec import serialize
+from oricf.gateway.topics.types import TYPES
 from oricf.gateway.values import Frame
 from oricf.imaging import encode_image
 from tests.support.vision_msgs import PACKAGE
@@ -99,7 +100,7 @@ def test_outputs_written_without_ros_are_the_messages_the_node_publishes() -> No
 
 
 def test_the_recording_modules_do_not_import_ros() -> None:
-    modules = ["topics.definitions", "topics.codec", "recording.recorder",
+    modules = ["topics.definitions", "topics.codec", "topics.types", "recording.recorder",
                "recording.mcap_reader", "recording.replay"]
     imports = "; ".join(f"import oricf.gateway.{name}" for name in modules)
     check = ("import sys; bad = sorted(m for m in sys.modules if m.split('.')[0] in "

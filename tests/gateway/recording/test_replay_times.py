@@ -18,7 +18,7 @@ from mcap_ros2.writer import Writer
 from oricf.config import config_dir, read_yaml
 from oricf.gateway.topics import cdr
 from oricf.gateway.topics import definitions as msgdefs
-from oricf.gateway.topics.codec import image_record, timed
+from oricf.gateway.topics.codec import input_record, timed
 from oricf.gateway.values import FRAME_TIME
 from tests.gateway.recording.test_record_replay import gateway_without_ros
 from tests.support.data import video_frames
@@ -127,9 +127,9 @@ def stamped_frame(sec: int, nanosec: int) -> bytes:
 
 
 def test_a_frame_is_timed_by_its_stamp_or_else_when_it_was_recorded() -> None:
-    stamped = timed(lambda: image_record("sensor_msgs/Image", stamped_frame(12, 500_000_000)),
+    stamped = timed(lambda: input_record("sensor_msgs/Image", stamped_frame(12, 500_000_000)),
                     99 * 10**9)
     assert stamped()[FRAME_TIME] == 12.5
-    unstamped = timed(lambda: image_record("sensor_msgs/Image", stamped_frame(0, 0)),
+    unstamped = timed(lambda: input_record("sensor_msgs/Image", stamped_frame(0, 0)),
                       99 * 10**9)
     assert unstamped()[FRAME_TIME] == 99.0

@@ -10,7 +10,8 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import Int16MultiArray
 
 from oricf.gateway.ros.messages import to_message
-from oricf.gateway.topics.codec import TOPIC_AUDIO_RATE, serialize
+from oricf.gateway.topics.codec import serialize
+from oricf.gateway.topics.convert import TOPIC_AUDIO_RATE
 from oricf.gateway.values import SpokenAudio
 from tests.gateway.sinks.voice import local_gateway
 from tests.support.services import RunningService
