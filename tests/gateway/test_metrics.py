@@ -45,9 +45,10 @@ def pipeline(primary: str, fallback: str) -> Pipeline:
 
 
 @pytest.fixture()
-def detectors() -> Iterator[tuple[RunningService, RunningService]]:
-    with running_service("detector") as primary, running_service("detector") as fallback:
-        yield primary, fallback
+def detectors(detector: RunningService) -> Iterator[tuple[RunningService, RunningService]]:
+    """A primary of its own (the test stops it) and the session's detector as its fallback."""
+    with running_service("detector") as primary:
+        yield primary, detector
 
 
 def frame_loader() -> Loader:

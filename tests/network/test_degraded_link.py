@@ -17,7 +17,7 @@ from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame
 from tests.gateway.test_pipeline import Outputs, pipeline_config
 from tests.support.data import video_frames
-from tests.support.services import running_service
+from tests.support.services import RunningService
 
 
 @contextmanager
@@ -37,10 +37,10 @@ def feed_until(pipeline: Pipeline, frames: list[Frame], done: Callable[[], bool]
         feed(pipeline, frames, 0.5)
 
 
-def test_counting_survives_a_degraded_and_cut_link() -> None:
+def test_counting_survives_a_degraded_and_cut_link(detector: RunningService) -> None:
     frames = [Frame.from_pixels(f) for f in video_frames([0, 80, 160, 400])]
-    with edge_host() as edge, edge_detector(edge) as remote, \
-            running_service("detector") as onboard:
+    onboard = detector  # the session's: the fallback on this host
+    with edge_host() as edge, edge_detector(edge) as remote:
         host, _, port = remote.rpartition(":")
         relay = DelayRelay((host, int(port)), delay_s=0.05, jitter_s=0.01)
         edge.degrade(rate_mbit=20, loss=0.02)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from contextlib import ExitStack
 from typing import Any
 
 import grpc
@@ -22,7 +23,6 @@ from oricf.audio import wav_header
 from oricf.oip import open_inference_grpc_pb2 as oip
 from oricf.v1 import detector_pb2, language_pb2, policy_pb2, speech_pb2, synthesis_pb2
 from tests.support.camera_policy import CAMERA
-from tests.support.camera_policy import declaration as camera_policy
 from tests.support.fuzzing import examples
 from tests.support.services import RunningService, running_service
 
@@ -180,20 +180,44 @@ def vm_hwm_mb() -> float:
     return 0.0
 
 
-@pytest.fixture(scope="module")
-def service(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-            ) -> Iterator[tuple[str, RunningService]]:
-    name = request.param
-    config = dict(SERVICES[name][1])
-    if name == "policy:cameras":
-        config["model"] = str(camera_policy(tmp_path_factory.mktemp("camera-policy")))
-    with running_service(name.split(":")[0], config) as running:
-        before = vm_hwm_mb()
-        yield name, running
+# The session's fixture of each service fuzzed with its shipped settings (tests/conftest.py);
+# the language model, with short answers, is started for this module.
+SESSION_FIXTURES = {"detector": "detector", "asr": "asr", "models": "models", "tts": "tts",
+                    "policy": "policy", "policy:cameras": "camera_policy"}
+
+
+class Fuzzed:
+    """Each service fuzzed, started once for the module or taken from the session, and the
+    process's peak memory when it was first asked for."""
+
+    def __init__(self) -> None:
+        self.stack = ExitStack()
+        self._running: dict[str, tuple[RunningService, float]] = {}
+
+    def service(self, name: str, request: pytest.FixtureRequest) -> RunningService:
+        if name not in self._running:
+            if name in SESSION_FIXTURES:
+                running = request.getfixturevalue(SESSION_FIXTURES[name])
+            else:
+                running = self.stack.enter_context(running_service(name, SERVICES[name][1]))
+            self._running[name] = running, vm_hwm_mb()
+        return self._running[name][0]
+
+    def check(self, name: str) -> None:
+        """Memory grew within bounds since the service was first asked for (over all the
+        cases it has had), and it is SERVING."""
+        running, before = self._running[name]
         assert vm_hwm_mb() - before < MAX_GROWTH_MB, "memory grew without bound"
         health = health_pb2_grpc.HealthStub(running.channel).Check(
             health_pb2.HealthCheckRequest(), timeout=10)
         assert health.status == health_pb2.HealthCheckResponse.SERVING
+
+
+@pytest.fixture(scope="module")
+def fuzzed() -> Iterator[Fuzzed]:
+    services = Fuzzed()
+    with services.stack:
+        yield services
 
 
 def _call(channel: grpc.Channel, path: str, client_stream: bool, server_stream: bool,
@@ -208,11 +232,10 @@ def _call(channel: grpc.Channel, path: str, client_stream: bool, server_stream: 
         channel.unary_unary(path)(payloads[0], timeout=CALL_TIMEOUT_S)
 
 
-@pytest.mark.parametrize(("service", "rpc"), CASES, indirect=["service"],
-                         ids=[f"{s}-{r}" for s, r in CASES])
-def test_hostile_requests_never_crash_hang_or_leak(service: tuple[str, RunningService],
-                                                   rpc: str) -> None:
-    name, running = service
+@pytest.mark.parametrize(("name", "rpc"), CASES, ids=[f"{s}-{r}" for s, r in CASES])
+def test_hostile_requests_never_crash_hang_or_leak(fuzzed: Fuzzed, name: str, rpc: str,
+                                                   request: pytest.FixtureRequest) -> None:
+    running = fuzzed.service(name, request)
     descriptor = SERVICES[name][0]
     method = descriptor.methods_by_name[rpc]
     path = f"/{descriptor.full_name}/{rpc}"
@@ -233,3 +256,4 @@ def test_hostile_requests_never_crash_hang_or_leak(service: tuple[str, RunningSe
 
     fuzz()
     assert len(sent) >= EXAMPLES, f"only {len(sent)} requests were tried"
+    fuzzed.check(name)

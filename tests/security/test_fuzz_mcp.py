@@ -42,7 +42,7 @@ from tests.gateway.agents.session import TOOLS, http_session, server_env
 from tests.gateway.ros.gateway_node import private_domain
 from tests.support.fuzzing import examples
 from tests.support.processes import free_port
-from tests.support.services import running_service
+from tests.support.services import RunningService
 from tests.support.sockets import peer_closed
 
 EXAMPLES = examples(120)
@@ -89,40 +89,39 @@ def domain() -> Iterator[None]:
 
 
 @pytest.fixture(scope="module")
-def served(domain: None, tmp_path_factory: pytest.TempPathFactory
+def served(domain: None, tmp_path_factory: pytest.TempPathFactory, detector: RunningService
            ) -> Iterator[tuple[str, Path, subprocess.Popen[bytes]]]:
     """`oricf mcp --transport http` with tokens, its gateway's control API on a socket."""
     folder = tmp_path_factory.mktemp("fuzz_mcp")
     nowhere = f"127.0.0.1:{free_port()}"  # the language and speech models: absent
-    with running_service("detector") as detector:
-        config = pipeline_yaml(folder, detector.address, nowhere, nowhere)
-        data = yaml.safe_load(config.read_text())
-        data["control"] = {"listen": f"unix:{folder / 'control.sock'}"}
-        for name in ("llm", "asr"):
-            data["endpoints"][name]["deadline_ms"] = 500
-        config.write_text(yaml.safe_dump(data))
-        (folder / "tokens").write_text(TOKEN + "\n")
-        port = free_port()
-        with (folder / "mcp.log").open("wb") as log:
-            process = subprocess.Popen(
-                [sys.executable, "-m", "oricf", "mcp", "--config", str(config), "--transport",
-                 "http", "--listen", f"127.0.0.1:{port}", "--auth-token-file",
-                 str(folder / "tokens"), "--max-request-bytes", "65536"],
-                stdout=log, stderr=subprocess.STDOUT, env=server_env(), start_new_session=True)
-        try:
-            deadline = time.monotonic() + 120
-            while True:
-                assert process.poll() is None, (folder / "mcp.log").read_text()
-                try:
-                    socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                    break
-                except OSError:
-                    assert time.monotonic() < deadline
-                    time.sleep(0.2)
-            yield f"http://127.0.0.1:{port}/mcp", folder / "control.sock", process
-        finally:
-            process.terminate()
-            process.wait(timeout=30)
+    config = pipeline_yaml(folder, detector.address, nowhere, nowhere)
+    data = yaml.safe_load(config.read_text())
+    data["control"] = {"listen": f"unix:{folder / 'control.sock'}"}
+    for name in ("llm", "asr"):
+        data["endpoints"][name]["deadline_ms"] = 500
+    config.write_text(yaml.safe_dump(data))
+    (folder / "tokens").write_text(TOKEN + "\n")
+    port = free_port()
+    with (folder / "mcp.log").open("wb") as log:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "oricf", "mcp", "--config", str(config), "--transport",
+             "http", "--listen", f"127.0.0.1:{port}", "--auth-token-file",
+             str(folder / "tokens"), "--max-request-bytes", "65536"],
+            stdout=log, stderr=subprocess.STDOUT, env=server_env(), start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            assert process.poll() is None, (folder / "mcp.log").read_text()
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline
+                time.sleep(0.2)
+        yield f"http://127.0.0.1:{port}/mcp", folder / "control.sock", process
+    finally:
+        process.terminate()
+        process.wait(timeout=30)
 
 
 @pytest.fixture(scope="module")

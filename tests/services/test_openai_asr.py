@@ -5,7 +5,6 @@ OGG/Opus and MP3 (made by FFmpeg), in every response format, and the refusals.""
 from __future__ import annotations
 
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -13,20 +12,12 @@ import openai
 import pytest
 
 from oricf.audio import encode_wav
-from tests.support.openai_http import HttpService, client, http_service, overlay
+from tests.support.openai_http import HttpService, client
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
 MODEL = "whisper-tiny-en"
 RATE = 16000
-MAX_UPLOAD_MB = 1
-
-
-@pytest.fixture(scope="module")
-def asr_small_uploads(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
-    folder = tmp_path_factory.mktemp("asr")
-    limits = overlay(folder, {"server": {"http": {"max_upload_mb": MAX_UPLOAD_MB}}})
-    with http_service("asr", "--overlay", limits) as service:
-        yield service
+MAX_UPLOAD_MB = 1  # the session's asr_small_uploads
 
 
 @pytest.fixture

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import signal
 import socket
-from collections.abc import Iterator
 from pathlib import Path
 
 import grpc
@@ -19,7 +18,7 @@ import pytest
 from oricf.services.local import local_service, service_config
 from oricf.v1 import common_pb2, language_pb2, language_pb2_grpc
 from tests.support.metrics import scrape
-from tests.support.openai_http import HttpService, client, health, http_service, overlay
+from tests.support.openai_http import HttpService, client, health, http_service
 
 MODEL = "gemma3-270m"
 QUESTION = "How many people do you see?"
@@ -28,17 +27,10 @@ COUNT_SCHEMA = {"type": "object", "properties": {"people": {"type": "integer"}},
                 "required": ["people"], "additionalProperties": False}
 
 
-@pytest.fixture(scope="module")
-def llm_one_call(tmp_path_factory: pytest.TempPathFactory) -> Iterator[HttpService]:
-    # One call at a time, so that the refusal test can fill the only slot.
-    folder = tmp_path_factory.mktemp("llm")
-    extra = overlay(folder, {"server": {"max_concurrent_rpcs": 1}})
-    with http_service("llm", "--overlay", extra) as service:
-        yield service
-
-
 @pytest.fixture
 def api(llm_one_call: HttpService) -> openai.OpenAI:
+    """The session's llm_one_call: one call at a time, so that the refusal test can fill the
+    only slot."""
     return client(llm_one_call)
 
 

@@ -207,11 +207,10 @@ def streams_fill_the_service(policy: RunningService, stub: policy_pb2_grpc.Polic
     assert f"({limit} streams open)" in err.value.details()
 
 
-@pytest.fixture(scope="module")
-def oip() -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
+@pytest.fixture
+def oip(policy_models: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
     """The Hopper declaration in `oricf serve models`."""
-    with running_service("models", {"models": [str(HOPPER)]}) as models:
-        yield oip_grpc.GRPCInferenceServiceStub(models.channel)
+    return oip_grpc.GRPCInferenceServiceStub(policy_models.channel)
 
 
 def test_the_same_declaration_is_served_over_the_open_inference_protocol(

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from pathlib import Path
 
 import cv2
 import grpc
@@ -18,7 +17,7 @@ from oricf.models.wire import infer_request, response_outputs
 from oricf.oip import open_inference_grpc_pb2 as oip_pb2
 from oricf.oip import open_inference_grpc_pb2_grpc as oip_grpc
 from oricf.v1 import common_pb2, policy_pb2, policy_pb2_grpc
-from tests.support.camera_policy import CAMERA, committed_declaration, declaration
+from tests.support.camera_policy import CAMERA, committed_declaration
 from tests.support.services import RunningService, running_service
 
 STATE = [0.25, -1.5]
@@ -97,13 +96,10 @@ def test_a_missing_unknown_or_broken_image_is_invalid_argument(
 
 
 
-@pytest.fixture(scope="module")
-def oip(tmp_path_factory: pytest.TempPathFactory
-        ) -> Iterator[oip_grpc.GRPCInferenceServiceStub]:
+@pytest.fixture
+def oip(policy_models: RunningService) -> oip_grpc.GRPCInferenceServiceStub:
     """The same declaration in `oricf serve models`."""
-    folder = tmp_path_factory.mktemp("camera-policy-oip")
-    with running_service("models", {"models": [str(declaration(folder))]}) as models:
-        yield oip_grpc.GRPCInferenceServiceStub(models.channel)
+    return oip_grpc.GRPCInferenceServiceStub(policy_models.channel)
 
 
 def tensors(image: np.ndarray) -> oip_pb2.ModelInferRequest:
@@ -129,18 +125,27 @@ def test_a_nan_image_over_the_open_inference_protocol_is_invalid_argument(
     assert "input 'image'[155] is nan: every value must be finite" in err.value.details()
 
 
+@pytest.fixture(scope="module")
+def committed_actions_policy(tmp_path_factory: pytest.TempPathFactory
+                             ) -> Iterator[RunningService]:
+    """`oricf serve policy` with a policy declared to take the committed actions."""
+    folder = tmp_path_factory.mktemp("committed-actions-policy")
+    with running_service("policy", {"model": str(committed_declaration(folder))}) as policy:
+        yield policy
+
+
 @pytest.mark.parametrize(("start", "expected"), [
     (3, [1.0 + 0.25, 1.0 - 1.5]),   # committed from the observation's step: its first row
     (4, [0.25, -1.5]),              # from the next step on: nothing for this one, zeros
     (None, [0.25, -1.5]),           # nothing committed
 ])
 def test_a_policy_declared_to_take_the_committed_actions_is_fed_them_by_step(
-        tmp_path: Path, start: int | None, expected: list[float]) -> None:
-    with running_service("policy", {"model": str(committed_declaration(tmp_path))}) as policy:
-        stub = policy_pb2_grpc.PolicyStub(policy.channel)
-        request = policy_pb2.Observation(step=3, state=STATE)
-        if start is not None:
-            request.committed.start_step = start
-            request.committed.actions.extend([1.0, 1.0, 2.0, 2.0])
-        chunk = stub.Act(request, timeout=10)
+        committed_actions_policy: RunningService, start: int | None,
+        expected: list[float]) -> None:
+    stub = policy_pb2_grpc.PolicyStub(committed_actions_policy.channel)
+    request = policy_pb2.Observation(step=3, state=STATE)
+    if start is not None:
+        request.committed.start_step = start
+        request.committed.actions.extend([1.0, 1.0, 2.0, 2.0])
+    chunk = stub.Act(request, timeout=10)
     np.testing.assert_allclose(chunk.actions, expected, atol=1e-6)

@@ -157,23 +157,20 @@ def test_failover_from_llama_cpp_server_to_oricf_grpc_and_back(pipeline_for: Any
     assert route.ok == 4 and route.call_errors == 0
 
 
-def test_a_busy_server_is_retried_after_its_retry_after(tmp_path: Any, pipeline_for: Any
-                                                        ) -> None:
+def test_a_busy_server_is_retried_after_its_retry_after(pipeline_for: Any,
+                                                        llm_one_call: HttpService) -> None:
     """ORICF's language service over HTTP with one call slot, held by a long streamed answer:
     the gateway's call gets 429 with Retry-After, waits, and is answered once the slot is
     free again."""
-    overlay = tmp_path / "one.yaml"
-    overlay.write_text("server: {max_concurrent_rpcs: 1, retry_after_ms: 400}\n")
-    with http_service("llm", "--overlay", str(overlay)) as http_llm:
-        config = asking({"protocol": "openai", "address": f"{http_llm.base_url}/v1",
-                         "model": "gemma3-270m", "retry": {"attempts": 10}})
-        pipeline, outputs = pipeline_for(config)
-        begun = threading.Event()
-        holding = threading.Thread(target=_hold_the_slot, args=(http_llm, 2.0, begun))
-        holding.start()
-        assert begun.wait(60), "the long answer did not begin"
-        ask(pipeline)
-        holding.join()
+    config = asking({"protocol": "openai", "address": f"{llm_one_call.base_url}/v1",
+                     "model": "gemma3-270m", "retry": {"attempts": 10}})
+    pipeline, outputs = pipeline_for(config)
+    begun = threading.Event()
+    holding = threading.Thread(target=_hold_the_slot, args=(llm_one_call, 2.0, begun))
+    holding.start()
+    assert begun.wait(60), "the long answer did not begin"
+    ask(pipeline)
+    holding.join()
     assert pipeline.endpoints["llm"].retries >= 1
     assert pipeline.routes["ask"].stats.ok == 1 and outputs.values("answer") != [""]
 
@@ -202,41 +199,40 @@ def _hold_the_slot(llm: HttpService, seconds: float, begun: threading.Event) -> 
 
 
 def test_an_image_part_reaches_the_server_which_refuses_it_by_name(
-        tmp_path: Any, pipeline_for: Any) -> None:
+        pipeline_for: Any, llm_one_call: HttpService) -> None:
     """ORICF's own language service has no vision: the frame the gateway attached arrives as
     an image_url part and is refused with a 400 that names it."""
-    with http_service("llm") as http_llm:
-        config = asking({"protocol": "openai", "address": f"{http_llm.base_url}/v1",
-                         "model": "gemma3-270m"}, context=False,
-                        image={"product": "people_count"})
-        pipeline, outputs = pipeline_for(config)
-        pipeline.products.put("people_count", Frame.from_pixels(video_frames([0])[0]))
-        ask(pipeline)
+    config = asking({"protocol": "openai", "address": f"{llm_one_call.base_url}/v1",
+                     "model": "gemma3-270m"}, context=False, image={"product": "people_count"})
+    pipeline, outputs = pipeline_for(config)
+    pipeline.products.put("people_count", Frame.from_pixels(video_frames([0])[0]))
+    ask(pipeline)
     stats = pipeline.routes["ask"].stats
     assert stats.call_errors == 1 and "INVALID_ARGUMENT" in stats.errors
     assert outputs.values("answer") == []
 
 
-def test_transcribe_through_an_openai_transcriptions_server(pipeline_for: Any) -> None:
-    with http_service("asr") as asr:
-        config = parse_pipeline({
-            "endpoints": {"asr": {"protocol": "openai", "address": f"{asr.base_url}/v1",
-                                  "model": "whisper-tiny-en", "deadline_ms": 30000}},
-            "routes": {"speech": {
-                "input": {"topic": "/audio", "type": "std_msgs/Int16MultiArray"},
-                "call": {"service": "asr", "method": "Transcribe", "language": "en"},
-                "outputs": [{"jsonl": "-", "from": "transcript"},
-                            {"jsonl": "-", "from": "duration_s"}]}}}, "asr pipeline")
-        outputs = Outputs()
-        pipeline = Pipeline(config, outputs)
-        pipeline.start()
-        try:
-            samples = speech(QUESTION)
-            clip = AudioClip(samples.astype("<i2").tobytes(), 16000, 1)
-            pipeline.submit("speech", lambda: {"audio": clip})
-            assert pipeline.idle(60)
-        finally:
-            pipeline.stop()
+def test_transcribe_through_an_openai_transcriptions_server(
+        asr_small_uploads: HttpService) -> None:
+    config = parse_pipeline({
+        "endpoints": {"asr": {"protocol": "openai",
+                              "address": f"{asr_small_uploads.base_url}/v1",
+                              "model": "whisper-tiny-en", "deadline_ms": 30000}},
+        "routes": {"speech": {
+            "input": {"topic": "/audio", "type": "std_msgs/Int16MultiArray"},
+            "call": {"service": "asr", "method": "Transcribe", "language": "en"},
+            "outputs": [{"jsonl": "-", "from": "transcript"},
+                        {"jsonl": "-", "from": "duration_s"}]}}}, "asr pipeline")
+    outputs = Outputs()
+    pipeline = Pipeline(config, outputs)
+    pipeline.start()
+    try:
+        samples = speech(QUESTION)
+        clip = AudioClip(samples.astype("<i2").tobytes(), 16000, 1)
+        pipeline.submit("speech", lambda: {"audio": clip})
+        assert pipeline.idle(60)
+    finally:
+        pipeline.stop()
     [transcript] = outputs.values("transcript")
     assert "people" in transcript.lower(), transcript
     assert outputs.values("duration_s") == [pytest.approx(clip.duration_s)]

@@ -30,14 +30,13 @@ def registered(service: RunningService) -> dict[str, object]:
 
 
 def test_detect_through_shared_memory_counts_as_the_wire(
-        caplog: pytest.LogCaptureFixture) -> None:
+        caplog: pytest.LogCaptureFixture, detector: RunningService) -> None:
     before = own_objects()
-    with running_service("detector") as detector:
-        _, wire = run_frames(pipeline_config(detector.address), FRAMES)
-        with caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
-            _, shared = run_frames(pipeline_config(detector.address,
-                                                   {"endpoints": {"detector": SHM}}), FRAMES)
-        assert registered(detector) == {}  # unregistered when the pipeline stopped
+    _, wire = run_frames(pipeline_config(detector.address), FRAMES)
+    with caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
+        _, shared = run_frames(pipeline_config(detector.address,
+                                               {"endpoints": {"detector": SHM}}), FRAMES)
+    assert registered(detector) == {}  # unregistered when the pipeline stopped
     assert counts(shared) == counts(wire) and counts(shared)[0] == 4
     assert "shared-memory regions of 1327104 bytes registered" in caplog.text  # 768x576x3
     assert "not possible" not in caplog.text
@@ -45,20 +44,19 @@ def test_detect_through_shared_memory_counts_as_the_wire(
 
 
 def test_infer_through_shared_memory_with_decoded_detections(
-        caplog: pytest.LogCaptureFixture) -> None:
+        caplog: pytest.LogCaptureFixture, models: RunningService) -> None:
     decoded = {"routes": {"people": {"call": {"decoded": True}}}}
-    with running_service("models") as models:
-        _, wire = run_frames(infer_config(models.address), FRAMES)
-        with caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
-            _, tensor = run_frames(infer_config(models.address,
-                                                 {"endpoints": {"models": SHM}}), FRAMES)
-        # a slot holds the FP32 input (2,076,672 bytes) and the output (1,206,660)
-        assert "regions of 3283332 bytes registered" in caplog.text
-        _, small = run_frames(infer_config(models.address, {
-            "endpoints": {"models": SHM}, **decoded}), FRAMES)
-        _, edge = run_frames(infer_config(models.address, {
-            "endpoints": {"models": {"image": {"transport": "jpeg"}}}, **decoded}), FRAMES)
-        assert registered(models) == {}
+    _, wire = run_frames(infer_config(models.address), FRAMES)
+    with caplog.at_level(logging.INFO, "oricf.gateway.endpoints.shared_memory"):
+        _, tensor = run_frames(infer_config(models.address,
+                                             {"endpoints": {"models": SHM}}), FRAMES)
+    # a slot holds the FP32 input (2,076,672 bytes) and the output (1,206,660)
+    assert "regions of 3283332 bytes registered" in caplog.text
+    _, small = run_frames(infer_config(models.address, {
+        "endpoints": {"models": SHM}, **decoded}), FRAMES)
+    _, edge = run_frames(infer_config(models.address, {
+        "endpoints": {"models": {"image": {"transport": "jpeg"}}}, **decoded}), FRAMES)
+    assert registered(models) == {}
     assert counts(tensor) == counts(wire) == counts(small) and counts(wire)[0] == 4
     assert all(abs(a - b) <= 1 for a, b in zip(counts(edge), counts(wire), strict=True))
 
