@@ -29,7 +29,7 @@ from oricf.gateway.components import Emitter
 from oricf.gateway.config import OutputConfig, parse_pipeline
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.sinks.jsonl import JsonLines
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.video_source import VideoSource
 from oricf.gateway.values import Record
 from oricf.store import ModelStore
 

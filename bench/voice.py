@@ -48,8 +48,8 @@ from oricf.gateway.components import Emitter
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sources.audio import Utterances, shared_vad
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.audio_source import Utterances, shared_vad
+from oricf.gateway.sources.video_source import VideoSource
 from oricf.stats import p90
 
 PIPELINE = config_dir() / "pipelines" / "mic_questions.yaml"

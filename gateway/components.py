@@ -4,8 +4,12 @@ A component is one module in its kind's package (oricf.gateway.sources, .methods
 .sinks) that declares, at module level, what it is: `COMPONENT = StepKind(...)` (or
 SourceKind, SinkKind) or `METHOD = Method(...)`. The declaration says the component's YAML
 key, its settings schema (pydantic), the record fields it reads and writes, and how it is
-built. Each kind's `Registry` scans its package (pkgutil) the first time it is asked and keeps
-every declaration it finds; two modules that declare one key are an error naming both.
+built. Each package's `COMPONENTS` names its component modules, one line each; the kind's
+`Registry` imports those the first time it is asked and keeps their declarations (a listed
+module that is missing or declares nothing, or two that declare one key, are errors naming
+them). The list is explicit so that loading the schema imports the declarations and nothing
+else: a component whose implementation needs a device, a network stream or a codec keeps it
+in a module of its own, which its `open` (or `build`) imports when a pipeline runs.
 
 The pipeline schema (oricf.gateway.config) builds its unions from the registries, so the core
 (config, pipeline, route, worker, this module) imports no component; pyproject's import
@@ -23,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import pkgutil
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
@@ -344,8 +347,8 @@ K = TypeVar("K", bound=Declared)
 
 
 class Registry(Mapping[str, K], Generic[K]):
-    """The components of one kind by key, in rank order, found on first use: each module of
-    `package` that defines `attr` at module level."""
+    """The components of one kind by key, in rank order, loaded on first use: the modules
+    that `package`'s COMPONENTS tuple names, each defining `attr` at module level."""
 
     def __init__(self, package: str, attr: str, kind: type[Any]) -> None:
         self.package = package
@@ -357,25 +360,42 @@ class Registry(Mapping[str, K], Generic[K]):
     def _components(self) -> dict[str, K]:
         with self._lock:
             if self._found is None:
-                self._found = self._discover()
+                self._found = self._load()
             return self._found
 
-    def _discover(self) -> dict[str, K]:
+    def modules(self) -> tuple[str, ...]:
+        """The component modules the package lists (full names), without importing them."""
+        names = getattr(importlib.import_module(self.package), "COMPONENTS", None)
+        if not isinstance(names, tuple) or not all(isinstance(n, str) for n in names):
+            raise ComponentError(f"{self.package}.COMPONENTS: give a tuple of module names")
+        return tuple(f"{self.package}.{name}" for name in names)
+
+    def _load(self) -> dict[str, K]:
         found: dict[str, tuple[K, str]] = {}
-        package = importlib.import_module(self.package)
-        for info in pkgutil.iter_modules(package.__path__, f"{self.package}."):
-            module = importlib.import_module(info.name)
-            declared = getattr(module, self._attr, None)
-            if declared is None:
-                continue
-            if not isinstance(declared, self._kind):
-                raise ComponentError(f"{info.name}.{self._attr} is no {self._kind.__name__}")
+        for name in self.modules():
+            declared = self._declaration(name)
             if declared.key in found:
                 raise ComponentError(f"'{declared.key}' is declared by both "
-                                     f"{found[declared.key][1]} and {info.name}")
-            found[declared.key] = (declared, info.name)
+                                     f"{found[declared.key][1]} and {name}")
+            found[declared.key] = (declared, name)
         ordered = sorted(found.values(), key=lambda item: (item[0].rank, item[0].key))
         return {declared.key: declared for declared, _ in ordered}
+
+    def _declaration(self, name: str) -> K:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise  # the module is there; something it imports is not
+            raise ComponentError(f"{self.package}.COMPONENTS names {name}, which does "
+                                 f"not exist") from None
+        declared = getattr(module, self._attr, None)
+        if declared is None:
+            raise ComponentError(f"{self.package}.COMPONENTS names {name}, which declares "
+                                 f"no {self._attr}")
+        if not isinstance(declared, self._kind):
+            raise ComponentError(f"{name}.{self._attr} is no {self._kind.__name__}")
+        return declared
 
     def __getitem__(self, key: str) -> K:
         return self._components()[key]

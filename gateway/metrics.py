@@ -40,7 +40,7 @@ class Pipeline(Protocol):
     routes: Mapping[str, Route]
     workers: Mapping[str, RouteWorker[Any]]
     endpoints: Mapping[str, Endpoint]
-    speakers: Mapping[str, Any]  # device -> oricf.gateway.sinks.speaker.Speaker
+    speakers: Mapping[str, Any]  # device -> oricf.gateway.sinks.speaker_sink.Speaker
     loops: Mapping[str, ControlLoop]  # route -> its control loop (control inputs)
 
 ROUTE = ("route",)

@@ -3,7 +3,9 @@
 Images travel as bytes plus `encoding`, `width` and `height` (the oricf.v1.Image message,
 or a ROS sensor_msgs/Image). Decoding validates everything a caller can get wrong and
 raises InvalidInput with a message a person understands; it never crashes on bad bytes.
-Internally images are BGR uint8 arrays (OpenCV's order, and YOLOX's input order).
+Internally images are BGR uint8 arrays (OpenCV's order, and YOLOX's input order). OpenCV
+is imported by the functions that use it, so that what only names images (the gateway's
+pipeline schema) loads no OpenCV.
 """
 
 from __future__ import annotations
@@ -13,7 +15,6 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from oricf.errors import InvalidInput
@@ -118,6 +119,8 @@ def decode_image(data: bytes, encoding: str, width: int = 0, height: int = 0,
     width, height = image_size(data, encoding, width, height, max_pixels)
     if encoding in RAW_CHANNELS:
         return _convert_raw(data, encoding, width, height)
+    import cv2
+
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8),
                          cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
     if image is None or image.shape[:2] != (height, width):
@@ -136,6 +139,8 @@ def _encoding_name(encoding: str) -> str:
 
 
 def _convert_raw(data: bytes, encoding: str, width: int, height: int) -> np.ndarray:
+    import cv2
+
     pixels = np.frombuffer(data, dtype=np.uint8).reshape(height, width, RAW_CHANNELS[encoding])
     if encoding == "rgb8":
         return cv2.cvtColor(pixels, cv2.COLOR_RGB2BGR)
@@ -304,6 +309,8 @@ def _scan_bits(header: bytes, frame: JpegFrame) -> int:
 
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> bytes:
     """BGR array -> bytes in the given encoding."""
+    import cv2
+
     if encoding in ENCODED:
         ext = ".jpg" if encoding == "jpeg" else ".png"
         params = [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality] if encoding == "jpeg" else []
@@ -323,6 +330,8 @@ def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 85) -> by
 
 def draw_detections(image: np.ndarray, detections: Iterable[Detection]) -> np.ndarray:
     """A copy of the image with a labelled box per detection."""
+    import cv2
+
     canvas = image.copy()
     for det in detections:
         p1 = (round(det.box.x_min), round(det.box.y_min))

@@ -9,7 +9,6 @@ import base64
 import logging
 from typing import Any
 
-import cv2
 import numpy as np
 from pydantic import Field, field_validator
 
@@ -97,6 +96,8 @@ def image_url(products: ProductStore, image: ImageContext) -> str | None:
 
 
 def fit(pixels: np.ndarray, max_side: int) -> np.ndarray:
+    import cv2  # here: a pipeline's schema, which names this method, loads no OpenCV
+
     height, width = pixels.shape[:2]
     scale = max_side / max(height, width)
     if scale >= 1:

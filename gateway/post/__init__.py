@@ -14,8 +14,9 @@
 Every step says which record fields it reads and which it writes, so a pipeline whose steps
 or outputs name a field its route does not have is refused when it loads. Adding a step is
 one module here with its schema, a `build` and `COMPONENT = StepKind(key, schema, build)`
-(oricf.gateway.components): the pipeline schema's `post:` entries take its key from then on
-(oricf.gateway.config.PostStep).
+(oricf.gateway.components), and its line in COMPONENTS below: the pipeline schema's `post:`
+entries take its key from then on (oricf.gateway.config.PostStep). The modules not listed
+(base, over_tracks) are what steps share.
 """
 
 from __future__ import annotations
@@ -23,3 +24,17 @@ from __future__ import annotations
 from oricf.gateway.components import PostSteps, Step, StepKind
 
 __all__ = ["PostSteps", "Step", "StepKind"]
+
+COMPONENTS = (
+    "annotate",
+    "count",
+    "count_tracks",
+    "filter",
+    "line",
+    "map_labels",
+    "round",
+    "seen_tracks",
+    "template",
+    "track",
+    "zone",
+)

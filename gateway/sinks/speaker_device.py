@@ -1,4 +1,4 @@
-"""Audio output devices through PortAudio, for the speaker (speaker.py): finding one by
+"""Audio output devices through PortAudio, for the speaker (speaker_sink.py): finding one by
 name (a PulseAudio sink too), the rate it plays, and the buffer its stream's callback plays
 from."""
 

@@ -11,7 +11,6 @@ from oricf.config import Schema
 from oricf.errors import ConfigError
 from oricf.gateway.components import ComponentContext, OnEnd, Source, SourceKind, Submit
 from oricf.gateway.control.settings import ControlSettings
-from oricf.gateway.control.source import ControlSource
 
 
 class ControlInput(Schema):
@@ -22,6 +21,8 @@ def open_source(route: str, config: Any, submit: Submit, on_end: OnEnd,
                 context: ComponentContext) -> Source:
     """The route's control loop, its state and cameras subscribed and its target's publisher
     made on the ROS node's topics."""
+    from oricf.gateway.control.source import ControlSource  # the loop: when a pipeline runs
+
     settings: ControlSettings = config.control
     if context.topics is None:
         raise ConfigError(f"routes.{route}.input.control: reads and writes ROS topics: "

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from typing import Literal
 
-import cv2
 import numpy as np
 
 from oricf.imaging import Box
@@ -26,6 +25,8 @@ class Polygon:
 
     def contains(self, point: Point) -> bool:
         """Inside or on the edge."""
+        import cv2  # here: a pipeline's schema, which names zone steps, loads no OpenCV
+
         return cv2.pointPolygonTest(self._contour, (float(point[0]), float(point[1])),
                                     False) >= 0
 

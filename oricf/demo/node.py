@@ -27,7 +27,7 @@ from std_msgs.msg import Int16MultiArray, Int32, String
 
 from oricf.gateway.config import InputConfig
 from oricf.gateway.ros.dds import use_dds_profile
-from oricf.gateway.sources.video import VideoSource, is_live
+from oricf.gateway.sources.video_source import VideoSource, is_live
 
 log = logging.getLogger(__name__)
 

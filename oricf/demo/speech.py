@@ -86,10 +86,10 @@ class AnswerPlayer:
         self.wav: Any = None
         self.note = ""
         if play:
-            from oricf.gateway.sinks.speaker import Speaker, SpeakerConfig
+            from oricf.gateway.sinks.speaker_sink import Speaker
 
             try:
-                self.speaker = Speaker(SpeakerConfig(device="default"), Speaking())
+                self.speaker = Speaker("default", Speaking())
             except ConfigError as exc:
                 self.note = f"not played: {exc}"
         if wav is not None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from oricf.models.image_input import ImageInput
@@ -48,6 +47,8 @@ def geometry(width: int, height: int, settings: ImageInput, size: tuple[int, int
 def to_tensor(image: np.ndarray, settings: ImageInput, size: tuple[int, int]
               ) -> tuple[np.ndarray, Geometry]:
     """A BGR uint8 image -> a batch of one in the declared layout, datatype and range."""
+    import cv2  # here: what only declares a model (a pipeline's schema) loads no OpenCV
+
     height, width = image.shape[:2]
     geo = geometry(width, height, settings, size)
     net_w, net_h = size

@@ -11,7 +11,8 @@ CORE = ["config", "methods", "methods.detect", "methods.transcribe", "methods.ge
         "methods.infer", "values", "post", "products", "endpoints", "worker", "route",
         "pipeline", "metrics", "throttle", "ros", "ros.dds", "ros.frame_loss", "ros.process",
         "ros.params", "topics.cdr", "topics.codec", "recording.recorder", "recording.replay",
-        "shells.main", "sources", "sources.video", "sinks", "channels.server",
+        "shells.main", "sources", "sources.video", "sources.video_source", "sinks",
+        "channels.server",
         "shells.without_ros", "actuation.actuation", "actuation.senders", "operations.view",
         "operations.client", "ros.commands", "host.gateway", "host.surfaces", "shells.embedded",
         "shells.ros"]

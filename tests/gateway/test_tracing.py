@@ -18,7 +18,7 @@ from oricf import tracing
 from oricf.audio import encode_wav, synthesize
 from oricf.gateway.config import InputConfig
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sources.audio import AudioSource
+from oricf.gateway.sources.audio_source import AudioSource
 from oricf.gateway.values import Frame
 from oricf.tracing import traced_with
 from oricf.v1 import detector_pb2, detector_pb2_grpc

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from oricf.gateway.channels.server import ChannelConfig, Client, TextChannel
 from oricf.gateway.sources.mjpeg import MjpegStream, NotMjpeg
-from oricf.gateway.sources.video import STREAM_ERRORS
+from oricf.gateway.sources.video_source import STREAM_ERRORS
 from oricf.launch.health import free_port
 from tests.gateway.sources.test_mjpeg import JPEGS, PNG
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from oricf.errors import ConfigError
-from oricf.gateway.sinks.speaker import Speaker, SpeakerConfig
+from oricf.gateway.sinks.speaker_sink import Speaker
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import AudioClip
 from oricf.v1 import synthesis_pb2
@@ -142,7 +142,7 @@ def test_every_stream_sounds_from_its_first_sample(pulse_env: PulseServer,
     the first one): the speaker's lead-in of silence keeps every onset. A one-second tone,
     played three times in new streams, is heard whole each time."""
     tone = (8000 * np.sin(2 * np.pi * 1000 * np.arange(RATE) / RATE)).astype("<i2")
-    speaker = Speaker(SpeakerConfig(device=SPEAKER), Speaking())
+    speaker = Speaker(SPEAKER, Speaking())
     try:
         for index in range(3):
             recorder = Recorder(pulse_env, SPEAKER, tmp_path / f"tone-{index}.raw")

@@ -21,7 +21,7 @@ from bench.common import stop
 from oricf.gateway.config import PipelineConfig, load_pipeline
 from oricf.gateway.outlets import Outlets
 from oricf.gateway.pipeline import Pipeline
-from oricf.gateway.sources.audio import AudioSource
+from oricf.gateway.sources.audio_source import AudioSource
 from oricf.services.tts.text import say_numbers
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 from tests.gateway.sources.audio import PulseServer

@@ -16,7 +16,7 @@ import yaml
 from oricf.audio import encode_wav, synthesize
 from oricf.errors import ConfigError
 from oricf.gateway.config import InputConfig, load_pipeline
-from oricf.gateway.sources.audio import AudioSource
+from oricf.gateway.sources.audio_source import AudioSource
 from oricf.gateway.values import AudioClip
 from tests.gateway.sources.audio import gateway
 from tests.support.services import RunningService
@@ -140,7 +140,7 @@ def test_without_the_asr_extra_the_error_names_it(questions: Path, tmp_path: Pat
         "raise ModuleNotFoundError(\"No module named 'faster_whisper'\", "
         "name='faster_whisper')\n")
     script = ("from oricf.gateway.config import InputConfig\n"
-              "from oricf.gateway.sources.audio import AudioSource\n"
+              "from oricf.gateway.sources.audio_source import AudioSource\n"
               f"AudioSource('mic', InputConfig(audio={str(questions)!r}), print, print)\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                             env={"PYTHONPATH": str(shadow.parent), "PATH": "/usr/bin:/bin"},
@@ -153,7 +153,7 @@ def test_gateway_modules_import_audio_libraries_only_for_audio_routes() -> None:
     check = ("import sys\n"
              "import oricf.gateway.shells.without_ros, oricf.gateway.sources\n"
              "assert 'oricf.services.asr' not in sys.modules\n"
-             "import oricf.gateway.sources.audio\n"
+             "import oricf.gateway.sources.audio_source\n"
              "heavy = {'sounddevice', 'faster_whisper', 'rclpy'} & set(sys.modules)\n"
              "assert not heavy, heavy\n")
     result = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True,

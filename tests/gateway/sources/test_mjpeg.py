@@ -21,7 +21,7 @@ import pytest
 from oricf.bench.mjpeg_camera import encode_frames
 from oricf.gateway.config import InputConfig
 from oricf.gateway.sources.mjpeg import MAX_PART_BYTES, BadStream, MjpegStream, NotMjpeg
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.video_source import VideoSource
 from oricf.gateway.values import Frame
 from oricf.launch.health import free_port
 from tests.gateway.sources.test_rtsp import counts, gateway

@@ -18,9 +18,9 @@ from contextlib import contextmanager, suppress
 import pytest
 
 from oricf.gateway.config import InputConfig
-from oricf.gateway.sources import video
+from oricf.gateway.sources import video_source
 from oricf.gateway.sources.mjpeg import BadStream, MjpegStream
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.video_source import VideoSource
 from tests.gateway.sources.test_mjpeg import JPEGS, part
 
 MJPEG_HEADERS = (b"HTTP/1.0 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary=cam"
@@ -159,7 +159,7 @@ def test_a_camera_that_drips_or_never_ends_a_header_block_is_cut_off(stall: str)
 
 def test_a_dripping_camera_is_reconnected_with_a_log_line_and_stop_is_prompt(
         monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
-    monkeypatch.setattr(video, "STREAM_TIMEOUT_MS", 1000)
+    monkeypatch.setattr(video_source, "STREAM_TIMEOUT_MS", 1000)
     connections: list[float] = []
     with serving(stalling(STALLS["part"], connections)) as port:
         source = VideoSource("cam", InputConfig(url=f"http://127.0.0.1:{port}/"),

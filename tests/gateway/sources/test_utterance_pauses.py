@@ -12,7 +12,8 @@ import pytest
 from oricf.audio import MODEL_RATE, synthesize
 from oricf.config import config_dir
 from oricf.gateway.config import load_pipeline
-from oricf.gateway.sources.audio import Utterances, VadConfig, shared_vad
+from oricf.gateway.sources.audio import VadConfig
+from oricf.gateway.sources.audio_source import Utterances, shared_vad
 from tests.support.speech import speech
 
 PIPELINE = config_dir() / "pipelines" / "mic_questions.yaml"

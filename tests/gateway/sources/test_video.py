@@ -16,7 +16,7 @@ import yaml
 
 from oricf.config import config_dir
 from oricf.gateway.config import InputConfig
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.video_source import VideoSource
 from tests.support.data import video_path
 from tests.support.services import RunningService
 

@@ -12,7 +12,7 @@ import pytest
 
 from oricf.gateway.config import InputConfig
 from oricf.gateway.route import Loader
-from oricf.gateway.sources.video import VideoSource
+from oricf.gateway.sources.video_source import VideoSource
 from oricf.gateway.values import FRAME_TIME
 from tests.support.data import video_frames
 
