@@ -238,6 +238,7 @@ def test_deadman_fires_while_an_approval_waits(channels: Channels, tmp_path: Pat
             actuation.send("arm", {"data": 0.5})
             assert driver.arm.get(timeout=5).data == 0.5
             approving.clear()  # the next command waits for a person who does not answer
+            time.sleep(0.01)  # beyond the 1 ms that max_rate_hz leaves between two commands
             refusals: list[str] = []
 
             def unanswered() -> None:
