@@ -5,15 +5,22 @@ which scripts/test.sh checks with lint-imports on the same view.
 
 Imports under `if TYPE_CHECKING:` count: they do not run, but a cycle through one is still
 two modules that each need the other, and moving the shared type out of the pair breaks it.
+
+docs/architecture.md draws each layers contract and walks through the code by its modules,
+classes and functions: the page's diagrams are the contracts, and what it names exists.
 """
 
 from __future__ import annotations
 
+import ast
+import functools
 import json
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Collection, Iterator
+from pathlib import Path
 
 try:
     import tomllib
@@ -173,3 +180,152 @@ def test_actuation_and_operations_import_no_surface_and_no_ros(graph: Graph) -> 
                  if package_of(module, core) for other in imported
                  if package_of(other, above)]
     assert not crossings, "imported from above:\n  " + "\n  ".join(sorted(crossings))
+
+
+# docs/architecture.md draws the layer contracts; a diagram's first layer names its contract.
+ARCHITECTURE = REPO_ROOT / "docs" / "architecture.md"
+
+
+def diagrams(text: str) -> dict[str, list[str]]:
+    """The layer diagrams of the page, by their first layer: each a list of layers, a line
+    `label  a : b | c` each (a line that starts blank continues the one before)."""
+    found = {}
+    for block in re.findall(r"```\n(.*?)```", text, re.S):
+        layers: list[str] = []
+        for line in block.splitlines():
+            if line[:1].isspace() and layers:
+                layers[-1] += " " + line.strip()
+            elif line.strip():
+                layers.append(re.split(r"\s{2,}", line.strip(), maxsplit=1)[-1])
+        if layers:
+            found[" ".join(layers[0].split())] = [" ".join(layer.split()) for layer in layers]
+    return found
+
+
+def test_the_architecture_page_draws_the_layer_contracts() -> None:
+    """Every layers contract of pyproject.toml is one diagram of docs/architecture.md, layer
+    for layer, siblings and separators as the contract has them."""
+    contracts = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text()
+                              )["tool"]["importlinter"]["contracts"]
+    drawn = diagrams(ARCHITECTURE.read_text())
+    for contract in (c for c in contracts if c["type"] == "layers"):
+        layers = [" ".join(layer.split()) for layer in contract["layers"]]
+        assert drawn.get(layers[0]) == layers, contract["name"]
+
+
+def defined(module: Path, names: list[str]) -> bool:
+    """Whether `names` (a top-level name, then a name in its class body) are defined in the
+    module's source."""
+    body = ast.parse(module.read_text()).body
+    for name in names[:2]:
+        found = [node for node in body if name in defined_names(node)]
+        if not found:
+            return False
+        body = getattr(found[0], "body", [])
+    return True
+
+
+def defined_names(node: ast.stmt) -> set[str]:
+    if isinstance(node, ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+        return {node.name}
+    if isinstance(node, ast.Assign):
+        return {t.id for t in node.targets if isinstance(t, ast.Name)}
+    if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+        return {node.target.id}
+    if isinstance(node, ast.ImportFrom | ast.Import):
+        return {alias.asname or alias.name.split(".")[0] for alias in node.names}
+    if isinstance(node, ast.For | ast.If | ast.With | ast.Try):
+        return {name for child in node.body for name in defined_names(child)}
+    return set()
+
+
+def module_file(parts: list[str], roots: list[Path]) -> tuple[Path, list[str]] | None:
+    """The module that the longest prefix of `parts` names under the first of `roots` that
+    holds one, and the names after it."""
+    for root in roots:
+        path, rest = root, list(parts)
+        while rest and (path / rest[0]).is_dir():
+            path = path / rest.pop(0)
+        if rest and (path / f"{rest[0]}.py").is_file():
+            return path / f"{rest.pop(0)}.py", rest
+        if path != root and (path / "__init__.py").is_file():
+            return path / "__init__.py", rest
+    return None
+
+
+def named_in_architecture() -> Iterator[str]:
+    """The code the page names in backticks: files and folders (`ros/camera.py`,
+    `services/runtime/`), a module's name as `topics/codec.input_loader`, and dotted names
+    (`route.Route.process`, `oricf.audio.vad`); not placeholders (`services/NAME/`)."""
+    for token in re.findall(r"`([\w./]+)`", ARCHITECTURE.read_text()):
+        if "NAME" not in token and (token.endswith((".py", "/"))
+                                    or re.fullmatch(r"[\w/]+/\w+(\.\w+)+", token)
+                                    or re.fullmatch(r"\w+(\.\w+)+", token)):
+            yield token
+
+
+def resolved(token: str) -> bool | None:
+    """Whether the code a token names is there; None for a dotted name that names no module
+    of the gateway or the namespace (prose, a file name such as `people_qa.yaml`)."""
+    roots = [REPO_ROOT, REPO_ROOT / "gateway", REPO_ROOT / "services"]
+    if token.endswith((".py", "/")) or any((root / token).is_file() for root in roots):
+        return any((root / token).exists() for root in roots)
+    path, _, dotted = token.rpartition("/")
+    parts = dotted.split(".")
+    if path:
+        parts, search = [*path.split("/"), *parts], roots
+    elif parts[0] == "oricf":  # the namespace: oricf.gateway.x is gateway/x
+        parts = parts[1:]
+        if parts[0] in ("v1", "oip"):
+            return None  # generated stubs
+        if parts[0] not in ("gateway", "services", "bench"):
+            parts = ["oricf", *parts]
+        search = [REPO_ROOT]
+    else:
+        search = [REPO_ROOT / "gateway"]
+    found = module_file(parts, search)
+    if found is None:
+        if path or token.startswith("oricf."):
+            return False
+        return defined_anywhere(parts) if parts[0].isidentifier() else None
+    module, names = found
+    return not names or defined(module, names)
+
+
+@functools.cache
+def sources() -> dict[str, list[ast.Module]]:
+    """Every module of the library, the gateway and the services, by its file's stem."""
+    found: dict[str, list[ast.Module]] = {}
+    for folder in ("oricf", "gateway", "services"):
+        for path in (REPO_ROOT / folder).rglob("*.py"):
+            found.setdefault(path.stem, []).append(ast.parse(path.read_text()))
+    return found
+
+
+def defined_anywhere(parts: list[str]) -> bool:
+    """`Class.name`: a class of that name defines `name` (in its body, or as `self.name`);
+    `module.name`: a module of that name (in any package) defines it."""
+    first, name = parts[0], parts[1]
+    if first[0].islower():
+        return any(name in defined_names(node) for module in sources().get(first, [])
+                   for node in module.body)
+    classes = [node for modules in sources().values() for module in modules
+               for node in ast.walk(module)
+               if isinstance(node, ast.ClassDef) and node.name == first]
+    return any(name in defined_names(node) or name in assigned_to_self(node)
+               for cls in classes for node in cls.body)
+
+
+def assigned_to_self(node: ast.stmt) -> set[str]:
+    return {target.attr for child in ast.walk(node)
+            for target in getattr(child, "targets", [getattr(child, "target", None)])
+            if isinstance(target, ast.Attribute) and isinstance(target.value, ast.Name)
+            and target.value.id == "self"}
+
+
+def test_every_module_and_name_the_architecture_page_gives_exists() -> None:
+    """A module moved or a class renamed is a page that lies: each path the page names is a
+    file or folder (of the repository, the gateway or the services), each dotted name under
+    `oricf` or a gateway module a module, a name defined in it, or a name in that class."""
+    missing = [token for token in named_in_architecture() if resolved(token) is False]
+    assert not missing, "docs/architecture.md names what is not there: " + ", ".join(missing)

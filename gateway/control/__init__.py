@@ -7,7 +7,8 @@ bench control` on a simulator's steps):
     merge        how actions two chunks give for one step are merged: one entry per mode
     loop         each tick: whether to ask the policy, the action or the safe one, the ages
     observation  the newest state messages and camera images as one observation
-    parts        the observation's parts and the robot's message types: one entry per type
+    parts        the observation's state parts and cameras, read through their types'
+                 entries (oricf.gateway.topics.types)
     target       where the actions go, through bounds, rate and deadman
 
 and the control input that runs it in a gateway (oricf.gateway.sources.control declares it):
@@ -17,6 +18,7 @@ and the control input that runs it in a gateway (oricf.gateway.sources.control d
     source       the loop, its observation and target together; its requests as the route's
                  items, told their answers (oricf.gateway.items.Asker)
 
-It imports no module of the gateway's core but `items`, `values` and `throttle`, which
-import nothing of the gateway: the core keeps a pipeline's loops by type (its /metrics).
+It sits beneath the gateway's core (the core keeps a pipeline's loops by type, for its
+/metrics) and imports only its own layer: `topics` (the robot's message types), `actuation`
+(the deadman, a target's fields), `items`, `values` and `throttle`.
 """

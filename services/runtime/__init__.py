@@ -1,5 +1,7 @@
 """The shared service runtime: lifecycle, health, reflection, limits and error mapping. A
-service is a `Service` class (service.py), whose gRPC side the runtime derives (handlers.py)."""
+service is a `Service` class (service.py), whose gRPC side the runtime derives (handlers.py),
+as the detector and the policy are; asr, llm, tts and models still give their parts as written
+(`ServiceParts`, parts.py)."""
 
 from oricf.services.runtime.config import ServerSettings, ServiceConfig
 from oricf.services.runtime.model import Model, ModelInfo, ModelSlot
