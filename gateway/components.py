@@ -365,7 +365,7 @@ class Registry(Mapping[str, K], Generic[K]):
 
     def modules(self) -> tuple[str, ...]:
         """The component modules the package lists (full names), without importing them."""
-        names = getattr(importlib.import_module(self.package), "COMPONENTS", None)
+        names = vars(importlib.import_module(self.package)).get("COMPONENTS")
         if not isinstance(names, tuple) or not all(isinstance(n, str) for n in names):
             raise ComponentError(f"{self.package}.COMPONENTS: give a tuple of module names")
         return tuple(f"{self.package}.{name}" for name in names)
