@@ -30,9 +30,8 @@ from oricf.config import REPO_ROOT
 from oricf.gateway.components import PostSteps
 from oricf.gateway.config import PostStep
 from oricf.gateway.methods.detect import detections
-from oricf.gateway.post import track as track_step
 from oricf.gateway.post.count_tracks import CountTracksStep
-from oricf.gateway.post.track import TrackStep
+from oricf.gateway.post.track import Track, TrackStep
 from oricf.gateway.values import Record
 from oricf.imaging import Detection
 from oricf.models.declaration import DetectionTask
@@ -123,7 +122,7 @@ def tracked_counts(found: list[list[Detection]], fps: float,
                    count: CountTracksStep | None = None) -> list[int]:
     """The `track` and `count_tracks` steps as a route runs them, on the video's clock."""
     now = [0.0]
-    tracking = track_step.build(track or TrackStep(labels=["person"]), clock=lambda: now[0])
+    tracking = Track(track or TrackStep(labels=["person"]), clock=lambda: now[0])
     counting = PostSteps([PostStep(count_tracks=count or CountTracksStep(label="person"))])
     counts: list[int] = []
     for index, frame in enumerate(found):

@@ -45,21 +45,30 @@ from oricf.gateway.products import ProductStore
 from oricf.gateway.speaking import Speaking
 from oricf.gateway.values import Record
 
-Run = Callable[[Record], None]
-
 
 class ComponentError(RuntimeError):
     """The components of a kind cannot be registered (two modules declare one key)."""
 
 
-@dataclass(frozen=True)
-class Step:
-    """A post step once built: the record fields it reads, the one it writes (if any), and
-    the function that runs it on a record."""
+S = TypeVar("S")
+
+
+class Step(ABC, Generic[S]):
+    """A post step built for one route from its settings (the `{key: settings}` of its
+    `post:` entry), once per route: the record fields it reads, the one it writes (if any,
+    set by each step from its settings), and `run`, what it does to each record. A step that
+    keeps state between records (a tracker) keeps it here, safe for the threads a route's
+    records come from."""
 
     reads: frozenset[str]
-    writes: str | None
-    run: Run
+    writes: str | None = None
+
+    def __init__(self, settings: S) -> None:
+        self.settings = settings
+
+    @abstractmethod
+    def run(self, record: Record) -> None:
+        """Reads its fields of the record and writes its own."""
 
 
 @dataclass(frozen=True)
@@ -68,12 +77,16 @@ class StepKind:
 
     key: str
     settings: Any                        # its schema (a pydantic class, or a type like dict)
-    build: Callable[[Any], Step]         # settings -> the step, once per route
+    step: type[Step[Any]]                # its class, built from the settings once per route
     rank: int = 100                      # where it is listed among the steps (messages, docs)
+
+    def build(self, settings: Any) -> Step[Any]:
+        """The step of one route, from its validated settings."""
+        return self.step(settings)
 
 
 class Builds(Protocol):
-    def build(self) -> Step: ...
+    def build(self) -> Step[Any]: ...
 
 
 class PostSteps:

@@ -57,7 +57,7 @@ class Pipeline:
             route = Route(name, rc, self.endpoints[rc.call.service], self.products, emitter,
                           throttle, self.speaking)
             self.routes[name] = route
-            self.workers[name] = RouteWorker(name, route.process, rc.input.mode,
+            self.workers[name] = RouteWorker(name, route, rc.input.mode,
                                              rc.input.queue_size)
             if rc.input.product is not None:
                 self.products.subscribe(rc.input.product, self._feeder(name))

@@ -17,15 +17,21 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, Protocol, TypeVar
 
 from oricf.gateway.items import asker_of
 
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+T_contra = TypeVar("T_contra", contravariant=True)
+
+
+class Processes(Protocol[T_contra]):
+    """What a worker hands its items to: a route (oricf.gateway.route.Route)."""
+
+    def process(self, item: T_contra, /) -> None: ...
 
 
 @dataclass
@@ -36,11 +42,11 @@ class WorkerStats:
 
 
 class RouteWorker(Generic[T]):
-    def __init__(self, name: str, handle: Callable[[T], None], mode: str = "latest",
+    def __init__(self, name: str, route: Processes[T], mode: str = "latest",
                  queue_size: int = 8) -> None:
         self.name = name
         self.stats = WorkerStats()
-        self._handle = handle
+        self._route = route
         self._pending: deque[T] = deque(maxlen=1 if mode == "latest" else queue_size)
         self._cond = threading.Condition()
         self._stopping = False
@@ -91,7 +97,7 @@ class RouteWorker(Generic[T]):
 
     def _handle_one(self, item: T) -> None:
         try:
-            self._handle(item)
+            self._route.process(item)
         except Exception:  # the route logs its own errors; this is the last guard
             log.exception("route %s: unexpected error", self.name)
         self.stats.handled += 1

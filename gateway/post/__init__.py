@@ -13,7 +13,8 @@
 
 Every step says which record fields it reads and which it writes, so a pipeline whose steps
 or outputs name a field its route does not have is refused when it loads. Adding a step is
-one module here with its schema, a `build` and `COMPONENT = StepKind(key, schema, build)`
+one module here with its schema, its class (a Step built from the settings, with a
+`run(record)`) and `COMPONENT = StepKind(key, schema, StepClass)`
 (oricf.gateway.components), and its line in COMPONENTS below: the pipeline schema's `post:`
 entries take its key from then on (oricf.gateway.config.PostStep). The modules not listed
 (base, over_tracks) are what steps share.

@@ -13,13 +13,17 @@ class AnnotateStep(Schema):
     into: str = "annotated"
 
 
-def build(step: AnnotateStep) -> Step:
-    def run(record: Record) -> None:
+class Annotate(Step[AnnotateStep]):
+    reads = frozenset({"image", "detections"})
+
+    def __init__(self, settings: AnnotateStep) -> None:
+        super().__init__(settings)
+        self.writes = settings.into
+
+    def run(self, record: Record) -> None:
         frame: Frame = record["image"]
-        record[step.into] = Frame.from_pixels(draw_detections(frame.pixels(),
-                                                              record["detections"]))
-
-    return Step(frozenset({"image", "detections"}), step.into, run)
+        record[self.settings.into] = Frame.from_pixels(draw_detections(frame.pixels(),
+                                                                       record["detections"]))
 
 
-COMPONENT = StepKind("annotate", AnnotateStep, build, rank=3)
+COMPONENT = StepKind("annotate", AnnotateStep, Annotate, rank=3)

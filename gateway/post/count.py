@@ -15,15 +15,17 @@ class CountStep(Schema):
     into: str = "count"
 
 
-def build(step: CountStep) -> Step:
-    label = step.label
+class Count(Step[CountStep]):
+    reads = frozenset({"detections"})
 
-    def run(record: Record) -> None:
-        detections = record["detections"]
-        record[step.into] = (len(detections) if label is None
-                             else sum(1 for d in detections if d.label == label))
+    def __init__(self, settings: CountStep) -> None:
+        super().__init__(settings)
+        self.writes = settings.into
 
-    return Step(frozenset({"detections"}), step.into, run)
+    def run(self, record: Record) -> None:
+        detections, label = record["detections"], self.settings.label
+        record[self.settings.into] = (len(detections) if label is None
+                                      else sum(1 for d in detections if d.label == label))
 
 
-COMPONENT = StepKind("count", CountStep, build, rank=2)
+COMPONENT = StepKind("count", CountStep, Count, rank=2)

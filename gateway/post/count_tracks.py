@@ -16,11 +16,14 @@ class CountTracksStep(OverTracks):
     into: str = "count"
 
 
-def build(step: CountTracksStep) -> Step:
-    def run(record: Record) -> None:
+class CountTracks(Step[CountTracksStep]):
+    def __init__(self, settings: CountTracksStep) -> None:
+        super().__init__(settings)
+        self.reads, self.writes = frozenset({settings.tracks}), settings.into
+
+    def run(self, record: Record) -> None:
+        step = self.settings
         record[step.into] = count_now(record[step.tracks], step.label, step.hold_s)
 
-    return Step(frozenset({step.tracks}), step.into, run)
 
-
-COMPONENT = StepKind("count_tracks", CountTracksStep, build, rank=6)
+COMPONENT = StepKind("count_tracks", CountTracksStep, CountTracks, rank=6)

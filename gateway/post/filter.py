@@ -14,14 +14,17 @@ class FilterStep(Schema):
     min_score: float = Field(0.0, ge=0, le=1)
 
 
-def build(step: FilterStep) -> Step:
-    labels = set(step.labels)
+class Filter(Step[FilterStep]):
+    reads = frozenset({"detections"})
 
-    def run(record: Record) -> None:
+    def __init__(self, settings: FilterStep) -> None:
+        super().__init__(settings)
+        self.labels = set(settings.labels)
+
+    def run(self, record: Record) -> None:
+        labels, min_score = self.labels, self.settings.min_score
         record["detections"] = [d for d in record["detections"]
-                                if (not labels or d.label in labels) and d.score >= step.min_score]
-
-    return Step(frozenset({"detections"}), None, run)
+                                if (not labels or d.label in labels) and d.score >= min_score]
 
 
-COMPONENT = StepKind("filter", FilterStep, build, rank=1)
+COMPONENT = StepKind("filter", FilterStep, Filter, rank=1)

@@ -31,13 +31,16 @@ class LineStep(Placed):
         return self
 
 
-def build(step: LineStep) -> Step:
-    line = Line(step.start, step.end, step.label, step.anchor, step.window_s)
+class LineCrossings(Step[LineStep]):
+    def __init__(self, settings: LineStep) -> None:
+        super().__init__(settings)
+        self.reads, self.writes = frozenset({settings.tracks}), settings.into
+        self.line = Line(settings.start, settings.end, settings.label, settings.anchor,
+                         settings.window_s)
 
-    def run(record: Record) -> None:
-        record[step.into] = line.update(record[step.tracks])[step.measure]
+    def run(self, record: Record) -> None:
+        step = self.settings
+        record[step.into] = self.line.update(record[step.tracks])[step.measure]
 
-    return Step(frozenset({step.tracks}), step.into, run)
 
-
-COMPONENT = StepKind("line", LineStep, build, rank=9)
+COMPONENT = StepKind("line", LineStep, LineCrossings, rank=9)

@@ -8,12 +8,13 @@ from oricf.gateway.post.base import Step, StepKind
 from oricf.gateway.values import Record
 
 
-def build(mapping: dict[str, str]) -> Step:
-    def run(record: Record) -> None:
+class MapLabels(Step[dict[str, str]]):
+    reads = frozenset({"detections"})
+
+    def run(self, record: Record) -> None:
+        mapping = self.settings
         record["detections"] = [replace(d, label=mapping.get(d.label, d.label))
                                 for d in record["detections"]]
 
-    return Step(frozenset({"detections"}), None, run)
 
-
-COMPONENT = StepKind("map_labels", dict[str, str], build, rank=0)
+COMPONENT = StepKind("map_labels", dict[str, str], MapLabels, rank=0)

@@ -20,16 +20,20 @@ class RoundStep(Schema):
     into: str | None = Field(None, description="the field to write (default: `field`)")
 
 
-def build(step: RoundStep) -> Step:
-    into = step.into or step.field
+class Round(Step[RoundStep]):
+    def __init__(self, settings: RoundStep) -> None:
+        super().__init__(settings)
+        self.reads = frozenset({settings.field})
+        self.into = settings.into or settings.field
+        self.writes = self.into
 
-    def run(record: Record) -> None:
+    def run(self, record: Record) -> None:
+        step = self.settings
         value = record[step.field]
         if isinstance(value, bool) or not isinstance(value, Real):
             raise InvalidInput(f"round: {step.field} is not a number")
-        record[into] = round(value) if step.digits == 0 else round(float(value), step.digits)
+        record[self.into] = round(value) if step.digits == 0 else round(float(value),
+                                                                         step.digits)
 
-    return Step(frozenset({step.field}), into, run)
 
-
-COMPONENT = StepKind("round", RoundStep, build)
+COMPONENT = StepKind("round", RoundStep, Round)

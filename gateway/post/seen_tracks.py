@@ -16,13 +16,14 @@ class SeenTracksStep(OverTracks):
     into: str = "seen"
 
 
-def build(step: SeenTracksStep) -> Step:
-    seen = SeenInWindow(step.label, step.window_s)
+class SeenTracks(Step[SeenTracksStep]):
+    def __init__(self, settings: SeenTracksStep) -> None:
+        super().__init__(settings)
+        self.reads, self.writes = frozenset({settings.tracks}), settings.into
+        self.seen = SeenInWindow(settings.label, settings.window_s)
 
-    def run(record: Record) -> None:
-        record[step.into] = seen.update(record[step.tracks])
-
-    return Step(frozenset({step.tracks}), step.into, run)
+    def run(self, record: Record) -> None:
+        record[self.settings.into] = self.seen.update(record[self.settings.tracks])
 
 
-COMPONENT = StepKind("seen_tracks", SeenTracksStep, build, rank=7)
+COMPONENT = StepKind("seen_tracks", SeenTracksStep, SeenTracks, rank=7)

@@ -21,14 +21,17 @@ class TemplateStep(Schema):
         return value
 
 
-def build(step: TemplateStep) -> Step:
-    def run(record: Record) -> None:
+class Template(Step[TemplateStep]):
+    def __init__(self, settings: TemplateStep) -> None:
+        super().__init__(settings)
+        self.reads, self.writes = frozenset(template_fields(settings.text)), settings.into
+
+    def run(self, record: Record) -> None:
+        step = self.settings
         try:
             record[step.into] = step.text.format_map(record)
         except (KeyError, IndexError, ValueError) as exc:
             raise InvalidInput(f"template {step.text!r}: cannot fill {exc}") from None
 
-    return Step(frozenset(template_fields(step.text)), step.into, run)
 
-
-COMPONENT = StepKind("template", TemplateStep, build, rank=4)
+COMPONENT = StepKind("template", TemplateStep, Template, rank=4)

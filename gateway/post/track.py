@@ -83,19 +83,24 @@ class RouteTracks:
             else item
 
 
-def build(step: TrackStep, clock: Callable[[], float] = time.monotonic) -> Step:
-    """`clock` times records that carry no FRAME_TIME."""
-    tracking = RouteTracks(step)
-    lock = threading.Lock()  # one frame at a time, in time order
+class Track(Step[TrackStep]):
+    reads = frozenset({"detections"})
 
-    def run(record: Record) -> None:
-        with lock:
+    def __init__(self, settings: TrackStep,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """`clock` times records that carry no FRAME_TIME."""
+        super().__init__(settings)
+        self.writes = settings.into
+        self.tracking = RouteTracks(settings)
+        self.clock = clock
+        self.lock = threading.Lock()  # one frame at a time, in time order
+
+    def run(self, record: Record) -> None:
+        with self.lock:
             frame_time = record.get(FRAME_TIME)
-            record["detections"], record[step.into] = tracking.update(
-                record["detections"], clock() if frame_time is None else frame_time,
+            record["detections"], record[self.settings.into] = self.tracking.update(
+                record["detections"], self.clock() if frame_time is None else frame_time,
                 str(record.get("route", "")))
 
-    return Step(frozenset({"detections"}), step.into, run)
 
-
-COMPONENT = StepKind("track", TrackStep, build, rank=5)
+COMPONENT = StepKind("track", TrackStep, Track, rank=5)

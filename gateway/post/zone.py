@@ -33,13 +33,15 @@ class ZoneStep(Placed):
         return [finite_point(p) for p in value]
 
 
-def build(step: ZoneStep) -> Step:
-    zone = Zone(step.polygon, step.label, step.anchor, step.window_s)
+class ZoneMeasures(Step[ZoneStep]):
+    def __init__(self, settings: ZoneStep) -> None:
+        super().__init__(settings)
+        self.reads, self.writes = frozenset({settings.tracks}), settings.into
+        self.zone = Zone(settings.polygon, settings.label, settings.anchor, settings.window_s)
 
-    def run(record: Record) -> None:
-        record[step.into] = zone.update(record[step.tracks])[step.measure]
+    def run(self, record: Record) -> None:
+        step = self.settings
+        record[step.into] = self.zone.update(record[step.tracks])[step.measure]
 
-    return Step(frozenset({step.tracks}), step.into, run)
 
-
-COMPONENT = StepKind("zone", ZoneStep, build, rank=8)
+COMPONENT = StepKind("zone", ZoneStep, ZoneMeasures, rank=8)

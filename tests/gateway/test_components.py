@@ -34,10 +34,13 @@ from tests.gateway.test_config import MINIMAL, edited
 STEP_MODULE = """
 from oricf.gateway.components import Step, StepKind
 
-def build(settings):
-    return Step(frozenset(), None, lambda record: None)
+class Nothing(Step):
+    reads = frozenset()
 
-COMPONENT = StepKind({key!r}, dict, build, rank={rank})
+    def run(self, record):
+        pass
+
+COMPONENT = StepKind({key!r}, dict, Nothing, rank={rank})
 """
 
 METHOD_MODULE = """

@@ -1,8 +1,9 @@
 """A camera frame's path, from its arrival to its published count, through parts a reader and
 a type checker can follow: the camera receiver hands the frame to the pipeline
-(Pipeline.handle_here), the route calls its method (MethodCall.execute), runs its post steps
-(PostSteps.run), sends its outputs to the pipeline's emitter (Emitter.emit: the outlets, whose
-topic sink emits to the ROS node's publishers) and shows the record to its watchers
+(Pipeline.handle_here), whose worker hands it to its route (Route.process), the route calls
+its method (MethodCall.execute), runs its post steps (PostSteps.run, then each step's own
+class, Count.run), sends its outputs to the pipeline's emitter (Emitter.emit: the outlets,
+whose topic sink emits to the ROS node's publishers) and shows the record to its watchers
 (Watcher.show). No module on the path finds a method by name (getattr) or keeps a function in
 a field."""
 
@@ -10,11 +11,16 @@ from __future__ import annotations
 
 import ast
 import importlib.util
+import inspect
+import traceback
 from pathlib import Path
 from typing import Any
 
-from oricf.gateway.components import Emitter, PostSteps
-from oricf.gateway.config import OutputConfig
+import pytest
+
+from oricf.errors import InvalidInput
+from oricf.gateway.components import STEPS, Emitter, PostSteps, Step
+from oricf.gateway.config import OutputConfig, PostStep
 from oricf.gateway.pipeline import Pipeline
 from oricf.gateway.values import Frame, Record
 from tests.gateway.test_pipeline import pipeline_config
@@ -55,8 +61,30 @@ def test_no_class_on_the_path_keeps_a_function_in_a_field() -> None:
                 found += [f"{module}.{cls.name}({arg.arg})" for arg in init.args.args
                           if arg.annotation is not None
                           and "Callable" in ast.unparse(arg.annotation)]
-    # The worker's item handler is the route's own process method, given where it is made.
-    assert found == ["oricf.gateway.worker.RouteWorker(handle)"]
+    assert found == []
+
+
+def test_every_post_step_is_a_class_with_run() -> None:
+    """A post step is a Step subclass whose `run` is its own method, not a closure `build`
+    returned into a field."""
+    for kind in STEPS.values():
+        assert isinstance(kind.step, type) and issubclass(kind.step, Step), kind.key
+        assert kind.step.run.__qualname__ == f"{kind.step.__name__}.run", kind.key
+        assert not inspect.isabstract(kind.step), kind.key
+
+
+@pytest.mark.parametrize(("post", "record", "where"), [
+    ({"count": {}}, {}, "Count.run"),
+    ({"round": {"field": "speed"}}, {"speed": "fast"}, "Round.run"),
+    ({"track": {}}, {"detections": None}, "Track.run"),
+])
+def test_a_failing_post_step_is_named_by_its_class_in_the_traceback(
+        post: dict[str, Any], record: Record, where: str) -> None:
+    steps = PostSteps([PostStep.model_validate(post)])
+    with pytest.raises((KeyError, TypeError, InvalidInput)) as raised:
+        steps.run(record)
+    frames = [frame.f_code.co_qualname for frame, _ in traceback.walk_tb(raised.tb)]
+    assert frames[1:3] == ["PostSteps.run", where]
 
 
 class Published(Emitter):

@@ -28,6 +28,13 @@ class Item(Asker):
         self.told.append(("dropped", reason))
 
 
+class Ignores:
+    """A route that does nothing with its items."""
+
+    def process(self, item: object) -> None:
+        pass
+
+
 def test_a_traced_item_is_told_as_the_item_itself() -> None:
     item = Item()
     traced = TracedLoader(item, otel_context.get_current())
@@ -38,7 +45,7 @@ def test_a_traced_item_is_told_as_the_item_itself() -> None:
 
 
 def test_the_worker_tells_an_item_it_drops_and_ignores_a_plain_one() -> None:
-    worker: RouteWorker[object] = RouteWorker("test", lambda item: None, "latest")
+    worker: RouteWorker[object] = RouteWorker("test", Ignores(), "latest")
     first, second = Item(), Item()
     worker.submit(TracedLoader(first, otel_context.get_current()))
     worker.submit(second)          # the newest replaces the first, which is told

@@ -206,27 +206,34 @@ def test_the_answer_to_a_client_that_left_goes_to_nobody_else(
         assert line_of(other) == "for everyone\n"
 
 
+class Answers:
+    """A route that answers `answered LINE` on its channel once released."""
+
+    def __init__(self, channel: TextChannel) -> None:
+        self.channel = channel
+        self.release = threading.Event()
+
+    def process(self, load: Question) -> None:
+        record = load()
+        self.release.wait(10)
+        self.channel.send(f"answered {record['text']}", record["reply_to"])
+
+
 @contextmanager
 def busy_route(queue_size: int) -> Iterator[tuple[TextChannel, RouteWorker[Question],
                                                  threading.Event]]:
     """A channel whose questions go to a route that answers `answered LINE` once released,
     one at a time, from a queue of queue_size: the channel, the route's worker, the release."""
     channel = open_channel({})
-    release = threading.Event()
-
-    def answer(load: Question) -> None:
-        record = load()
-        release.wait(10)
-        channel.send(f"answered {record['text']}", record["reply_to"])
-
-    worker: RouteWorker[Question] = RouteWorker("ask", answer, "queue", queue_size=queue_size)
+    route = Answers(channel)
+    worker: RouteWorker[Question] = RouteWorker("ask", route, "queue", queue_size=queue_size)
     worker.start()
     TextSource("ask", InputConfig(text="questions"), worker.submit, lambda r: None,
                FixedChannels(channel)).start()
     try:
-        yield channel, worker, release
+        yield channel, worker, route.release
     finally:
-        release.set()
+        route.release.set()
         worker.stop()
         channel.close()
 

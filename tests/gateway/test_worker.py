@@ -11,18 +11,46 @@ from oricf.gateway.throttle import ThrottledLog
 from oricf.gateway.worker import RouteWorker
 
 
+class Blocked:
+    """A route that keeps each item once released."""
+
+    def __init__(self) -> None:
+        self.release = threading.Event()
+        self.handled: list[int] = []
+
+    def process(self, item: int) -> None:
+        self.release.wait(5)
+        self.handled.append(item)
+
+
+class Threads:
+    """A route that notes the thread each item is handled in."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+
+    def process(self, item: int) -> None:
+        self.names.append(threading.current_thread().name)
+
+
+class FailsOnOne:
+    """A route that raises on item 1 and keeps the others."""
+
+    def __init__(self) -> None:
+        self.handled: list[int] = []
+
+    def process(self, item: int) -> None:
+        if item == 1:
+            raise RuntimeError("boom")
+        self.handled.append(item)
+
+
 def blocked_worker(mode: str, size: int = 8) -> tuple[RouteWorker[int], list[int],
                                                          threading.Event]:
-    release = threading.Event()
-    handled: list[int] = []
-
-    def handle(item: int) -> None:
-        release.wait(5)
-        handled.append(item)
-
-    worker: RouteWorker[int] = RouteWorker("test", handle, mode, size)
+    route = Blocked()
+    worker: RouteWorker[int] = RouteWorker("test", route, mode, size)
     worker.start()
-    return worker, handled, release
+    return worker, route.handled, route.release
 
 
 def test_latest_keeps_only_the_newest_frame_while_busy() -> None:
@@ -39,12 +67,11 @@ def test_latest_keeps_only_the_newest_frame_while_busy() -> None:
 
 
 def test_items_handled_in_the_callers_thread_are_counted_with_the_missed_ones() -> None:
-    threads: list[str] = []
-    worker: RouteWorker[int] = RouteWorker(
-        "camera", lambda item: threads.append(threading.current_thread().name))
+    threads = Threads()
+    worker: RouteWorker[int] = RouteWorker("camera", threads)
     worker.handle_here(0)
     worker.handle_here(1, missed=3)  # a camera thread: DDS replaced three frames meanwhile
-    assert threads == [threading.current_thread().name] * 2
+    assert threads.names == [threading.current_thread().name] * 2
     assert (worker.stats.received, worker.stats.dropped, worker.stats.handled) == (5, 3, 2)
     assert worker.idle(0)
 
@@ -63,20 +90,14 @@ def test_queue_keeps_order_and_drops_the_oldest_when_full() -> None:
 
 
 def test_an_exception_does_not_stop_the_worker(caplog: pytest.LogCaptureFixture) -> None:
-    handled: list[int] = []
-
-    def handle(item: int) -> None:
-        if item == 1:
-            raise RuntimeError("boom")
-        handled.append(item)
-
-    worker: RouteWorker[int] = RouteWorker("test", handle, "queue")
+    route = FailsOnOne()
+    worker: RouteWorker[int] = RouteWorker("test", route, "queue")
     worker.start()
     for item in range(3):
         worker.submit(item)
     assert worker.idle(5)
     worker.stop()
-    assert handled == [0, 2]
+    assert route.handled == [0, 2]
     assert "route test: unexpected error" in caplog.text
 
 

@@ -11,8 +11,7 @@ import pytest
 from oricf.errors import ConfigError
 from oricf.gateway import post
 from oricf.gateway.config import PostStep
-from oricf.gateway.post import track as track_step
-from oricf.gateway.post.track import TrackStep
+from oricf.gateway.post.track import Track, TrackStep
 from oricf.gateway.sinks.jsonl import jsonable
 from oricf.gateway.values import Record
 from oricf.imaging import Box, Detection
@@ -29,7 +28,7 @@ def walker(x: float) -> Detection:
 
 def test_track_then_measures_over_a_walk_through_a_zone_and_across_a_line() -> None:
     now = [0.0]
-    tracking = track_step.build(TrackStep(labels=["person"]), clock=lambda: now[0])
+    tracking = Track(TrackStep(labels=["person"]), clock=lambda: now[0])
     measures = post.PostSteps([
         step(count_tracks={"label": "person", "into": "now"}),
         step(seen_tracks={"label": "person", "window_s": 60, "into": "last_minute"}),
@@ -65,7 +64,7 @@ def test_a_still_weak_post_leaves_the_tracked_count_after_still_s(
     now = [0.0]
     track = step(track={"labels": ["person"], **settings}).track
     assert track is not None
-    tracking = track_step.build(track, clock=lambda: now[0])
+    tracking = Track(track, clock=lambda: now[0])
     count = post.PostSteps([step(count_tracks={"label": "person", "into": "now"})])
     post_box = Detection("person", 0, 0.62, Box(30, 110, 48, 142))
     for i in range(80):  # 8 s: a post that never moves, and a person walking

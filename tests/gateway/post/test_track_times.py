@@ -10,8 +10,7 @@ import pytest
 
 from oricf.gateway import post
 from oricf.gateway.config import PostStep
-from oricf.gateway.post import track as track_step
-from oricf.gateway.post.track import MAX_LEAP_S, TrackStep
+from oricf.gateway.post.track import MAX_LEAP_S, Track, TrackStep
 from oricf.gateway.values import FRAME_TIME, Record
 from oricf.imaging import Box, Detection
 
@@ -23,7 +22,7 @@ def walker(x: float, y: float = 100) -> Detection:
 def frames(times: list[float], clock_s: float = 0.0) -> list[Record]:
     """One person walking 10 px a frame, each frame taken at its time, all post-processed
     within `clock_s` of each other (a replay as fast as it goes)."""
-    step = track_step.build(TrackStep(labels=["person"], max_age_s=1.0),
+    step = Track(TrackStep(labels=["person"], max_age_s=1.0),
                             clock=lambda: clock_s)
     seen = post.PostSteps([PostStep.model_validate(
         {"seen_tracks": {"label": "person", "window_s": 2, "into": "seen"}})])
@@ -80,7 +79,7 @@ def test_a_leap_ahead_beyond_max_leap_restarts_but_a_frame_a_little_late_does_no
 
 def test_records_without_a_frame_time_are_timed_when_processed() -> None:
     now = [0.0]
-    step = track_step.build(TrackStep(labels=["person"]), clock=lambda: now[0])
+    step = Track(TrackStep(labels=["person"]), clock=lambda: now[0])
     for i in range(10):
         now[0] = i / 5
         record: Record = {"detections": [walker(100 + 10 * i)]}
