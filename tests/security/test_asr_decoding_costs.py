@@ -22,6 +22,7 @@ import pytest
 from oricf.audio import encode_wav, wav_header
 from oricf.v1 import speech_pb2, speech_pb2_grpc
 from tests.support.openai_http import HttpService, http_service, overlay
+from tests.support.peak_memory import memory_kb
 from tests.support.services import CHANNEL_OPTIONS
 from tests.support.speech import QUESTION, QUESTION_WORDS, speech, words
 
@@ -35,13 +36,6 @@ SECONDS = 29.5  # inside audio.max_audio_s (30)
 # file at once took about 950 MB more, a 24 MB WAV file of 32 channels about 70 MB more.
 MAX_GROWTH_MB = 40
 RAISED_DECODED_MB = 256  # lets the 384 kHz file (181 MB of samples) be decoded whole
-
-
-def memory_kb(pid: int, key: str) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(f"{key}:"):
-            return int(line.split()[1])
-    raise AssertionError(f"no {key} for process {pid}")
 
 
 def peak_growth_mb(service: HttpService, send: Callable[[], T]) -> tuple[T, float]:

@@ -22,6 +22,7 @@ import pytest
 
 from oricf.v1 import synthesis_pb2, synthesis_pb2_grpc
 from tests.support.openai_http import HttpService, http_service, overlay
+from tests.support.peak_memory import memory_kb
 from tests.support.services import CHANNEL_OPTIONS
 from tests.support.tts import VOICES
 
@@ -48,13 +49,6 @@ MAX_CPU_AFTER_LEAVING_S = 4.0
 IDLE_CPU_S = 0.05   # over IDLE_WINDOW_S: the service has stopped working
 IDLE_WINDOW_S = 0.5
 SHORT_AUDIO_S = 20  # audio.max_audio_s of the second service
-
-
-def memory_kb(pid: int, key: str) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(f"{key}:"):
-            return int(line.split()[1])
-    raise AssertionError(f"no {key} for process {pid}")
 
 
 def cpu_s(pid: int) -> float:
